@@ -1,0 +1,166 @@
+"""Run one experiment: ``python -m experiments.run [CONFIG] [--out DIR] [overrides]``.
+
+CONFIG is a preset in ``configs/`` (e.g. ``pendulum_d2c``), a ``.py`` file defining
+``CONFIG``, or a run's ``config.json`` (to replay it). With no CONFIG the embedded
+default runs. Overrides are dotted fields, e.g. ``--task.T 20 --system.backend native``.
+Bad input exits with status 2 and a one-line message naming the field, before any compile.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import importlib
+import importlib.util
+import io
+import json
+import os
+import pkgutil
+import re
+import sys
+import time
+import traceback
+
+import mjx_surrogate  # noqa: F401  (sets XLA flags before jax initialises)
+from mjx_surrogate.config import Config, from_dict, to_dict
+from mjx_surrogate.errors import ConfigError
+
+DEFAULT_PRESET = "default"
+
+
+def preset_names() -> list[str]:
+    import configs
+
+    return sorted(m.name for m in pkgutil.iter_modules(configs.__path__) if not m.name.startswith("_"))
+
+
+def load_config(spec: str) -> Config:
+    """A preset name, a .py file defining CONFIG, or a config.json."""
+    if spec.endswith(".json"):
+        if not os.path.isfile(spec):
+            raise ConfigError("CONFIG", f"no such file {spec!r}")
+        with open(spec) as f:
+            try:
+                data = json.load(f)
+            except json.JSONDecodeError as exc:
+                raise ConfigError("CONFIG", f"{spec!r} is not valid JSON ({exc})") from None
+        return from_dict(Config, data)
+    if spec.endswith(".py"):
+        if not os.path.isfile(spec):
+            raise ConfigError("CONFIG", f"no such file {spec!r}")
+        mod_spec = importlib.util.spec_from_file_location("user_config", spec)
+        module = importlib.util.module_from_spec(mod_spec)
+        mod_spec.loader.exec_module(module)
+    else:
+        if spec not in preset_names():
+            raise ConfigError("CONFIG", f"unknown preset {spec!r}; valid: {', '.join(preset_names())}"
+                              " (or a .py / config.json path)")
+        module = importlib.import_module(f"configs.{spec}")
+    cfg = getattr(module, "CONFIG", None)
+    if not isinstance(cfg, Config):
+        raise ConfigError("CONFIG", f"{spec!r} defines no CONFIG of type mjx_surrogate.config.Config")
+    return cfg
+
+
+def parse_args(argv: list[str]) -> tuple[Config, str]:
+    """Returns the config with overrides applied and the preset's name."""
+    import tyro
+
+    argv = list(argv)
+    out = None
+    if "--out" in argv:
+        i = argv.index("--out")
+        if i + 1 >= len(argv):
+            raise ConfigError("--out", "needs a directory")
+        out = argv[i + 1]
+        del argv[i : i + 2]
+    spec = DEFAULT_PRESET
+    if argv and not argv[0].startswith("-"):
+        spec = argv.pop(0)
+    base = load_config(spec)
+    description = (__doc__ or "") + "\nPresets: " + ", ".join(preset_names())
+    if any(a in ("-h", "--help") for a in argv):
+        tyro.cli(Config, default=base, args=argv, description=description,
+                 prog="python -m experiments.run [CONFIG]")
+    err = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(err):
+            cfg = tyro.cli(Config, default=base, args=argv, description=description,
+                           prog="python -m experiments.run [CONFIG]")
+    except SystemExit:
+        raise _one_line_tyro_error(err.getvalue()) from None
+    if out is not None:
+        cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(cfg.experiment, out_dir=out))
+    name = os.path.splitext(os.path.basename(spec))[0]
+    return cfg, name
+
+
+def _one_line_tyro_error(text: str) -> ConfigError:
+    """Condense tyro's boxed message to one line naming the field."""
+    lines = [re.sub(r"^[\s│╭╰─]+|[\s│╮╯─]+$", "", ln) for ln in text.splitlines()]
+    lines = [ln for ln in lines if ln and "helptext" not in ln.lower()
+             and not re.fullmatch(r"[-─\s]+", ln)]
+    lines = [re.sub(r"\s*-{3,}\s*", "", ln) for ln in lines]
+    body = " ".join(lines[1:4] if len(lines) > 1 else lines)
+    fields = re.findall(r"--[\w.]+", body)
+    field = fields[0] if fields else "overrides"
+    if "Unrecognized" in body:
+        return ConfigError(field, "unknown field; run with --help for the valid fields")
+    return ConfigError(field, re.sub(r"\s+", " ", body)[:300])
+
+
+def kinds():
+    from experiments import d2c_study, rollout_study
+
+    return {"rollout": rollout_study.run, "d2c": d2c_study.run}
+
+
+def run(cfg: Config, name: str = "run") -> str:
+    """Run a config; returns the run folder. Raises ConfigError on bad input."""
+    import jax
+
+    from mjx_surrogate.results import RunFolder, versions
+    from mjx_surrogate.setup import resolve
+
+    jax.config.update("jax_enable_x64", bool(cfg.experiment.x64))
+    res = resolve(cfg)
+    ex = res.config.experiment
+    folder = RunFolder(ex.out_dir, ex.name or name)
+    folder.write_json("config.json", to_dict(res.config))
+    folder.write_text("model.xml", res.system.xml)
+    folder.write_json("versions.json", versions())
+    key = jax.random.key(ex.seed)
+    t0 = time.perf_counter()
+    metrics, arrays = {"status": "failed"}, {"x0": res.task.x0}
+    try:
+        metrics, arrays = kinds()[ex.kind](res, folder, key)
+    except KeyboardInterrupt:
+        metrics = {"status": "interrupted"}
+        raise
+    except Exception as exc:  # keep what was produced, say what happened
+        metrics = {"status": "failed", "error": f"{type(exc).__name__}: {exc}",
+                   "traceback": traceback.format_exc()}
+    finally:
+        metrics["wall_time_s"] = time.perf_counter() - t0
+        folder.write_json("metrics.json", metrics)
+        folder.write_arrays("arrays.npz", arrays)
+        path = folder.close()
+    print(f"[{metrics['status']}] run folder: {path}")
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    try:
+        cfg, name = parse_args(argv)
+        path = run(cfg, name)
+    except ConfigError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    with open(os.path.join(path, "metrics.json")) as f:
+        status = json.load(f)["status"]
+    return 0 if status in ("ok", "diverged") else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,222 @@
+"""Frozen dataclass configs: system, task, solver and experiment sections.
+
+A config is plain data. ``resolve`` (in :mod:`mjx_surrogate.setup`) turns it into a
+system, a task and a fully resolved config; every check there raises
+:class:`~mjx_surrogate.errors.ConfigError` naming the field, before any XLA compile.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+import typing
+from typing import Any, Literal, Optional, Tuple
+
+from mjx_surrogate.errors import ConfigError
+
+Vector = Optional[Tuple[float, ...]]
+Matrix = Optional[Tuple[Tuple[float, ...], ...]]
+
+
+@dataclasses.dataclass(frozen=True)
+class SystemConfig:
+    """Which black box to simulate and how.
+
+    name: a registered system (pendulum, cartpole, fish, swimmerN) or "mjcf".
+    mjcf_path: the user's MJCF file, with name="mjcf".
+    backend: "mjx", "native", or "auto" (the measured faster one on the CPU).
+    substeps: physics steps per control step (None: the system's default).
+    timestep: physics time step override in seconds (None: the model's).
+    native_threads: threads of the native backend (None: all cores).
+    """
+
+    name: str = "pendulum"
+    mjcf_path: Optional[str] = None
+    backend: Literal["auto", "mjx", "native"] = "auto"
+    substeps: Optional[int] = None
+    timestep: Optional[float] = None
+    native_threads: Optional[int] = None
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskConfig:
+    """Start, goal, horizon and quadratic weights (cost convention in docs/results.md).
+
+    preset: a task preset (see ``mjx_surrogate.tasks.TASK_PRESETS``) filling every
+    field left as None, or "custom" (then x0, x_goal, T and weights are required).
+    Q, Q_f, R: full matrices; Q_diag, Q_f_diag, R_diag: diagonal shortcuts.
+    u_min, u_max: optional box limits on the controls, enforced by the solver.
+    """
+
+    preset: str = "pendulum_d2c"
+    T: Optional[int] = None
+    x0: Vector = None
+    x_goal: Vector = None
+    Q: Matrix = None
+    Q_f: Matrix = None
+    R: Matrix = None
+    Q_diag: Vector = None
+    Q_f_diag: Vector = None
+    R_diag: Vector = None
+    u_min: Vector = None
+    u_max: Vector = None
+
+
+@dataclasses.dataclass(frozen=True)
+class SolverConfig:
+    """iLQR and data-driven (D2C) iLQR settings.
+
+    sysid: "central_difference" (D2C 2.0 one-step scheme), "rollout" (the paper's
+    open-loop perturbed rollouts) or "closed_loop" (perturbed rollouts under the
+    current feedback gains).
+    """
+
+    max_iter: int = 100
+    rel_tol: float = 1e-6
+    k_tol: float = 1e-5
+    mu_init: float = 1e-6
+    mu_min: float = 1e-8
+    mu_max: float = 1e10
+    mu_factor: float = 4.0
+    n_alphas: int = 8
+    accept_ratio: float = 1e-4
+    sysid: Literal["central_difference", "rollout", "closed_loop"] = "central_difference"
+    n_samples: int = 20
+    sigma_x: float = 1e-3
+    sigma_u: float = 1e-3
+    init: Literal["zeros", "random"] = "random"
+    init_scale: float = 0.1
+    n_starts: int = 1
+
+
+@dataclasses.dataclass(frozen=True)
+class ExperimentConfig:
+    """What to run and where to write it.
+
+    kind: "rollout" (n_rollouts perturbed rollouts around the task's zero-control
+    nominal, with rollout_sigma_x / rollout_sigma_u) or "d2c" (data-driven iLQR
+    against the exact-Jacobian oracle, then feedback evaluation under noise_levels).
+    x64: run in float64.
+    """
+
+    kind: Literal["rollout", "d2c"] = "d2c"
+    seed: int = 0
+    out_dir: str = "runs"
+    name: Optional[str] = None
+    x64: bool = False
+    n_rollouts: int = 256
+    rollout_sigma_x: float = 0.01
+    rollout_sigma_u: float = 0.1
+    noise_levels: Tuple[float, ...] = (0.0, 0.01, 0.05, 0.1)
+    n_noise_trials: int = 64
+    progress: bool = True
+
+
+@dataclasses.dataclass(frozen=True)
+class Config:
+    system: SystemConfig = SystemConfig()
+    task: TaskConfig = TaskConfig()
+    solver: SolverConfig = SolverConfig()
+    experiment: ExperimentConfig = ExperimentConfig()
+
+
+def to_dict(cfg: Any) -> dict:
+    """Config -> JSON-ready nested dict (tuples become lists)."""
+    return dataclasses.asdict(cfg)
+
+
+def _convert(value: Any, hint: Any, field: str) -> Any:
+    origin = typing.get_origin(hint)
+    args = typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        if value is None and type(None) in args:
+            return None
+        inner = [a for a in args if a is not type(None)]
+        return _convert(value, inner[0], field)
+    if origin is Literal:
+        if value not in args:
+            raise ConfigError(field, f"got {value!r}; valid: {', '.join(map(repr, args))}")
+        return value
+    if origin in (tuple, Tuple):
+        if not isinstance(value, (list, tuple)):
+            raise ConfigError(field, f"expected a list, got {value!r}")
+        elem = args[0]
+        return tuple(_convert(v, elem, f"{field}[{i}]") for i, v in enumerate(value))
+    if dataclasses.is_dataclass(hint):
+        return from_dict(hint, value, field)
+    if hint is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(field, f"expected true/false, got {value!r}")
+        return value
+    if hint is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(field, f"expected an integer, got {value!r}")
+        return value
+    if hint is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(field, f"expected a number, got {value!r}")
+        return float(value)
+    if hint is str:
+        if not isinstance(value, str):
+            raise ConfigError(field, f"expected a string, got {value!r}")
+        return value
+    return value
+
+
+def from_dict(cls: type, data: Any, prefix: str = "") -> Any:
+    """Nested dict (e.g. a run's config.json) -> config dataclass, strictly checked."""
+    where = prefix or cls.__name__
+    if not isinstance(data, dict):
+        raise ConfigError(where, f"expected a mapping, got {type(data).__name__}")
+    hints = typing.get_type_hints(cls)
+    names = [f.name for f in dataclasses.fields(cls)]
+    kwargs = {}
+    for key, value in data.items():
+        field = f"{prefix}.{key}" if prefix else key
+        if key not in names:
+            raise ConfigError(field, f"unknown field; valid: {', '.join(names)}")
+        kwargs[key] = _convert(value, hints[key], field)
+    return cls(**kwargs)
+
+
+def check_finite(field: str, values: Any) -> None:
+    """Raise if a (nested) sequence of numbers holds NaN or inf."""
+    flat = values if not values or not isinstance(values[0], (list, tuple)) else [
+        v for row in values for v in row]
+    for v in flat:
+        if not math.isfinite(v):
+            raise ConfigError(field, f"holds a non-finite value ({v}); all entries must be finite")
+
+
+def validate_static(cfg: Config) -> None:
+    """Checks that need no model: signs, ranges, finiteness of the solver settings."""
+    s = cfg.solver
+    positive_int = {"solver.max_iter": s.max_iter, "solver.n_samples": s.n_samples,
+                    "solver.n_alphas": s.n_alphas, "solver.n_starts": s.n_starts,
+                    "experiment.n_rollouts": cfg.experiment.n_rollouts,
+                    "experiment.n_noise_trials": cfg.experiment.n_noise_trials}
+    for field, v in positive_int.items():
+        if v < 1:
+            raise ConfigError(field, f"must be >= 1, got {v}")
+    positive = {"solver.sigma_x": s.sigma_x, "solver.sigma_u": s.sigma_u,
+                "solver.mu_max": s.mu_max, "solver.mu_factor": s.mu_factor - 1.0}
+    for field, v in positive.items():
+        if not (math.isfinite(v) and v > 0):
+            raise ConfigError(field, f"must be a finite positive number, got {v}")
+    for field, v in {"experiment.rollout_sigma_x": cfg.experiment.rollout_sigma_x,
+                     "experiment.rollout_sigma_u": cfg.experiment.rollout_sigma_u,
+                     "solver.rel_tol": s.rel_tol, "solver.k_tol": s.k_tol,
+                     "solver.init_scale": s.init_scale, "solver.mu_init": s.mu_init,
+                     "solver.mu_min": s.mu_min}.items():
+        if not (math.isfinite(v) and v >= 0):
+            raise ConfigError(field, f"must be a finite number >= 0, got {v}")
+    if cfg.task.T is not None and cfg.task.T < 1:
+        raise ConfigError("task.T", f"horizon must be a positive integer, got {cfg.task.T}")
+    if cfg.system.substeps is not None and cfg.system.substeps < 1:
+        raise ConfigError("system.substeps", f"must be >= 1, got {cfg.system.substeps}")
+    if cfg.system.timestep is not None and not (cfg.system.timestep > 0):
+        raise ConfigError("system.timestep", f"must be > 0 seconds, got {cfg.system.timestep}")
+    check_finite("experiment.noise_levels", cfg.experiment.noise_levels)
+    if any(v < 0 for v in cfg.experiment.noise_levels):
+        raise ConfigError("experiment.noise_levels", "noise levels must be >= 0")

@@ -1,0 +1,78 @@
+"""Figures (matplotlib, Agg). The only module of the library that imports matplotlib."""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def state_fan(t: np.ndarray, X: np.ndarray, X_nominal: np.ndarray, labels: list[str],
+              max_lines: int = 64, title: str = ""):
+    """Perturbed trajectories X [R, T+1, nx] around a nominal [T+1, nx], one panel per
+    state coordinate (at most 6)."""
+    n = min(X.shape[-1], 6)
+    fig, axes = plt.subplots(1, n, figsize=(3.2 * n, 2.8), squeeze=False)
+    for i, ax in enumerate(axes[0]):
+        ax.plot(t, X[:max_lines, :, i].T, color="tab:blue", alpha=0.15, lw=0.8)
+        ax.plot(t, X_nominal[:, i], color="k", lw=1.5, label="nominal")
+        ax.set_xlabel("time [s]")
+        ax.set_title(labels[i], fontsize=9)
+    axes[0][0].legend(fontsize=8)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def cost_history(histories: dict[str, np.ndarray], title: str = ""):
+    """Cost against iteration for each named solve (log scale)."""
+    fig, ax = plt.subplots(figsize=(5, 3.4))
+    for name, h in histories.items():
+        h = np.asarray(h)
+        ax.semilogy(np.arange(len(h)), h, marker="o", ms=3, label=name)
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("cost J on the black box")
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig
+
+
+def trajectory_evolution(t: np.ndarray, X_iters: np.ndarray, x_goal: np.ndarray,
+                         labels: list[str], title: str = ""):
+    """Nominal trajectories X_iters [K, T+1, nx] over iterations, light to dark."""
+    n = min(X_iters.shape[-1], 4)
+    fig, axes = plt.subplots(1, n, figsize=(3.3 * n, 2.9), squeeze=False)
+    K = X_iters.shape[0]
+    colors = plt.cm.viridis(np.linspace(0.1, 0.95, K))
+    for i, ax in enumerate(axes[0]):
+        for k in range(K):
+            ax.plot(t, X_iters[k, :, i], color=colors[k], lw=1.0 if k < K - 1 else 2.0)
+        ax.axhline(x_goal[i], color="r", ls="--", lw=0.8)
+        ax.set_title(labels[i], fontsize=9)
+        ax.set_xlabel("time [s]")
+    fig.suptitle(title + " (light: early iterations, dark: final; red: goal)", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def cost_vs_noise(noise: np.ndarray, costs: dict[str, np.ndarray], title: str = ""):
+    """Median and 10-90 % band of closed-loop / open-loop cost [L, N] against noise [L]."""
+    fig, ax = plt.subplots(figsize=(5, 3.4))
+    for name, c in costs.items():
+        c = np.asarray(c)
+        med = np.nanmedian(c, axis=1)
+        lo, hi = np.nanpercentile(c, 10, axis=1), np.nanpercentile(c, 90, axis=1)
+        ax.plot(noise, med, marker="o", label=name)
+        ax.fill_between(noise, lo, hi, alpha=0.2)
+    ax.set_yscale("log")
+    ax.set_xlabel("process noise std (fraction of max |u*|)")
+    ax.set_ylabel("cost J")
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,129 @@
+"""Config -> (resolved config, system, task), with every check done before any compile."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import numpy as np
+
+from mjx_surrogate.config import Config, SystemConfig, TaskConfig, check_finite, validate_static
+from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.systems import System, from_mjcf, make_system
+from mjx_surrogate.tasks import TASK_PRESETS, Task, make_task
+
+
+class Resolved(NamedTuple):
+    config: Config  # every task and system field filled in: what config.json holds
+    system: System
+    task: Task
+
+
+def build_system_from_config(sc: SystemConfig) -> System:
+    if sc.name == "mjcf":
+        if not sc.mjcf_path:
+            raise ConfigError("system.mjcf_path", "required when system.name is 'mjcf'")
+        return from_mjcf(sc.mjcf_path, sc.backend, sc.substeps or 1, sc.timestep,
+                         sc.native_threads)
+    if sc.mjcf_path:
+        raise ConfigError("system.mjcf_path", f"only valid with system.name='mjcf', not {sc.name!r}")
+    return make_system(sc.name, sc.backend, sc.substeps, sc.timestep, sc.native_threads)
+
+
+def _preset_fields(tc: TaskConfig, system: System) -> dict:
+    if tc.preset == "custom":
+        return {}
+    if tc.preset not in TASK_PRESETS:
+        valid = ", ".join(list(TASK_PRESETS) + ["custom"])
+        raise ConfigError("task.preset", f"unknown task {tc.preset!r}; valid: {valid}")
+    preset = TASK_PRESETS[tc.preset]
+    fits = (preset.system == system.name or
+            (preset.system == "swimmer*" and system.name.startswith("swimmer")))
+    if not fits:
+        raise ConfigError("task.preset", f"{tc.preset!r} is a task for {preset.system!r}, "
+                          f"not {system.name!r}; use a task of that system or 'custom'")
+    return preset.build(system.nq, system.nv, system.nu)
+
+
+def _matrix(tc: TaskConfig, base: dict, name: str, n: int) -> np.ndarray:
+    full, diag = getattr(tc, name), getattr(tc, name + "_diag")
+    if full is not None and diag is not None:
+        raise ConfigError(f"task.{name}_diag", f"give task.{name} or task.{name}_diag, not both")
+    if diag is not None:
+        check_finite(f"task.{name}_diag", diag)
+        if len(diag) != n:
+            raise ConfigError(f"task.{name}_diag", f"needs {n} entries, got {len(diag)}")
+        m = np.diag(np.asarray(diag, float))
+    elif full is not None:
+        check_finite(f"task.{name}", full)
+        m = np.asarray(full, float)
+        if m.shape != (n, n):
+            raise ConfigError(f"task.{name}", f"must be {n}x{n}, got shape {m.shape}")
+    elif name in base:
+        m = np.asarray(base[name], float)
+    else:
+        raise ConfigError(f"task.{name}", f"required with task.preset='custom' ({n}x{n})")
+    if not np.allclose(m, m.T, atol=1e-12 * max(1.0, np.abs(m).max())):
+        raise ConfigError(f"task.{name}", "must be symmetric")
+    eig = np.linalg.eigvalsh(m)
+    if name == "R" and eig.min() <= 0:
+        raise ConfigError("task.R", f"must be positive definite (smallest eigenvalue {eig.min():g})")
+    if eig.min() < -1e-9 * max(1.0, eig.max()):
+        raise ConfigError(f"task.{name}", f"must be positive semi-definite (eigenvalue {eig.min():g})")
+    return m
+
+
+def _vector(tc: TaskConfig, base: dict, name: str, n: int, required: bool = True):
+    v = getattr(tc, name)
+    if v is None:
+        if name in base:
+            return np.asarray(base[name], float)
+        if not required:
+            return None
+        raise ConfigError(f"task.{name}", f"required with task.preset='custom' ({n} numbers)")
+    if len(v) != n:
+        what = " ([qpos, qvel])" if name.startswith("x") else ""
+        raise ConfigError(f"task.{name}", f"needs {n} entries{what}, got {len(v)}")
+    if name.startswith("x"):
+        check_finite(f"task.{name}", v)
+    return np.asarray(v, float)
+
+
+def resolve_task(tc: TaskConfig, system: System) -> TaskConfig:
+    """Fill every task field from the preset and overrides, with shape and sign checks."""
+    base = _preset_fields(tc, system)
+    T = tc.T if tc.T is not None else base.get("T")
+    if T is None:
+        raise ConfigError("task.T", "required with task.preset='custom' (a positive integer)")
+    if T < 1:
+        raise ConfigError("task.T", f"horizon must be a positive integer, got {T}")
+    nx, nu = system.nx, system.nu
+    x0 = _vector(tc, base, "x0", nx)
+    x_goal = _vector(tc, base, "x_goal", nx)
+    Q, Q_f, R = (_matrix(tc, base, "Q", nx), _matrix(tc, base, "Q_f", nx),
+                 _matrix(tc, base, "R", nu))
+    u_min = tc.u_min if tc.u_min is not None else None
+    u_max = tc.u_max if tc.u_max is not None else None
+    for name, b in (("u_min", u_min), ("u_max", u_max)):
+        if b is not None and len(b) != nu:
+            raise ConfigError(f"task.{name}", f"needs nu={nu} entries, got {len(b)}")
+        if b is not None and any(np.isnan(b)):
+            raise ConfigError(f"task.{name}", "holds NaN; use a number or +-inf")
+    if u_min is not None and u_max is not None and np.any(np.asarray(u_min) > np.asarray(u_max)):
+        raise ConfigError("task.u_min", "must be <= task.u_max in every channel")
+    tolist = lambda a: tuple(map(tuple, a.tolist()))  # noqa: E731
+    return TaskConfig(preset=tc.preset, T=int(T), x0=tuple(x0.tolist()),
+                      x_goal=tuple(x_goal.tolist()), Q=tolist(Q), Q_f=tolist(Q_f), R=tolist(R),
+                      u_min=u_min, u_max=u_max)
+
+
+def resolve(cfg: Config) -> Resolved:
+    """Validate ``cfg``, build its system and task. Raises ConfigError; compiles nothing."""
+    validate_static(cfg)
+    system = build_system_from_config(cfg.system)
+    tc = resolve_task(cfg.task, system)
+    sc = dataclasses.replace(cfg.system, backend=system.backend, substeps=system.substeps,
+                             timestep=float(system.mj_model.opt.timestep))
+    resolved = dataclasses.replace(cfg, system=sc, task=tc)
+    task = make_task(tc.x0, tc.x_goal, tc.Q, tc.Q_f, tc.R, tc.T, tc.u_min, tc.u_max)
+    return Resolved(resolved, system, task)

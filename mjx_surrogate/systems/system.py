@@ -1,0 +1,148 @@
+"""The black-box system interface shared by both simulator backends."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import Callable
+
+import jax
+import mujoco
+
+from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.systems import backend_mjx, backend_native
+
+BACKENDS = ("mjx", "native")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class System:
+    """A MuJoCo model seen as a discrete-time map x_{t+1} = f(x_t, u_t).
+
+    x = [qpos, qvel, act] (nx = nq + nv + na), u = ctrl (nu), one control step is
+    ``substeps`` physics steps of ``mj_model.opt.timestep``. Hashes by identity, so it
+    can be a static argument of ``jax.jit``.
+
+    Attributes:
+      step: jittable ``(x[nx], u[nu]) -> x_next[nx]`` on the chosen backend.
+      rollout: jittable ``(x0[B, nx], U[B, T, nu]) -> X[B, T+1, nx]``.
+    """
+
+    name: str
+    xml: str
+    mj_model: mujoco.MjModel
+    substeps: int
+    backend: str
+    native_threads: int
+    step: Callable[[jax.Array, jax.Array], jax.Array]
+    rollout: Callable[[jax.Array, jax.Array], jax.Array]
+
+    @property
+    def nq(self) -> int:
+        return self.mj_model.nq
+
+    @property
+    def nv(self) -> int:
+        return self.mj_model.nv
+
+    @property
+    def nu(self) -> int:
+        return self.mj_model.nu
+
+    @property
+    def nx(self) -> int:
+        return self.mj_model.nq + self.mj_model.nv + self.mj_model.na
+
+    @property
+    def dt(self) -> float:
+        """Control time step in seconds."""
+        return float(self.mj_model.opt.timestep) * self.substeps
+
+    @functools.cached_property
+    def mjx_step(self):
+        """Differentiable MJX step (the exact-Jacobian oracle), whatever the backend."""
+        if self.backend == "mjx":
+            return self.step
+        return backend_mjx.make_mjx_step(self.mj_model, self.substeps)
+
+    @functools.cached_property
+    def native(self) -> backend_native.NativeSimulator:
+        """Host-side native simulator (replay, references), whatever the backend."""
+        return backend_native.NativeSimulator(self.mj_model, self.substeps, self.native_threads)
+
+    def __repr__(self) -> str:
+        return (f"System({self.name!r}, backend={self.backend!r}, nx={self.nx}, nu={self.nu}, "
+                f"substeps={self.substeps}, dt={self.dt:g})")
+
+
+def can_have_constraints(m: mujoco.MjModel) -> bool:
+    """Whether any constraint (contact, limit, equality, friction loss) can ever be active."""
+    contacts = m.npair > 0 or (m.geom_contype.any() and m.geom_conaffinity.any())
+    limits = bool(m.jnt_limited.any()) or bool(m.tendon_limited.any())
+    friction = bool((m.dof_frictionloss > 0).any()) or bool((m.tendon_frictionloss > 0).any())
+    return bool(contacts or limits or friction or m.neq > 0)
+
+
+def compile_mjcf(xml: str, field: str = "system.mjcf", timestep: float | None = None,
+                 ) -> tuple[mujoco.MjModel, str]:
+    """Compile MJCF text, disabling the constraint solver where nothing can be constrained.
+
+    Returns the model and the exact MJCF that was compiled (after the option changes).
+    """
+    try:
+        spec = mujoco.MjSpec.from_string(xml)
+        if timestep is not None:
+            spec.option.timestep = timestep
+        model = spec.compile()
+    except Exception as exc:  # mujoco raises ValueError with a multi-line message
+        msg = " ".join(str(exc).split())
+        raise ConfigError(field, f"invalid MJCF ({msg})") from None
+    if model.nu == 0:
+        raise ConfigError(field, "the model has no actuators; at least one control is needed")
+    if not can_have_constraints(model):
+        spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+        model = spec.compile()
+    return model, spec.to_xml()
+
+
+def build_system(name: str, xml: str, substeps: int, backend: str,
+                 timestep: float | None = None, native_threads: int | None = None,
+                 field: str = "system.mjcf") -> System:
+    """Compile ``xml`` and wrap it as a :class:`System` on ``backend`` ("mjx" | "native")."""
+    if backend not in BACKENDS:
+        raise ConfigError("system.backend", f"unknown backend {backend!r}; valid: {BACKENDS}")
+    if not isinstance(substeps, int) or substeps < 1:
+        raise ConfigError("system.substeps", f"must be a positive integer, got {substeps!r}")
+    model, exact_xml = compile_mjcf(xml, field, timestep)
+    import os
+
+    threads = native_threads or os.cpu_count() or 1
+    if backend == "mjx":
+        step = backend_mjx.make_mjx_step(model, substeps)
+        rollout = backend_mjx.make_mjx_rollout(step)
+    else:
+        sim = backend_native.NativeSimulator(model, substeps, threads)
+        step = backend_native.make_native_step(sim)
+        rollout = backend_native.make_native_rollout(sim)
+    system = System(name, exact_xml, model, substeps, backend, threads, step, rollout)
+    if backend == "native":
+        system.__dict__["native"] = sim  # share the one pool
+    return system
+
+
+def state_labels(m: mujoco.MjModel) -> list[str]:
+    """Names of the nx state coordinates [qpos, qvel, act] from the model's joints."""
+    qpos, qvel = [], []
+    for j in range(m.njnt):
+        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}"
+        kind = m.jnt_type[j]
+        if kind == mujoco.mjtJoint.mjJNT_FREE:
+            qpos += [f"{name}.{c}" for c in ("x", "y", "z", "qw", "qx", "qy", "qz")]
+            qvel += [f"{name}.{c}" for c in ("vx", "vy", "vz", "wx", "wy", "wz")]
+        elif kind == mujoco.mjtJoint.mjJNT_BALL:
+            qpos += [f"{name}.{c}" for c in ("qw", "qx", "qy", "qz")]
+            qvel += [f"{name}.{c}" for c in ("wx", "wy", "wz")]
+        else:
+            qpos.append(name)
+            qvel.append(f"d{name}")
+    return qpos + qvel + [f"act{i}" for i in range(m.na)]
