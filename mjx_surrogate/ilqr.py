@@ -1,0 +1,258 @@
+"""Iterative LQR on any one-step map, as one ``lax.while_loop`` (paper, Preliminaries).
+
+The solver sees only functions:
+
+* ``step(x[nx], u[nu]) -> x_next[nx]``: the (black-box) dynamics, used by the forward pass;
+* ``linearize(X[T+1, nx], U[T, nu], K[T, nu, nx], key) -> (A[T, nx, nx], B[T, nx, nu])``:
+  the local LTV model of the nominal (exact Jacobians, LTV least squares, a surrogate...);
+* ``cost``: :class:`Cost`, running ``l(x, u)`` and terminal ``l_f(x)``.
+
+Backward pass (Tassa-style regularisation mu on V_xx):
+
+    Q_x  = l_x + A' V_x            Q_u  = l_u + B' V_x
+    Q_xx = l_xx + A' V_xx A        Q_uu = l_uu + B' (V_xx + mu I) B
+    Q_ux = l_ux + B' (V_xx + mu I) A
+    k = argmin_{lo <= k <= hi} 1/2 k' Q_uu k + Q_u' k   (box QP, projected Newton)
+    K = -Q_uu^-1 Q_ux on the free controls, 0 on clamped ones
+    V_x  = Q_x + K' Q_uu k + K' Q_u + Q_ux' k
+    V_xx = Q_xx + K' Q_uu K + K' Q_ux + Q_ux' K
+
+Forward pass: u_t = clip(u_bar_t + alpha k_t + K_t (x_t - x_bar_t)), for ``n_alphas`` step
+sizes at once (vmap); a trial is accepted when its cost is finite and
+(J - J_alpha) / (-(alpha dV1 + alpha^2 dV2)) > accept_ratio; the best accepted trial wins.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+StepFn = Callable[[jax.Array, jax.Array], jax.Array]
+LinearizeFn = Callable[[jax.Array, jax.Array, jax.Array, jax.Array], tuple[jax.Array, jax.Array]]
+
+STOP_REASONS = (
+    "running",
+    "relative cost change below rel_tol",
+    "max |k| below k_tol",
+    "max_iter reached",
+    "regularisation above mu_max (no descent found)",
+    "initial trajectory not finite",
+)
+CONVERGED_REASONS = (1, 2)
+BLOWUP = 1e8  # |x| beyond this counts as a blown-up trial
+
+
+class Cost(NamedTuple):
+    """running(x[nx], u[nu]) -> scalar; terminal(x[nx]) -> scalar."""
+
+    running: Callable[[jax.Array, jax.Array], jax.Array]
+    terminal: Callable[[jax.Array], jax.Array]
+
+
+@struct.dataclass
+class ILQRParams:
+    """Stopping rules, regularisation schedule and line search. Floats are traced (no
+    recompile when they change); the integer sizes are static."""
+
+    rel_tol: float = 1e-6
+    k_tol: float = 1e-5
+    mu_init: float = 1e-6
+    mu_min: float = 1e-8
+    mu_max: float = 1e10
+    mu_factor: float = 4.0
+    accept_ratio: float = 1e-4
+    max_iter: int = struct.field(pytree_node=False, default=100)
+    n_alphas: int = struct.field(pytree_node=False, default=8)
+    record_trajectories: bool = struct.field(pytree_node=False, default=False)
+
+
+class ILQRResult(NamedTuple):
+    """X [T+1, nx], U [T, nu], K [T, nu, nx], k [T, nu]; cost_history [max_iter+1]
+    (NaN after the last iteration); X_history [max_iter+1, T+1, nx] if recorded."""
+
+    X: jax.Array
+    U: jax.Array
+    K: jax.Array
+    k: jax.Array
+    cost: jax.Array
+    cost_history: jax.Array
+    iterations: jax.Array
+    stop_reason: jax.Array
+    converged: jax.Array
+    mu: jax.Array
+    X_history: jax.Array
+
+
+def trajectory_cost(cost: Cost, X: jax.Array, U: jax.Array) -> jax.Array:
+    """J of X [T+1, nx], U [T, nu]; +inf if X is not finite or blew up."""
+    J = jax.vmap(cost.running)(X[:-1], U).sum() + cost.terminal(X[-1])
+    bad = ~jnp.all(jnp.isfinite(X)) | (jnp.max(jnp.abs(X)) > BLOWUP) | ~jnp.isfinite(J)
+    return jnp.where(bad, jnp.inf, J)
+
+
+def closed_loop(step: StepFn, x0: jax.Array, X_bar: jax.Array, U_bar: jax.Array,
+                k: jax.Array, K: jax.Array, alpha: jax.Array, lo: jax.Array, hi: jax.Array
+                ) -> tuple[jax.Array, jax.Array]:
+    """Simulate u_t = clip(u_bar_t + alpha k_t + K_t (x_t - x_bar_t)); returns X, U."""
+
+    def body(x, inp):
+        xb, ub, kt, Kt = inp
+        u = jnp.clip(ub + alpha * kt + Kt @ (x - xb), lo, hi)
+        return step(x, u), (x, u)
+
+    xT, (Xs, Us) = jax.lax.scan(body, x0, (X_bar[:-1], U_bar, k, K))
+    return jnp.concatenate([Xs, xT[None]]), Us
+
+
+def box_qp(Quu: jax.Array, Qu: jax.Array, lo: jax.Array, hi: jax.Array, iters: int = 6
+           ) -> tuple[jax.Array, jax.Array]:
+    """min 1/2 k'Quu k + Qu'k s.t. lo <= k <= hi by projected Newton; returns (k, free mask)."""
+    n = Qu.shape[0]
+    eye = jnp.eye(n, dtype=Qu.dtype)
+    obj = lambda x: 0.5 * x @ Quu @ x + Qu @ x  # noqa: E731
+    steps = 0.5 ** jnp.arange(6, dtype=Qu.dtype)
+
+    def free_set(x):
+        g = Qu + Quu @ x
+        clamped = ((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0))
+        return ~clamped, g
+
+    def body(_, x):
+        free, g = free_set(x)
+        H = jnp.where(free[:, None] & free[None, :], Quu, eye)
+        d = jnp.linalg.solve(H, jnp.where(free, -g, 0.0))
+        cands = jnp.clip(x[None] + steps[:, None] * d[None], lo, hi)
+        vals = jax.vmap(obj)(cands)
+        best = cands[jnp.argmin(vals)]
+        return jnp.where(jnp.min(vals) < obj(x), best, x)
+
+    x = jnp.clip(-jnp.linalg.solve(Quu, Qu), lo, hi)
+    x = jax.lax.fori_loop(0, iters, body, x)
+    return x, free_set(x)[0]
+
+
+def backward_pass(A, B, lx, lu, lxx, luu, lux, VxT, VxxT, U, lo, hi, mu):
+    """Riccati sweep. Returns k [T, nu], K [T, nu, nx], dV = (sum k'Q_u, sum 1/2 k'Q_uu k),
+    and ok (Q_uu positive definite at every t)."""
+    nx = A.shape[-1]
+    eye = jnp.eye(nx, dtype=A.dtype)
+
+    def body(carry, inp):
+        Vx, Vxx, ok = carry
+        At, Bt, lxt, lut, lxxt, luut, luxt, ut = inp
+        Vreg = Vxx + mu * eye
+        Qx = lxt + At.T @ Vx
+        Qu = lut + Bt.T @ Vx
+        Qxx = lxxt + At.T @ Vxx @ At
+        Quu = luut + Bt.T @ Vreg @ Bt
+        Qux = luxt + Bt.T @ Vreg @ At
+        Quu = 0.5 * (Quu + Quu.T)
+        chol = jnp.linalg.cholesky(Quu)
+        ok_t = jnp.all(jnp.isfinite(chol))
+        kt, free = box_qp(Quu, Qu, lo - ut, hi - ut)
+        Hf = jnp.where(free[:, None] & free[None, :], Quu, jnp.eye(Qu.shape[0], dtype=Qu.dtype))
+        Kt = -jnp.linalg.solve(Hf, jnp.where(free[:, None], Qux, 0.0))
+        Vx_new = Qx + Kt.T @ Quu @ kt + Kt.T @ Qu + Qux.T @ kt
+        Vxx_new = Qxx + Kt.T @ Quu @ Kt + Kt.T @ Qux + Qux.T @ Kt
+        Vxx_new = 0.5 * (Vxx_new + Vxx_new.T)
+        dv = jnp.stack([kt @ Qu, 0.5 * kt @ Quu @ kt])
+        ok_t = ok_t & jnp.all(jnp.isfinite(Kt)) & jnp.all(jnp.isfinite(kt))
+        return (Vx_new, Vxx_new, ok & ok_t), (kt, Kt, dv)
+
+    (_, _, ok), (k, K, dv) = jax.lax.scan(
+        body, (VxT, VxxT, jnp.array(True)), (A, B, lx, lu, lxx, luu, lux, U), reverse=True)
+    return k, K, dv.sum(0), ok
+
+
+def cost_derivatives(cost: Cost, X: jax.Array, U: jax.Array):
+    """l_x [T, nx], l_u [T, nu], l_xx, l_uu, l_ux and terminal V_x, V_xx by autodiff."""
+    lx, lu = jax.vmap(jax.grad(cost.running, argnums=(0, 1)))(X[:-1], U)
+    hess = jax.vmap(jax.hessian(cost.running, argnums=(0, 1)))(X[:-1], U)
+    (lxx, _), (lux, luu) = hess
+    VxT = jax.grad(cost.terminal)(X[-1])
+    VxxT = jax.hessian(cost.terminal)(X[-1])
+    return lx, lu, lxx, luu, lux, VxT, VxxT
+
+
+class _State(NamedTuple):
+    X: jax.Array
+    U: jax.Array
+    K: jax.Array
+    k: jax.Array
+    A: jax.Array
+    B: jax.Array
+    J: jax.Array
+    mu: jax.Array
+    it: jax.Array
+    reason: jax.Array
+    fresh: jax.Array  # nominal changed since the last linearisation
+    key: jax.Array
+    history: jax.Array
+    X_history: jax.Array
+
+
+def ilqr(step: StepFn, linearize: LinearizeFn, cost: Cost, x0: jax.Array, U0: jax.Array,
+         u_min: jax.Array, u_max: jax.Array, params: ILQRParams, key: jax.Array) -> ILQRResult:
+    """Solve min_U J(x0, U) s.t. u_min <= u_t <= u_max. x0 [nx], U0 [T, nu].
+
+    Pure and traceable: wrap in ``jax.jit`` (with step/linearize/cost fixed) or ``vmap``
+    over x0/U0/keys for multi-start solves.
+    """
+    T, nu = U0.shape
+    nx = x0.shape[0]
+    dtype = x0.dtype
+    U0 = jnp.clip(U0.astype(dtype), u_min, u_max)
+    zeros_K = jnp.zeros((T, nu, nx), dtype)
+    X0, _ = closed_loop(step, x0, jnp.zeros((T + 1, nx), dtype), U0, jnp.zeros((T, nu), dtype),
+                        zeros_K, jnp.zeros((), dtype), u_min, u_max)
+    J0 = trajectory_cost(cost, X0, U0)
+    n_hist = params.max_iter + 1
+    history = jnp.full((n_hist,), jnp.nan, dtype).at[0].set(J0)
+    X_hist = (jnp.full((n_hist, T + 1, nx), jnp.nan, dtype).at[0].set(X0)
+              if params.record_trajectories else jnp.zeros((0,), dtype))
+    alphas = 0.5 ** jnp.arange(params.n_alphas, dtype=dtype)
+    p = params
+
+    def cond(s: _State):
+        return s.reason == 0
+
+    def body(s: _State) -> _State:
+        key, sub = jax.random.split(s.key)
+        A, B = jax.lax.cond(s.fresh, lambda: linearize(s.X, s.U, s.K, sub),
+                            lambda: (s.A, s.B))
+        derivs = cost_derivatives(cost, s.X, s.U)
+        k, K, dV, ok = backward_pass(A, B, *derivs, s.U, u_min, u_max, s.mu)
+        trial = jax.vmap(closed_loop, in_axes=(None, None, None, None, None, None, 0, None, None))
+        Xa, Ua = trial(step, x0, s.X, s.U, k, K, alphas, u_min, u_max)
+        Ja = jax.vmap(trajectory_cost, in_axes=(None, 0, 0))(cost, Xa, Ua)
+        expected = -(alphas * dV[0] + alphas**2 * dV[1])
+        ratio = (s.J - Ja) / jnp.where(expected > 0, expected, jnp.inf)
+        accept = ok & jnp.isfinite(Ja) & (Ja < s.J) & (ratio > p.accept_ratio)
+        any_acc = jnp.any(accept)
+        best = jnp.argmin(jnp.where(accept, Ja, jnp.inf))
+        X = jnp.where(any_acc, Xa[best], s.X)
+        U = jnp.where(any_acc, Ua[best], s.U)
+        J = jnp.where(any_acc, Ja[best], s.J)
+        mu = jnp.where(any_acc, jnp.maximum(s.mu / p.mu_factor, p.mu_min),
+                       jnp.maximum(s.mu * p.mu_factor, p.mu_min))
+        it = s.it + 1
+        scale_u = 1.0 + jnp.max(jnp.abs(s.U))
+        small_k = ok & (jnp.max(jnp.abs(k)) < p.k_tol * scale_u)
+        small_dJ = any_acc & ((s.J - J) <= p.rel_tol * jnp.abs(s.J))
+        reason = jnp.select(
+            [small_dJ, small_k, mu > p.mu_max, it >= p.max_iter],
+            [1, 2, 4, 3], 0)
+        X_hist = s.X_history.at[it].set(X) if p.record_trajectories else s.X_history
+        return _State(X, U, jnp.where(any_acc, K, s.K), jnp.where(any_acc, k, s.k), A, B, J,
+                      mu, it, reason, any_acc, key, s.history.at[it].set(J), X_hist)
+
+    init = _State(X0, U0, zeros_K, jnp.zeros((T, nu), dtype), jnp.zeros((T, nx, nx), dtype),
+                  jnp.zeros((T, nx, nu), dtype), J0, jnp.asarray(p.mu_init, dtype),
+                  jnp.asarray(0), jnp.where(jnp.isfinite(J0), 0, 5), jnp.array(True), key,
+                  history, X_hist)
+    s = jax.lax.while_loop(cond, body, init)
+    return ILQRResult(s.X, s.U, s.K, s.k, s.J, s.history, s.it, s.reason,
+                      (s.reason == 1) | (s.reason == 2), s.mu, s.X_history)

@@ -1,0 +1,107 @@
+"""Local linear time-varying (LTV) identification by closed-form least squares.
+
+Every scheme ends in the same regression, solved for all t at once:
+
+    dx_{t+1} ~= A_t dx_t + B_t du_t,   [A_t B_t]' = argmin_W || Z_t W - Y_t ||^2
+
+with Z_t [n, nx+nu] the perturbations and Y_t [n, nx] the responses. Columns of Z_t are
+scaled to unit RMS before an SVD-based solve (``jnp.linalg.lstsq``), so mixed state and
+control scales do not spoil the conditioning.
+
+Schemes (``SysIdParams.scheme``):
+* ``rollout``: the paper's: n open-loop rollouts from x0 + dx0 under U + dU;
+* ``closed_loop``: the same under the current feedback u = U + dU + K (x - X), which
+  keeps the perturbations from lining up with unstable directions;
+* ``central_difference``: D2C 2.0: one step from (x_t +- dx, u_t +- du) at every t,
+  Y = (f+ - f-) / 2; exact to second order and independent across t.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+
+SCHEMES = ("central_difference", "rollout", "closed_loop")
+
+
+@struct.dataclass
+class SysIdParams:
+    """scheme and n_samples are static; sigma_x, sigma_u (perturbation std) are traced."""
+
+    sigma_x: float = 1e-3
+    sigma_u: float = 1e-3
+    scheme: str = struct.field(pytree_node=False, default="central_difference")
+    n_samples: int = struct.field(pytree_node=False, default=20)
+
+
+def lstsq_ltv(Z: jax.Array, Y: jax.Array, nx: int) -> tuple[jax.Array, jax.Array]:
+    """Z [T, n, nx+nu], Y [T, n, nx] -> A [T, nx, nx], B [T, nx, nu]."""
+    scale = jnp.sqrt(jnp.mean(Z**2, axis=1, keepdims=True))  # [T, 1, nx+nu]
+    scale = jnp.where(scale > 0, scale, 1.0)
+    W = jax.vmap(lambda z, y: jnp.linalg.lstsq(z, y)[0])(Z / scale, Y)  # [T, nx+nu, nx]
+    W = W / jnp.swapaxes(scale, 1, 2)
+    Wt = jnp.swapaxes(W, 1, 2)  # [T, nx, nx+nu]
+    return Wt[:, :, :nx], Wt[:, :, nx:]
+
+
+def fit_from_trajectories(dX: jax.Array, dU: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Regress dX[:, t+1] on [dX[:, t], dU[:, t]]: dX [n, T+1, nx], dU [n, T, nu]."""
+    nx = dX.shape[-1]
+    Z = jnp.concatenate([dX[:, :-1], dU], axis=-1)
+    return lstsq_ltv(jnp.swapaxes(Z, 0, 1), jnp.swapaxes(dX[:, 1:], 0, 1), nx)
+
+
+def central_difference(step: Callable, X: jax.Array, U: jax.Array, key: jax.Array,
+                       p: SysIdParams) -> tuple[jax.Array, jax.Array]:
+    """D2C 2.0 scheme around the nominal X [T+1, nx], U [T, nu]; 2 n T one-step calls."""
+    T, nu = U.shape
+    nx = X.shape[-1]
+    kx, ku = jax.random.split(key)
+    dx = p.sigma_x * jax.random.normal(kx, (T, p.n_samples, nx), X.dtype)
+    du = p.sigma_u * jax.random.normal(ku, (T, p.n_samples, nu), U.dtype)
+    xs = jnp.concatenate([X[:-1, None] + dx, X[:-1, None] - dx], axis=1)  # [T, 2n, nx]
+    us = jnp.concatenate([U[:, None] + du, U[:, None] - du], axis=1)
+    f = jax.vmap(step)(xs.reshape(-1, nx), us.reshape(-1, nu)).reshape(T, 2 * p.n_samples, nx)
+    Y = 0.5 * (f[:, : p.n_samples] - f[:, p.n_samples :])
+    return lstsq_ltv(jnp.concatenate([dx, du], axis=-1), Y, nx)
+
+
+def open_loop_rollouts(rollout: Callable, X: jax.Array, U: jax.Array, key: jax.Array,
+                       p: SysIdParams) -> tuple[jax.Array, jax.Array]:
+    """The paper's scheme: rollouts from X[0] + dx0 under U + dU; rollout is batched."""
+    kx, ku = jax.random.split(key)
+    n = p.n_samples
+    dx0 = p.sigma_x * jax.random.normal(kx, (n,) + X[0].shape, X.dtype)
+    dU = p.sigma_u * jax.random.normal(ku, (n,) + U.shape, U.dtype)
+    Xp = rollout(X[0][None] + dx0, U[None] + dU)
+    return fit_from_trajectories(Xp - X[None], dU)
+
+
+def closed_loop_rollouts(step: Callable, X: jax.Array, U: jax.Array, K: jax.Array,
+                         key: jax.Array, p: SysIdParams) -> tuple[jax.Array, jax.Array]:
+    """Rollouts under u_t = U_t + dU_t + K_t (x_t - X_t); regress on the applied du."""
+    kx, ku = jax.random.split(key)
+    n = p.n_samples
+    dx0 = p.sigma_x * jax.random.normal(kx, (n,) + X[0].shape, X.dtype)
+    dU = p.sigma_u * jax.random.normal(ku, (n,) + U.shape, U.dtype)
+
+    def one(dx0_i, dU_i):
+        def body(x, inp):
+            xb, ub, Kt, dut = inp
+            u = ub + dut + Kt @ (x - xb)
+            return step(x, u), (x, u)
+
+        xT, (Xs, Us) = jax.lax.scan(body, X[0] + dx0_i, (X[:-1], U, K, dU_i))
+        return jnp.concatenate([Xs, xT[None]]), Us
+
+    Xp, Us = jax.vmap(one)(dx0, dU)  # [n, T+1, nx], [n, T, nu]
+    return fit_from_trajectories(Xp - X[None], Us - U[None])
+
+
+def exact_jacobians(step: Callable, X: jax.Array, U: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """A_t = df/dx, B_t = df/du at (X[t], U[t]) by ``jax.jacfwd`` (needs a differentiable step)."""
+    return jax.vmap(jax.jacfwd(step, argnums=(0, 1)))(X[:-1], U)
