@@ -40,8 +40,9 @@ STOP_REASONS = (
     "max_iter reached",
     "regularisation above mu_max (no descent found)",
     "initial trajectory not finite",
+    "expected decrease below rel_tol (at the noise floor)",
 )
-CONVERGED_REASONS = (1, 2)
+CONVERGED_REASONS = (1, 2, 6)
 BLOWUP = 1e8  # |x| beyond this counts as a blown-up trial
 
 
@@ -84,6 +85,7 @@ class ILQRResult(NamedTuple):
     converged: jax.Array
     mu: jax.Array
     X_history: jax.Array
+    alpha_history: jax.Array  # [max_iter] accepted step size per iteration (0: rejected)
 
 
 def trajectory_cost(cost: Cost, X: jax.Array, U: jax.Array) -> jax.Array:
@@ -192,6 +194,7 @@ class _State(NamedTuple):
     key: jax.Array
     history: jax.Array
     X_history: jax.Array
+    alphas: jax.Array
 
 
 def ilqr(step: StepFn, linearize: LinearizeFn, cost: Cost, x0: jax.Array, U0: jax.Array,
@@ -242,17 +245,22 @@ def ilqr(step: StepFn, linearize: LinearizeFn, cost: Cost, x0: jax.Array, U0: ja
         scale_u = 1.0 + jnp.max(jnp.abs(s.U))
         small_k = ok & (jnp.max(jnp.abs(k)) < p.k_tol * scale_u)
         small_dJ = any_acc & ((s.J - J) <= p.rel_tol * jnp.abs(s.J))
+        # No trial accepted although the model promises almost nothing: a minimum, up to
+        # the noise of the black box / the LTV estimate.
+        floor = ok & ~any_acc & (jnp.abs(dV[0] + dV[1]) <= p.rel_tol * jnp.abs(s.J))
         reason = jnp.select(
-            [small_dJ, small_k, mu > p.mu_max, it >= p.max_iter],
-            [1, 2, 4, 3], 0)
+            [small_dJ, small_k, floor, mu > p.mu_max, it >= p.max_iter],
+            [1, 2, 6, 4, 3], 0)
         X_hist = s.X_history.at[it].set(X) if p.record_trajectories else s.X_history
         return _State(X, U, jnp.where(any_acc, K, s.K), jnp.where(any_acc, k, s.k), A, B, J,
-                      mu, it, reason, any_acc, key, s.history.at[it].set(J), X_hist)
+                      mu, it, reason, any_acc, key, s.history.at[it].set(J), X_hist,
+                      s.alphas.at[it - 1].set(jnp.where(any_acc, alphas[best], 0.0)))
 
     init = _State(X0, U0, zeros_K, jnp.zeros((T, nu), dtype), jnp.zeros((T, nx, nx), dtype),
                   jnp.zeros((T, nx, nu), dtype), J0, jnp.asarray(p.mu_init, dtype),
                   jnp.asarray(0), jnp.where(jnp.isfinite(J0), 0, 5), jnp.array(True), key,
-                  history, X_hist)
+                  history, X_hist, jnp.zeros((p.max_iter,), dtype))
     s = jax.lax.while_loop(cond, body, init)
     return ILQRResult(s.X, s.U, s.K, s.k, s.J, s.history, s.it, s.reason,
-                      (s.reason == 1) | (s.reason == 2), s.mu, s.X_history)
+                      (s.reason == 1) | (s.reason == 2) | (s.reason == 6), s.mu, s.X_history,
+                      s.alphas)

@@ -21,6 +21,18 @@ from mujoco import rollout as mj_rollout
 
 _SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
+# MuJoCo prints a warning for every diverged trial (line searches provoke many); they
+# are counted here instead, and surfaced as NaN states to the caller.
+WARNINGS = {"count": 0, "last": ""}
+
+
+def _count_warning(msg: str) -> None:
+    WARNINGS["count"] += 1
+    WARNINGS["last"] = msg
+
+
+mujoco.set_mju_user_warning(_count_warning)
+
 
 class NativeSimulator:
     """Host-side batched simulator for one model; thread pool and MjData are reused."""
