@@ -68,6 +68,7 @@ class ILQRParams:
     max_iter: int = struct.field(pytree_node=False, default=100)
     n_alphas: int = struct.field(pytree_node=False, default=8)
     record_trajectories: bool = struct.field(pytree_node=False, default=False)
+    progress: bool = struct.field(pytree_node=False, default=False)
 
 
 class ILQRResult(NamedTuple):
@@ -252,6 +253,10 @@ def ilqr(step: StepFn, linearize: LinearizeFn, cost: Cost, x0: jax.Array, U0: ja
             [small_dJ, small_k, floor, mu > p.mu_max, it >= p.max_iter],
             [1, 2, 6, 4, 3], 0)
         X_hist = s.X_history.at[it].set(X) if p.record_trajectories else s.X_history
+        if p.progress:
+            from mjx_surrogate.progress import report
+
+            jax.debug.callback(report, it, J, mu)
         return _State(X, U, jnp.where(any_acc, K, s.K), jnp.where(any_acc, k, s.k), A, B, J,
                       mu, it, reason, any_acc, key, s.history.at[it].set(J), X_hist,
                       s.alphas.at[it - 1].set(jnp.where(any_acc, alphas[best], 0.0)))

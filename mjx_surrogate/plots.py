@@ -54,7 +54,7 @@ def trajectory_evolution(t: np.ndarray, X_iters: np.ndarray, x_goal: np.ndarray,
         ax.axhline(x_goal[i], color="r", ls="--", lw=0.8)
         ax.set_title(labels[i], fontsize=9)
         ax.set_xlabel("time [s]")
-    fig.suptitle(title + " (light: early iterations, dark: final; red: goal)", fontsize=10)
+    fig.suptitle(title + " (purple: early iterations, yellow: final; red dashed: goal)", fontsize=10)
     fig.tight_layout()
     return fig
 

@@ -117,11 +117,29 @@ def resolve_task(tc: TaskConfig, system: System) -> TaskConfig:
                       u_min=u_min, u_max=u_max)
 
 
+def solver_params(cfg: Config, record_trajectories: bool = False, progress: bool = False):
+    """SolverConfig -> (ILQRParams, SysIdParams)."""
+    from mjx_surrogate.ilqr import ILQRParams
+    from mjx_surrogate.sysid import SysIdParams
+
+    s = cfg.solver
+    ilqr = ILQRParams(rel_tol=s.rel_tol, k_tol=s.k_tol, mu_init=s.mu_init, mu_min=s.mu_min,
+                      mu_max=s.mu_max, mu_factor=s.mu_factor, accept_ratio=s.accept_ratio,
+                      max_iter=s.max_iter, n_alphas=s.n_alphas,
+                      record_trajectories=record_trajectories, progress=progress)
+    sysid = SysIdParams(sigma_x=s.sigma_x, sigma_u=s.sigma_u, scheme=s.sysid,
+                        n_samples=s.n_samples)
+    return ilqr, sysid
+
+
 def resolve(cfg: Config) -> Resolved:
     """Validate ``cfg``, build its system and task. Raises ConfigError; compiles nothing."""
     validate_static(cfg)
     system = build_system_from_config(cfg.system)
     tc = resolve_task(cfg.task, system)
+    if cfg.experiment.kind == "d2c" and cfg.solver.n_samples < system.nx + system.nu:
+        raise ConfigError("solver.n_samples", f"must be >= nx + nu = {system.nx + system.nu} "
+                          f"for the LTV least squares to be determined, got {cfg.solver.n_samples}")
     sc = dataclasses.replace(cfg.system, backend=system.backend, substeps=system.substeps,
                              timestep=float(system.mj_model.opt.timestep))
     resolved = dataclasses.replace(cfg, system=sc, task=tc)
