@@ -122,7 +122,11 @@ def run(cfg: Config, name: str = "run") -> str:
     from mjx_surrogate.results import RunFolder, versions
     from mjx_surrogate.setup import resolve
 
-    jax.config.update("jax_enable_x64", bool(cfg.experiment.x64))
+    if cfg.experiment.x64:
+        jax.config.update("jax_enable_x64", True)
+    # Record the precision actually used (a session may already run in x64).
+    cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(
+        cfg.experiment, x64=bool(jax.config.jax_enable_x64)))
     res = resolve(cfg)
     ex = res.config.experiment
     folder = RunFolder(ex.out_dir, ex.name or name)

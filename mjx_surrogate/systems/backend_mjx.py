@@ -18,6 +18,11 @@ def make_mjx_step(mj_model: mujoco.MjModel, substeps: int):
     """
     model = mjx.put_model(mj_model)
     data0 = mjx.make_data(model)
+    if jax.config.jax_enable_x64:
+        # Under x64 some int32 fields come back from mjx.step as int64 (e.g. tendon
+        # wrap data), which a loop carry rejects: start from the dtypes step returns.
+        out = jax.eval_shape(mjx.step, model, data0)
+        data0 = jax.tree.map(lambda a, o: a.astype(o.dtype), data0, out)
     nq, nv, na = mj_model.nq, mj_model.nv, mj_model.na
 
     def step(x: jax.Array, u: jax.Array) -> jax.Array:

@@ -1,0 +1,138 @@
+"""Configs and the CLI: bad input exits 2 naming the field, before any compile;
+a run folder holds the full schema and replays on native MuJoCo."""
+
+import glob
+import json
+import os
+import subprocess
+import sys
+
+import mujoco
+import numpy as np
+import pytest
+
+from experiments import run as cli
+from mjx_surrogate.config import Config, from_dict, to_dict
+from mjx_surrogate.errors import ConfigError
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+BAD = [
+    (["nosuchpreset"], "CONFIG"),
+    (["smoke_rollout", "--system.name", "dragon"], "system.name"),
+    (["smoke_rollout", "--task.T", "0"], "task.T"),
+    (["smoke_rollout", "--task.T", "-3"], "task.T"),
+    (["smoke_rollout", "--task.Q_diag", "1", "2", "3"], "task.Q_diag"),
+    (["smoke_rollout", "--task.R_diag", "nan"], "task.R_diag"),
+    (["smoke_rollout", "--task.R_diag", "0"], "task.R"),
+    (["smoke_rollout", "--task.x0", "1", "2", "3"], "task.x0"),
+    (["smoke_rollout", "--task.preset", "fish_d2c"], "task.preset"),
+    (["smoke_rollout", "--task.preset", "custom"], "task.x0"),
+    (["smoke_rollout", "--task.T", "abc"], "--task.T"),
+    (["smoke_rollout", "--no.such.field", "1"], "--no.such.field"),
+    (["smoke_rollout", "--system.backend", "gpu"], "--system.backend"),
+    (["smoke_rollout", "--solver.sigma_x", "-1"], "solver.sigma_x"),
+    (["default", "--solver.n_samples", "2"], "solver.n_samples"),
+    (["smoke_rollout", "--system.name", "mjcf"], "system.mjcf_path"),
+    (["smoke_rollout", "--system.name", "mjcf", "--system.mjcf_path", "/nonexistent.xml"],
+     "system.mjcf_path"),
+]
+
+
+@pytest.mark.parametrize("argv,field", BAD)
+def test_bad_input_exits_2_naming_the_field(argv, field, capsys, tmp_path):
+    code = cli.main(argv + ["--out", str(tmp_path)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1 and err[0].startswith(f"error: {field}"), err
+    assert not os.listdir(tmp_path)  # nothing written, nothing compiled
+
+
+def test_broken_mjcf_file_via_cli(tmp_path, capsys):
+    bad = tmp_path / "bad.xml"
+    bad.write_text("<mujoco><worldbody><geom type='sphere'/></mujoco>")
+    code = cli.main(["smoke_rollout", "--system.name", "mjcf", "--system.mjcf_path", str(bad),
+                     "--out", str(tmp_path / "runs")])
+    assert code == 2
+    assert capsys.readouterr().err.startswith("error: system.mjcf_path: invalid MJCF")
+
+
+def test_cli_subprocess_exit_status(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "experiments.run", "smoke_rollout", "--task.T",
+                          "0"], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2
+    assert "error: task.T: horizon must be a positive integer" in out.stderr
+
+
+def test_help_lists_presets_and_fields(capsys):
+    with pytest.raises(SystemExit) as e:
+        cli.main(["--help"])
+    assert e.value.code == 0
+    text = capsys.readouterr().out
+    for needle in ("default", "smoke_rollout", "--task.T", "--system.backend", "--solver.sysid"):
+        assert needle in text
+
+
+def test_config_json_roundtrip_and_strictness():
+    cfg = cli.load_config("default")
+    assert from_dict(Config, json.loads(json.dumps(to_dict(cfg)))) == cfg
+    with pytest.raises(ConfigError, match="^task.bogus: unknown field"):
+        from_dict(Config, {"task": {"bogus": 1}})
+    with pytest.raises(ConfigError, match="^solver.max_iter: expected an integer"):
+        from_dict(Config, {"solver": {"max_iter": "ten"}})
+
+
+def _cost(cfg, X, U):
+    x_goal = np.array(cfg["task"]["x_goal"])
+    Q, Qf, R = (np.array(cfg["task"][k]) for k in ("Q", "Q_f", "R"))
+    dx = X - x_goal
+    run = 0.5 * np.einsum("ti,ij,tj->", dx[:-1], Q, dx[:-1]) + 0.5 * np.einsum(
+        "ti,ij,tj->", U, R, U)
+    return run + 0.5 * dx[-1] @ Qf @ dx[-1]
+
+
+def test_run_folder_schema_and_native_replay(tmp_path):
+    code = cli.main(["smoke_rollout", "--out", str(tmp_path), "--experiment.name", "r"])
+    assert code == 0
+    (path,) = glob.glob(str(tmp_path / "*_r"))
+    for f in ("config.json", "model.xml", "metrics.json", "arrays.npz", "versions.json",
+              "rollouts.png"):
+        assert os.path.getsize(os.path.join(path, f)) > 0, f
+    cfg = json.load(open(os.path.join(path, "config.json")))
+    metrics = json.load(open(os.path.join(path, "metrics.json")))
+    arrays = np.load(os.path.join(path, "arrays.npz"))
+    versions = json.load(open(os.path.join(path, "versions.json")))
+    assert {"python", "jax", "mujoco"} <= set(versions)
+    T = cfg["task"]["T"]
+    assert np.array(cfg["task"]["Q"]).shape == (2, 2) and cfg["system"]["substeps"] == 5
+    # Replay NAME_U from x0 on native MuJoCo with the saved MJCF: same X, same cost.
+    m = mujoco.MjModel.from_xml_string(open(os.path.join(path, "model.xml")).read())
+    d = mujoco.MjData(m)
+    x0 = arrays["x0"]
+    d.qpos[:], d.qvel[:] = x0[: m.nq], x0[m.nq:]
+    X = [x0]
+    for u in arrays["nominal_U"]:
+        d.ctrl[:] = u
+        for _ in range(cfg["system"]["substeps"]):
+            mujoco.mj_step(m, d)
+        X.append(np.concatenate([d.qpos, d.qvel]))
+    X = np.array(X)
+    assert arrays["nominal_U"].shape == (T, 1) and arrays["nominal_X"].shape == (T + 1, 2)
+    np.testing.assert_allclose(X, arrays["nominal_X"], atol=1e-5)
+    assert _cost(cfg, X, arrays["nominal_U"]) == pytest.approx(metrics["nominal"]["cost"], rel=1e-5)
+    # The saved config replays as a config.
+    assert cli.load_config(os.path.join(path, "config.json")).task.T == T
+
+
+def test_runs_never_overwrite(tmp_path):
+    from mjx_surrogate.results import RunFolder
+
+    a, b = RunFolder(str(tmp_path), "same"), RunFolder(str(tmp_path), "same")
+    assert a.path != b.path
+    a.write_json("metrics.json", {"a": 1})
+    # under construction: only a hidden .partial folder exists
+    assert all(os.path.basename(p).startswith(".") for p in glob.glob(str(tmp_path / "*")) +
+               glob.glob(str(tmp_path / ".*")))
+    pa, pb = a.close(), b.close()
+    assert pa != pb and os.path.isdir(pa) and os.path.isdir(pb)
+    assert json.load(open(os.path.join(pa, "metrics.json"))) == {"a": 1}

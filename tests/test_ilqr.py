@@ -1,0 +1,110 @@
+"""iLQR against closed-form references: discrete Riccati (LQR), a box-constrained
+convex QP solved by SciPy, and divergence handling."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy.optimize import minimize
+
+from mjx_surrogate.ilqr import Cost, ILQRParams, STOP_REASONS, ilqr
+
+A = np.array([[1.0, 0.1], [0.0, 1.0]])
+B = np.array([[0.005], [0.1]])
+Q = np.diag([1.0, 0.1])
+QF = np.diag([10.0, 1.0])
+R = np.array([[0.01]])
+X0 = np.array([1.0, -0.5])
+T = 25
+
+
+def linear_problem(A=A, B=B):
+    step = lambda x, u: jnp.asarray(A) @ x + jnp.asarray(B) @ u  # noqa: E731
+    lin = lambda X, U, K, key: (jnp.broadcast_to(jnp.asarray(A), (U.shape[0],) + A.shape),  # noqa
+                                jnp.broadcast_to(jnp.asarray(B), (U.shape[0],) + B.shape))
+    cost = Cost(lambda x, u: 0.5 * x @ Q @ x + 0.5 * u @ R @ u, lambda x: 0.5 * x @ QF @ x)
+    return step, lin, cost
+
+
+def riccati_lqr():
+    """Independent NumPy reference: finite-horizon discrete LQR, u_t = -L_t x_t."""
+    P = QF
+    L = []
+    for _ in range(T):
+        Lt = np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
+        P = Q + A.T @ P @ (A - B @ Lt)
+        L.append(Lt)
+    L = L[::-1]
+    x, U, X = X0, [], [X0]
+    for t in range(T):
+        u = -L[t] @ x
+        x = A @ x + B @ u
+        U.append(u)
+        X.append(x)
+    return np.array(L), np.array(U), np.array(X)
+
+
+def solve(U0, lo=-np.inf, hi=np.inf, **kw):
+    step, lin, cost = linear_problem()
+    f = jax.jit(lambda U0: ilqr(step, lin, cost, jnp.asarray(X0), U0, jnp.full(1, lo),
+                                jnp.full(1, hi), ILQRParams(**kw), jax.random.key(0)))
+    return f(U0)
+
+
+def test_matches_discrete_riccati():
+    L, U_ref, X_ref = riccati_lqr()
+    res = solve(jnp.zeros((T, 1)), rel_tol=1e-12)
+    assert bool(res.converged)
+    np.testing.assert_allclose(res.U, U_ref, atol=1e-9)
+    np.testing.assert_allclose(res.X, X_ref, atol=1e-9)
+    np.testing.assert_allclose(res.K, -L, atol=1e-6)  # feedback gains of the final nominal
+    assert res.U.dtype == jnp.float64
+    # one Newton step solves an LQ problem exactly: the first step takes alpha = 1
+    assert float(res.alpha_history[0]) == 1.0
+
+
+def test_box_limits_match_convex_qp_reference():
+    lo, hi = -0.5, 0.5
+    res = solve(jnp.zeros((T, 1)), lo, hi, rel_tol=1e-12, max_iter=200)
+
+    def J(u):
+        x, c = X0, 0.0
+        for t in range(T):
+            c += 0.5 * x @ Q @ x + 0.5 * R[0, 0] * u[t] ** 2
+            x = A @ x + B[:, 0] * u[t]
+        return c + 0.5 * x @ QF @ x
+
+    ref = minimize(J, np.zeros(T), method="L-BFGS-B", bounds=[(lo, hi)] * T,
+                   options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 10000})
+    U = np.asarray(res.U)[:, 0]
+    assert U.min() >= lo - 1e-12 and U.max() <= hi + 1e-12
+    assert np.sum(np.isclose(np.abs(U), hi)) > 0  # the limits are active
+    assert float(res.cost) == pytest.approx(ref.fun, rel=1e-6)
+    np.testing.assert_allclose(U, ref.x, atol=1e-4)
+    unconstrained = solve(jnp.zeros((T, 1)), rel_tol=1e-12)
+    assert float(res.cost) > float(unconstrained.cost)
+
+
+def test_blown_up_trials_rejected_and_nonfinite_start_reported():
+    # Unstable system: the initial controls blow the state up -> reported, no crash.
+    step, lin, cost = linear_problem(A=np.array([[1.3, 0.1], [0.0, 1.3]]))
+    f = jax.jit(lambda U0: ilqr(step, lin, cost, jnp.asarray(X0), U0, jnp.full(1, -jnp.inf),
+                                jnp.full(1, jnp.inf), ILQRParams(), jax.random.key(0)))
+    res = f(jnp.full((T, 1), 1e300))
+    assert STOP_REASONS[int(res.stop_reason)] == "initial trajectory not finite"
+    assert not bool(res.converged) and int(res.iterations) == 0
+    # From a finite start the same unstable system is solved, never accepting an inf trial.
+    res = f(jnp.zeros((T, 1)))
+    h = np.asarray(res.cost_history)[: int(res.iterations) + 1]
+    assert np.all(np.isfinite(h)) and np.all(np.diff(h) <= 0)
+
+
+def test_absurd_weights_reported_not_nan():
+    step, lin, _ = linear_problem()
+    cost = Cost(lambda x, u: 0.5 * 1e300 * x @ x + 0.5 * u @ u, lambda x: 1e300 * (1e300 * x @ x))
+    res = jax.jit(lambda U0: ilqr(step, lin, cost, jnp.asarray(X0), U0, jnp.full(1, -jnp.inf),
+                                  jnp.full(1, jnp.inf), ILQRParams(max_iter=20),
+                                  jax.random.key(0)))(jnp.zeros((T, 1)))
+    assert not bool(res.converged)
+    assert STOP_REASONS[int(res.stop_reason)] == "initial trajectory not finite"
+    np.testing.assert_array_equal(res.U, 0.0)  # what it had is kept, finite

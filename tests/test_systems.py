@@ -1,0 +1,124 @@
+"""Systems: MJX step against native mujoco.mj_step, dimensions, constraint flags, MJCF."""
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
+
+from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.systems import from_mjcf, make_system
+from mjx_surrogate.systems.system import state_labels
+
+DIMS = {"pendulum": (2, 1), "cartpole": (4, 1), "fish": (27, 5), "swimmer3": (10, 2),
+        "swimmer6": (16, 5), "swimmer15": (34, 14)}
+
+
+def native_reference(system, x0, U):
+    """Independent reference: plain mujoco.mj_step on a fresh MjData, float64."""
+    m = system.mj_model
+    d = mujoco.MjData(m)
+    d.qpos[:], d.qvel[:] = x0[: m.nq], x0[m.nq:]
+    out = [x0.copy()]
+    for u in U:
+        d.ctrl[:] = u
+        for _ in range(system.substeps):
+            mujoco.mj_step(m, d)
+        out.append(np.concatenate([d.qpos, d.qvel]))
+    return np.stack(out)
+
+
+def initial_state(system, rng, scale=0.1):
+    x0 = np.concatenate([system.mj_model.qpos0, np.zeros(system.nv)])
+    x0 = x0 + scale * rng.standard_normal(system.nx)
+    if system.name == "fish":  # keep the quaternion a unit quaternion
+        x0[3:7] = x0[3:7] / np.linalg.norm(x0[3:7])
+    return x0
+
+
+# name, horizon, tolerance (float64; chaotic growth bounds the horizon)
+CASES = [("pendulum", 50, 1e-9), ("cartpole", 50, 1e-9), ("fish", 30, 1e-8),
+         ("swimmer3", 30, 1e-8), ("swimmer6", 20, 1e-8)]
+
+
+@pytest.mark.parametrize("name,T,tol", CASES)
+def test_mjx_step_matches_mj_step(systems, name, T, tol):
+    s = systems(name, "mjx")
+    rng = np.random.default_rng(0)
+    x0 = initial_state(s, rng)
+    U = 0.5 * rng.standard_normal((T, s.nu))
+    ref = native_reference(s, x0, U)
+    X = np.asarray(jax.jit(s.rollout)(jnp.asarray(x0)[None], jnp.asarray(U)[None])[0])
+    assert X.dtype == np.float64
+    np.testing.assert_allclose(X, ref, atol=tol, rtol=0)
+
+
+@pytest.mark.parametrize("name", ["pendulum", "cartpole", "fish", "swimmer6"])
+def test_native_backend_matches_mj_step(systems, name):
+    s = systems(name, "native")
+    rng = np.random.default_rng(1)
+    x0 = initial_state(s, rng)
+    U = 0.5 * rng.standard_normal((20, s.nu))
+    ref = native_reference(s, x0, U)
+    X = np.asarray(jax.jit(s.rollout)(jnp.asarray(x0)[None], jnp.asarray(U)[None])[0])
+    np.testing.assert_allclose(X, ref, atol=1e-12, rtol=0)
+
+
+@pytest.mark.parametrize("name", list(DIMS))
+def test_dimensions_and_labels(name):
+    s = make_system(name, backend="native")
+    assert (s.nx, s.nu) == DIMS[name]
+    assert len(state_labels(s.mj_model)) == s.nx
+    assert s.dt == pytest.approx(s.mj_model.opt.timestep * s.substeps)
+
+
+def test_constraint_solver_disabled_only_without_constraints():
+    flag = mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    for name in ("pendulum", "cartpole", "fish"):
+        assert make_system(name, backend="native").mj_model.opt.disableflags & flag
+    # swimmer joints are limited: the solver must stay on
+    assert not make_system("swimmer6", backend="native").mj_model.opt.disableflags & flag
+    # and the exact MJCF saved reflects what was simulated
+    assert 'constraint="disable"' in make_system("pendulum", backend="native").xml
+
+
+def test_native_backend_marks_divergence_as_nan(systems):
+    s = systems("cartpole", "native")
+    x0 = np.zeros((2, 4))
+    U = np.zeros((2, 5, 1))
+    U[0, 2, 0] = np.nan  # MuJoCo would silently zero this control
+    U[1, 1, 0] = 1e30  # and reset this diverged state
+    X = s.native(x0, U)
+    assert np.isfinite(X[:, :2]).all()
+    assert np.isnan(X[0, 3:]).all() and np.isnan(X[1, 2:]).all()
+
+
+def test_from_mjcf_user_model(tmp_path, systems):
+    xml = systems("pendulum", "native").xml
+    path = tmp_path / "my_pendulum.xml"
+    path.write_text(xml)
+    s = from_mjcf(str(path), backend="native", substeps=5)
+    ref = systems("pendulum", "native")
+    x0 = np.array([[0.3, 0.0]])
+    U = np.full((1, 10, 1), 0.2)
+    np.testing.assert_allclose(s.native(x0, U), ref.native(x0, U), atol=1e-12)
+    assert s.name == "my_pendulum"
+
+
+@pytest.mark.parametrize("text,needle", [
+    ("<mujoco><worldbody><body></mujoco>", "invalid MJCF"),
+    ("<mujoco><worldbody><body><joint type='hinge'/><geom size='.1'/></body></worldbody></mujoco>",
+     "no actuators"),
+])
+def test_broken_mjcf_is_a_config_error(tmp_path, text, needle):
+    path = tmp_path / "broken.xml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=needle) as err:
+        from_mjcf(str(path))
+    assert str(err.value).startswith("system.mjcf_path:")
+    assert "\n" not in str(err.value)
+
+
+def test_unknown_system_names_the_field():
+    with pytest.raises(ConfigError, match=r"^system.name: unknown system 'swimmer1'"):
+        make_system("swimmer1")
