@@ -1,0 +1,9 @@
+"""CI smoke: D2C on the pendulum over 10 steps against the exact oracle."""
+from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+
+CONFIG = Config(
+    system=SystemConfig(name="pendulum"),
+    task=TaskConfig(preset="pendulum_d2c", T=10),
+    solver=SolverConfig(n_samples=6, max_iter=30),
+    experiment=ExperimentConfig(kind="d2c", n_noise_trials=8, progress=False),
+)
