@@ -1,0 +1,93 @@
+"""D2C speed and cost on the D2C 2.0 task settings, in one run:
+
+* the jitted engine (``solve_d2c``; compile time apart from run time),
+* the exact-Jacobian oracle from the same initial controls (the 1 % cost target),
+* the NumPy + native ``mujoco.rollout`` reference of the same algorithm
+  (``benchmarks/d2c_numpy.py``), same start, samples and stopping rules,
+* the published D2C 2.0 wall times and costs (their models differ: indicative only).
+
+    python benchmarks/d2c.py [--systems pendulum cartpole fish swimmer6] [--backend auto]
+                             [--max-iter N] [--no-exact] [--no-numpy]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+PUBLISHED = {  # D2C 2.0: (LLS-CD time s, LLS-CD cost, FD time s, FD cost)
+    "pendulum": (0.23, 0.626, 0.17, 0.626), "cartpole": (None, 9942, 1.1, 9943),
+    "fish": (53.5, 401.7, 750, 373.2), "swimmer6": (132, 1332, 1913, 1179),
+}
+
+
+def bench(name: str, backend: str, max_iter: int | None, exact: bool, numpy_ref: bool) -> dict:
+    import jax
+    import jax.numpy as jnp
+
+    from benchmarks import d2c_numpy
+    from experiments.run import load_config
+    from mjx_surrogate.d2c import initial_controls, solve_d2c, solve_exact
+    from mjx_surrogate.setup import resolve, solver_params
+    from mjx_surrogate.timing import compile_then_run
+    import dataclasses
+
+    cfg = load_config(f"{name}_d2c")
+    cfg = dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, backend=backend))
+    if max_iter:
+        cfg = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, max_iter=max_iter))
+    _, system, task = resolve(cfg)
+    params, sid = solver_params(cfg)
+    U0 = initial_controls(jax.random.key(0), task.T, system.nu, cfg.solver.init,
+                          cfg.solver.init_scale)
+    row = {"system": name, "backend": system.backend, "T": task.T, "n_samples": sid.n_samples}
+    t = compile_then_run(solve_d2c, (system,), (task, U0, jax.random.key(1), params, sid))
+    row.update(d2c_cost=float(t.out.cost), d2c_iters=int(t.out.iterations),
+               d2c_compile=t.compile_s, d2c_run=t.run_s, d2c_conv=bool(t.out.converged))
+    if exact:
+        e = compile_then_run(solve_exact, (system,), (task, U0, params))
+        row.update(exact_cost=float(e.out.cost), exact_iters=int(e.out.iterations),
+                   exact_compile=e.compile_s, exact_run=e.run_s)
+    if numpy_ref:
+        step = d2c_numpy.NativeStepper(system.mj_model, system.substeps, nthread=2)
+        a = [np.asarray(v, np.float64) for v in (task.x0, task.x_goal, task.Q, task.Q_f, task.R)]
+        t0 = time.perf_counter()
+        ref = d2c_numpy.solve(step, a[0], np.asarray(U0, np.float64), *a[1:], seed=1,
+                              n_samples=sid.n_samples, sigma=float(sid.sigma_x),
+                              max_iter=params.max_iter, rel_tol=float(params.rel_tol),
+                              n_alphas=params.n_alphas)
+        row.update(np_run=time.perf_counter() - t0, np_cost=ref["cost"], np_iters=ref["iterations"])
+    return row
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--systems", nargs="+", default=["pendulum", "cartpole", "fish", "swimmer6"])
+    ap.add_argument("--backend", default="auto", choices=["auto", "mjx", "native"])
+    ap.add_argument("--max-iter", type=int, default=None)
+    ap.add_argument("--no-exact", action="store_true")
+    ap.add_argument("--no-numpy", action="store_true")
+    a = ap.parse_args()
+    import mjx_surrogate  # noqa: F401
+
+    f = lambda v, p=3: "-" if v is None else (f"{v:.{p}g}" if isinstance(v, float) else str(v))  # noqa
+    print("| system | backend | T | D2C cost | iters | D2C run s | D2C compile s | exact cost "
+          "| gap % | NumPy+native run s | NumPy cost | speed-up vs NumPy | published LLS-CD s / cost "
+          "| published FD s / cost |")
+    print("|" + "---|" * 14)
+    for name in a.systems:
+        r = bench(name, a.backend, a.max_iter, not a.no_exact, not a.no_numpy)
+        gap = (100 * (r["d2c_cost"] - r["exact_cost"]) / abs(r["exact_cost"])
+               if "exact_cost" in r else None)
+        sp = r["np_run"] / r["d2c_run"] if "np_run" in r else None
+        p = PUBLISHED.get(name, (None,) * 4)
+        print(f"| {name} | {r['backend']} | {r['T']} | {f(r['d2c_cost'], 5)} | {r['d2c_iters']} | "
+              f"{f(r['d2c_run'])} | {f(r['d2c_compile'])} | {f(r.get('exact_cost'), 5)} | "
+              f"{f(gap, 2)} | {f(r.get('np_run'))} | {f(r.get('np_cost'), 5)} | {f(sp)} | "
+              f"{f(p[0])} / {f(p[1], 4)} | {f(p[2])} / {f(p[3], 4)} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()

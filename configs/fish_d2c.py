@@ -1,0 +1,10 @@
+"""D2C 2.0 fish: rest -> (0, 0.4, 0.2), T 600, 40 samples per identification."""
+from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+
+CONFIG = Config(
+    system=SystemConfig(name="fish"),
+    task=TaskConfig(preset="fish_d2c"),
+    solver=SolverConfig(sysid="central_difference", n_samples=40, init="random", init_scale=0.1,
+                        max_iter=100, rel_tol=1e-5),
+    experiment=ExperimentConfig(kind="d2c"),
+)
