@@ -12,6 +12,11 @@ XLA flags are read once per process.
 
 from __future__ import annotations
 
+import os as _os
+import sys as _sys
+
+_sys.path.insert(0, _os.path.dirname(_os.path.dirname(_os.path.abspath(__file__))))
+
 import argparse
 import json
 import os
@@ -22,7 +27,8 @@ import time
 import numpy as np
 
 
-def measure(name: str, batch: int, T: int, repeats: int, constraint_off: bool = True) -> dict:
+def measure(name: str, batch: int, T: int, repeats: int, constraint_off: bool = True,
+            mjx_max_batch: int | None = None) -> dict:
     import jax
     import jax.numpy as jnp
     import mujoco
@@ -56,13 +62,14 @@ def measure(name: str, batch: int, T: int, repeats: int, constraint_off: bool = 
             ts.append(time.perf_counter() - t0)
         return float(np.median(ts))
 
-    f = jax.jit(mjx_sys.rollout)
     xj, uj = jnp.asarray(x0, jnp.float32), jnp.asarray(U, jnp.float32)
-    t0 = time.perf_counter()
-    compiled = f.lower(xj, uj).compile()
-    out["mjx_compile_s"] = time.perf_counter() - t0
-    compiled(xj, uj).block_until_ready()
-    out["mjx"] = steps / timeit(lambda: compiled(xj, uj).block_until_ready())
+    if mjx_max_batch is None or batch <= mjx_max_batch:
+        f = jax.jit(mjx_sys.rollout)
+        t0 = time.perf_counter()
+        compiled = f.lower(xj, uj).compile()
+        out["mjx_compile_s"] = time.perf_counter() - t0
+        compiled(xj, uj).block_until_ready()
+        out["mjx"] = steps / timeit(lambda: compiled(xj, uj).block_until_ready())
     if not constraint_off:
         return out
 
@@ -86,10 +93,13 @@ def measure(name: str, batch: int, T: int, repeats: int, constraint_off: bool = 
     return out
 
 
-def run_subprocess(args: list[str], env_extra: dict) -> list[dict]:
+def run_subprocess(args: list[str], env_extra: dict, timeout: float = 900) -> list[dict]:
     env = dict(os.environ, **env_extra)
-    res = subprocess.run([sys.executable, __file__, "--json"] + args, env=env,
-                         capture_output=True, text=True, timeout=3000)
+    try:
+        res = subprocess.run([sys.executable, __file__, "--json"] + args, env=env,
+                             capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return [{"error": f"{' '.join(args)}: no result within {timeout:.0f} s"}]
     if res.returncode != 0:
         return [{"error": res.stderr.strip().splitlines()[-1:]}]
     return json.loads(res.stdout.strip().splitlines()[-1])
@@ -103,29 +113,49 @@ def main() -> None:
     ap.add_argument("--T", type=int, default=30)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--variants", action="store_true")
+    ap.add_argument("--mjx-max-batch", type=int, default=None,
+                    help="skip MJX above this batch for systems in --slow-mjx")
+    ap.add_argument("--slow-mjx", nargs="*", default=["swimmer6", "swimmer15"])
     ap.add_argument("--constraint-on", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
     import mjx_surrogate  # noqa: F401  (XLA flags)
 
-    rows = [measure(s, b, a.T, a.repeats, not a.constraint_on)
-            for s in a.systems for b in a.batches]
+    common = ["--batches", *map(str, a.batches), "--T", str(a.T), "--repeats", str(a.repeats)]
     if a.json:
+        cap = lambda s: a.mjx_max_batch if s in a.slow_mjx else None  # noqa: E731
+        rows = [measure(s, b, a.T, a.repeats, not a.constraint_on, cap(s))
+                for s in a.systems for b in a.batches]
         print(json.dumps(rows))
         return
+    # One process per system: keeps XLA and MuJoCo thread pools of one system from
+    # meeting the next (a combined process hung once at 0 % CPU here).
+    rows = []
+    for s in a.systems:
+        extra = ["--mjx-max-batch", str(a.mjx_max_batch)] if a.mjx_max_batch else []
+        rows += run_subprocess(["--systems", s] + common + extra, {})
     print(f"XLA_FLAGS={os.environ.get('XLA_FLAGS', '')!r}, T={a.T}, float32, steps/s = control steps/s\n")
     print("| system | batch | MJX | native backend (callback) | mujoco.rollout 1t | "
           "mujoco.rollout 2t | MJX / 2t | native backend / 2t | MJX compile s |")
     print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['system']} | {r['batch']} | {r['mjx']:,.0f} | {r['native_backend']:,.0f} | "
-              f"{r['native_1t']:,.0f} | {r['native_2t']:,.0f} | {r['mjx'] / r['native_2t']:.2f} | "
-              f"{r['native_backend'] / r['native_2t']:.2f} | {r['mjx_compile_s']:.1f} |")
+        if "error" in r:
+            print(f"| error: {r['error']} |")
+            continue
+        mjx = f"{r['mjx']:,.0f}" if "mjx" in r else "skipped"
+        ratio = f"{r['mjx'] / r['native_2t']:.2f}" if "mjx" in r else "-"
+        comp = f"{r['mjx_compile_s']:.1f}" if "mjx" in r else "-"
+        print(f"| {r['system']} | {r['batch']} | {mjx} | {r['native_backend']:,.0f} | "
+              f"{r['native_1t']:,.0f} | {r['native_2t']:,.0f} | {ratio} | "
+              f"{r['native_backend'] / r['native_2t']:.2f} | {comp} |", flush=True)
     if a.variants:
         base = ["--systems", *a.systems, "--batches", *map(str, a.batches), "--T", str(a.T),
                 "--repeats", str(a.repeats)]
-        default_xla = run_subprocess(base, {"MJX_SURROGATE_KEEP_XLA_FLAGS": "1", "XLA_FLAGS": ""})
-        no_disable = run_subprocess(base + ["--constraint-on"], {})
+        default_xla, no_disable = [], []
+        for s in a.systems:
+            b = ["--systems", s] + base[base.index("--batches"):]
+            default_xla += run_subprocess(b, {"MJX_SURROGATE_KEEP_XLA_FLAGS": "1", "XLA_FLAGS": ""})
+            no_disable += run_subprocess(b + ["--constraint-on"], {})
         print("\nMJX variants (control steps/s; compile s in brackets):\n")
         print("| system | batch | project settings | XLA default flags (fusion emitters on) | "
               "constraint solver left on |")

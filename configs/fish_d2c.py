@@ -1,8 +1,10 @@
-"""D2C 2.0 fish: rest -> (0, 0.4, 0.2), T 600, 40 samples per identification."""
+"""D2C 2.0 fish: rest -> (0, 0.4, 0.2), T 600, 40 samples per identification.
+The model runs at D2C 2.0's time step (timestep=0.005, substeps=5), so that times and costs compare.
+"""
 from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(
-    system=SystemConfig(name="fish"),
+    system=SystemConfig(name="fish", timestep=0.005, substeps=5),
     task=TaskConfig(preset="fish_d2c"),
     solver=SolverConfig(sysid="central_difference", n_samples=40, init="random", init_scale=0.1,
                         max_iter=100, rel_tol=1e-5),

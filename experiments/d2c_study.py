@@ -77,12 +77,15 @@ def run(res: Resolved, folder: RunFolder, key: jax.Array) -> tuple[dict, dict]:
     if metrics["d2c"]["cost"] is None or int(d2c.stop_reason) in (4, 5):
         metrics["status"] = "diverged"
 
-    try:
-        with progress_bar("exact-Jacobian iLQR (oracle)", sc.max_iter, ex.progress):
-            timed_ex = compile_then_run(solve_exact, (system,), (task, U0, params))
-    except Exception as exc:  # e.g. a user model using a feature MJX lacks
-        metrics["exact"] = {"error": f"{type(exc).__name__}: {exc}"}
-        timed_ex = None
+    timed_ex = None
+    if not ex.exact_oracle:
+        metrics["exact"] = {"skipped": "experiment.exact_oracle is false"}
+    else:
+        try:
+            with progress_bar("exact-Jacobian iLQR (oracle)", sc.max_iter, ex.progress):
+                timed_ex = compile_then_run(solve_exact, (system,), (task, U0, params))
+        except Exception as exc:  # e.g. a user model using a feature MJX lacks
+            metrics["exact"] = {"error": f"{type(exc).__name__}: {exc}"}
     if timed_ex is not None:
         exact = timed_ex.out
         metrics["exact"], X_ex = _summary(exact, timed_ex, system, task, task.T, sc.n_alphas)

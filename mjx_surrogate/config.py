@@ -98,6 +98,8 @@ class ExperimentConfig:
     nominal, with rollout_sigma_x / rollout_sigma_u) or "d2c" (data-driven iLQR
     against the exact-Jacobian oracle, then feedback evaluation under noise_levels).
     x64: run in float64.
+    exact_oracle: also solve with exact MJX Jacobians from the same start (needs a model
+    MJX supports and, on 2 CPU cores, a small one; see docs/performance.md).
     """
 
     kind: Literal["rollout", "d2c"] = "d2c"
@@ -108,6 +110,7 @@ class ExperimentConfig:
     n_rollouts: int = 256
     rollout_sigma_x: float = 0.01
     rollout_sigma_u: float = 0.1
+    exact_oracle: bool = True
     noise_levels: Tuple[float, ...] = (0.0, 0.01, 0.05, 0.1)
     n_noise_trials: int = 64
     progress: bool = True

@@ -7,7 +7,7 @@ The solver sees only functions:
   the local LTV model of the nominal (exact Jacobians, LTV least squares, a surrogate...);
 * ``cost``: :class:`Cost`, running ``l(x, u)`` and terminal ``l_f(x)``.
 
-Backward pass (Tassa-style regularisation mu on V_xx):
+Backward pass (Tassa-style regularisation mu on V_xx; Q_uu positive definite at every t):
 
     Q_x  = l_x + A' V_x            Q_u  = l_u + B' V_x
     Q_xx = l_xx + A' V_xx A        Q_uu = l_uu + B' (V_xx + mu I) B
@@ -29,6 +29,8 @@ from typing import Callable, NamedTuple
 import jax
 import jax.numpy as jnp
 from flax import struct
+
+from mjx_surrogate.linalg import spd_solve
 
 StepFn = Callable[[jax.Array, jax.Array], jax.Array]
 LinearizeFn = Callable[[jax.Array, jax.Array, jax.Array, jax.Array], tuple[jax.Array, jax.Array]]
@@ -126,13 +128,13 @@ def box_qp(Quu: jax.Array, Qu: jax.Array, lo: jax.Array, hi: jax.Array, iters: i
     def body(_, x):
         free, g = free_set(x)
         H = jnp.where(free[:, None] & free[None, :], Quu, eye)
-        d = jnp.linalg.solve(H, jnp.where(free, -g, 0.0))
+        d, _ = spd_solve(H, jnp.where(free, -g, 0.0))
         cands = jnp.clip(x[None] + steps[:, None] * d[None], lo, hi)
         vals = jax.vmap(obj)(cands)
         best = cands[jnp.argmin(vals)]
         return jnp.where(jnp.min(vals) < obj(x), best, x)
 
-    x = jnp.clip(-jnp.linalg.solve(Quu, Qu), lo, hi)
+    x = jnp.clip(-spd_solve(Quu, Qu)[0], lo, hi)
     x = jax.lax.fori_loop(0, iters, body, x)
     return x, free_set(x)[0]
 
@@ -153,11 +155,10 @@ def backward_pass(A, B, lx, lu, lxx, luu, lux, VxT, VxxT, U, lo, hi, mu):
         Quu = luut + Bt.T @ Vreg @ Bt
         Qux = luxt + Bt.T @ Vreg @ At
         Quu = 0.5 * (Quu + Quu.T)
-        chol = jnp.linalg.cholesky(Quu)
-        ok_t = jnp.all(jnp.isfinite(chol))
+        _, ok_t = spd_solve(Quu, Qu)  # positive definiteness of Q_uu
         kt, free = box_qp(Quu, Qu, lo - ut, hi - ut)
         Hf = jnp.where(free[:, None] & free[None, :], Quu, jnp.eye(Qu.shape[0], dtype=Qu.dtype))
-        Kt = -jnp.linalg.solve(Hf, jnp.where(free[:, None], Qux, 0.0))
+        Kt = -spd_solve(Hf, jnp.where(free[:, None], Qux, 0.0))[0]
         Vx_new = Qx + Kt.T @ Quu @ kt + Kt.T @ Qu + Qux.T @ kt
         Vxx_new = Qxx + Kt.T @ Quu @ Kt + Kt.T @ Qux + Qux.T @ Kt
         Vxx_new = 0.5 * (Vxx_new + Vxx_new.T)

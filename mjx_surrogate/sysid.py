@@ -5,8 +5,9 @@ Every scheme ends in the same regression, solved for all t at once:
     dx_{t+1} ~= A_t dx_t + B_t du_t,   [A_t B_t]' = argmin_W || Z_t W - Y_t ||^2
 
 with Z_t [n, nx+nu] the perturbations and Y_t [n, nx] the responses. Columns of Z_t are
-scaled to unit RMS before an SVD-based solve (``jnp.linalg.lstsq``), so mixed state and
-control scales do not spoil the conditioning.
+scaled to unit RMS, then the normal equations (Z'Z/n) W = Z'Y/n are solved by elimination
+(:mod:`mjx_surrogate.linalg`; batched LAPACK SVD deadlocked on 2 cores). With random
+perturbations and n >= nx + nu the scaled Gram matrix is well conditioned.
 
 Schemes (``SysIdParams.scheme``):
 * ``rollout``: the paper's: n open-loop rollouts from x0 + dx0 under U + dU;
@@ -23,6 +24,8 @@ from typing import Callable
 import jax
 import jax.numpy as jnp
 from flax import struct
+
+from mjx_surrogate.linalg import spd_solve
 
 
 SCHEMES = ("central_difference", "rollout", "closed_loop")
@@ -42,7 +45,11 @@ def lstsq_ltv(Z: jax.Array, Y: jax.Array, nx: int) -> tuple[jax.Array, jax.Array
     """Z [T, n, nx+nu], Y [T, n, nx] -> A [T, nx, nx], B [T, nx, nu]."""
     scale = jnp.sqrt(jnp.mean(Z**2, axis=1, keepdims=True))  # [T, 1, nx+nu]
     scale = jnp.where(scale > 0, scale, 1.0)
-    W = jax.vmap(lambda z, y: jnp.linalg.lstsq(z, y)[0])(Z / scale, Y)  # [T, nx+nu, nx]
+    Zs = Z / scale
+    n = Z.shape[1]
+    G = jnp.einsum("tni,tnj->tij", Zs, Zs) / n  # Gram matrix [T, nx+nu, nx+nu]
+    F = jnp.einsum("tni,tnj->tij", Zs, Y) / n  # projections [T, nx+nu, nx]
+    W = jax.vmap(lambda g, f: spd_solve(g, f)[0])(G, F)  # [T, nx+nu, nx]
     W = W / jnp.swapaxes(scale, 1, 2)
     Wt = jnp.swapaxes(W, 1, 2)  # [T, nx, nx+nu]
     return Wt[:, :, :nx], Wt[:, :, nx:]

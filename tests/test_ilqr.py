@@ -108,3 +108,19 @@ def test_absurd_weights_reported_not_nan():
     assert not bool(res.converged)
     assert STOP_REASONS[int(res.stop_reason)] == "initial trajectory not finite"
     np.testing.assert_array_equal(res.U, 0.0)  # what it had is kept, finite
+
+
+def test_spd_solve_matches_numpy_and_detects_indefinite():
+    from mjx_surrogate.ilqr import spd_solve
+
+    rng = np.random.default_rng(0)
+    M = rng.standard_normal((6, 6))
+    A = M @ M.T + 0.1 * np.eye(6)
+    B = rng.standard_normal((6, 3))
+    X, ok = spd_solve(jnp.asarray(A), jnp.asarray(B))
+    assert bool(ok)
+    np.testing.assert_allclose(X, np.linalg.solve(A, B), rtol=1e-9, atol=1e-12)
+    x, ok = spd_solve(jnp.asarray(A), jnp.asarray(B[:, 0]))
+    np.testing.assert_allclose(x, np.linalg.solve(A, B[:, 0]), rtol=1e-9, atol=1e-12)
+    _, ok = spd_solve(jnp.asarray(np.diag([1.0, -1.0, 2.0])), jnp.ones(3))
+    assert not bool(ok)

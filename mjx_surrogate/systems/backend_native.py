@@ -33,9 +33,17 @@ def _count_warning(msg: str) -> None:
 
 mujoco.set_mju_user_warning(_count_warning)
 
+# Host callbacks inside jitted while loops can hang the CPU runtime at 0 % CPU with
+# asynchronous dispatch on (seen here in D2C on the fish and in a benchmark process;
+# upstream: jax-ml/jax#25861). Synchronous CPU dispatch avoids it; our hot paths are
+# single jitted calls, so nothing is lost.
+jax.config.update("jax_cpu_enable_async_dispatch", False)
+
 
 class NativeSimulator:
-    """Host-side batched simulator for one model; thread pool and MjData are reused."""
+    """Host-side batched simulator for one model; MjData are reused across calls."""
+
+    min_batch_per_thread = 32
 
     def __init__(self, mj_model: mujoco.MjModel, substeps: int, nthread: int | None = None):
         self.model = mj_model
@@ -47,7 +55,6 @@ class NativeSimulator:
         self.template = np.empty(mujoco.mj_stateSize(mj_model, _SPEC))
         mujoco.mj_getState(mj_model, data, self.template, _SPEC)
         self._lock = threading.Lock()
-        self._runner = mj_rollout.Rollout(nthread=self.nthread) if self.nthread > 1 else None
 
     def __call__(self, x0: np.ndarray, U: np.ndarray) -> np.ndarray:
         """x0 [..., nx], U [..., T, nu] (float) -> X [..., T+1, nx] in x0's dtype."""
@@ -62,11 +69,13 @@ class NativeSimulator:
         init = np.tile(self.template, (B, 1))
         init[:, 1 : 1 + self.nx] = xb
         ctrl = np.repeat(ub, self.substeps, axis=1)
+        # Small batches (a line search's few states per control step) run on this thread;
+        # large ones on a thread pool made for the call. A persistent pool driven from
+        # XLA's callback threads hung the process once in thousands of calls here.
+        threaded = self.nthread > 1 and B >= self.min_batch_per_thread * self.nthread
         with self._lock:
-            if self._runner is not None:
-                state, _ = self._runner.rollout(self.model, self.datas, init, ctrl)
-            else:
-                state, _ = mj_rollout.rollout(self.model, self.datas[0], init, ctrl)
+            state, _ = mj_rollout.rollout(self.model, self.datas if threaded else self.datas[0],
+                                          init, ctrl)
         S = self.substeps
         X = np.empty((B, T + 1, self.nx))
         X[:, 0] = xb
@@ -79,10 +88,6 @@ class NativeSimulator:
         X[:, 1:][bad] = np.nan
         return X.reshape(lead + (T + 1, self.nx)).astype(x0.dtype, copy=False)
 
-    def close(self) -> None:
-        if self._runner is not None:
-            self._runner.close()
-            self._runner = None
 
 
 def make_native_rollout(sim: NativeSimulator):

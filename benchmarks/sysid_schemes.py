@@ -1,0 +1,71 @@
+"""Which LTV identification scheme works where.
+
+For each system (D2C 2.0 task settings) and scheme (central differences, open-loop
+rollouts as in the paper, closed-loop rollouts under the current gains):
+
+* the relative Frobenius error of [A_t B_t] against ``jax.jacfwd`` through MJX, along the
+  exact oracle's optimal trajectory (median and max over t);
+* the cost D2C reaches with that scheme from the oracle's initial controls, against the
+  oracle's cost.
+
+    python benchmarks/sysid_schemes.py [--systems pendulum cartpole] [--n-samples 25]
+"""
+
+from __future__ import annotations
+
+import os as _os
+import sys as _sys
+
+_sys.path.insert(0, _os.path.dirname(_os.path.dirname(_os.path.abspath(__file__))))
+
+import argparse
+import dataclasses
+
+import numpy as np
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--systems", nargs="+", default=["pendulum", "cartpole"])
+    ap.add_argument("--n-samples", type=int, default=25)
+    ap.add_argument("--sigma", type=float, default=1e-3)
+    ap.add_argument("--backend", default="native")
+    a = ap.parse_args()
+    import jax
+
+    import mjx_surrogate  # noqa: F401
+    from experiments.run import load_config
+    from mjx_surrogate.d2c import (exact_linearize, initial_controls, ltv_linearize, solve_d2c,
+                                   solve_exact)
+    from mjx_surrogate.ilqr import STOP_REASONS
+    from mjx_surrogate.setup import resolve, solver_params
+    from mjx_surrogate.sysid import SCHEMES
+
+    print(f"n_samples={a.n_samples}, sigma={a.sigma}, float32, backend={a.backend}\n")
+    print("| system | scheme | LTV rel. error median | max | D2C cost | exact cost | gap % | iters | stop |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for name in a.systems:
+        cfg = load_config(f"{name}_d2c")
+        cfg = dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, backend=a.backend))
+        _, system, task = resolve(cfg)
+        params, _ = solver_params(cfg)
+        U0 = initial_controls(jax.random.key(0), task.T, system.nu, cfg.solver.init,
+                              cfg.solver.init_scale)
+        ex = solve_exact(system, task, U0, params)
+        Ae, Be = jax.jit(exact_linearize(system))(ex.X, ex.U, ex.K, jax.random.key(0))
+        ref = np.concatenate([np.asarray(Ae), np.asarray(Be)], -1)
+        for scheme in SCHEMES:
+            sid = dataclasses.replace(solver_params(cfg)[1], scheme=scheme,
+                                      n_samples=a.n_samples, sigma_x=a.sigma, sigma_u=a.sigma)
+            A, B = jax.jit(ltv_linearize(system, sid))(ex.X, ex.U, ex.K, jax.random.key(1))
+            est = np.concatenate([np.asarray(A), np.asarray(B)], -1)
+            rel = np.linalg.norm(est - ref, axis=(1, 2)) / np.linalg.norm(ref, axis=(1, 2))
+            r = solve_d2c(system, task, U0, jax.random.key(2), params, sid)
+            gap = 100 * (float(r.cost) - float(ex.cost)) / abs(float(ex.cost))
+            print(f"| {name} | {scheme} | {np.median(rel):.2e} | {np.max(rel):.2e} | "
+                  f"{float(r.cost):.5g} | {float(ex.cost):.5g} | {gap:.2f} | {int(r.iterations)} | "
+                  f"{STOP_REASONS[int(r.stop_reason)]} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,36 @@
+"""Small dense solves in plain JAX ops (no LAPACK custom calls).
+
+jaxlib's batched LAPACK kernels (SVD, triangular solves) split their batch over XLA's CPU
+thread pool from inside a thread of that pool; on a 2-core machine this deadlocked D2C on
+the fish (all threads idle, the call never returning). The solver and the LTV fit only
+need small symmetric positive-definite systems, solved here by elimination.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+
+def spd_solve(A: jax.Array, B: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Solve A X = B for small symmetric A [n, n] by Gauss-Jordan elimination without
+    pivoting; returns (X, ok) with ok = all pivots > 0, i.e. A positive definite.
+
+    A [n, n], B [n] or [n, k]; n is small (a control or regressor dimension).
+    """
+    n = A.shape[0]
+    vec = B.ndim == 1
+    M = jnp.concatenate([A, B[:, None] if vec else B], axis=1)
+
+    def body(i, carry):
+        M, ok = carry
+        piv = M[i, i]
+        ok = ok & (piv > 0)
+        row = M[i] / jnp.where(piv != 0, piv, 1.0)
+        col = M[:, i].at[i].set(0.0)
+        M = M - col[:, None] * row[None, :]
+        return M.at[i].set(row), ok
+
+    M, ok = jax.lax.fori_loop(0, n, body, (M, jnp.array(True)))
+    X = M[:, n:]
+    return (X[:, 0] if vec else X), ok & jnp.all(jnp.isfinite(X))
