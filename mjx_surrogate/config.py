@@ -14,6 +14,10 @@ import typing
 from typing import Any, Literal, Optional, Tuple
 
 from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.ilqr import ILQRParams
+from mjx_surrogate.sysid import SysIdParams
+
+_ILQR, _SYSID = ILQRParams(), SysIdParams()
 
 Vector = Optional[Tuple[float, ...]]
 Matrix = Optional[Tuple[Tuple[float, ...], ...]]
@@ -72,19 +76,20 @@ class SolverConfig:
     current feedback gains).
     """
 
-    max_iter: int = 100
-    rel_tol: float = 1e-6
-    k_tol: float = 1e-5
-    mu_init: float = 1e-6
-    mu_min: float = 1e-8
-    mu_max: float = 1e10
-    mu_factor: float = 4.0
-    n_alphas: int = 8
-    accept_ratio: float = 1e-4
+    # Defaults come from the solver's own parameter types (one source of truth).
+    max_iter: int = _ILQR.max_iter
+    rel_tol: float = _ILQR.rel_tol
+    k_tol: float = _ILQR.k_tol
+    mu_init: float = _ILQR.mu_init
+    mu_min: float = _ILQR.mu_min
+    mu_max: float = _ILQR.mu_max
+    mu_factor: float = _ILQR.mu_factor
+    n_alphas: int = _ILQR.n_alphas
+    accept_ratio: float = _ILQR.accept_ratio
     sysid: Literal["central_difference", "rollout", "closed_loop"] = "central_difference"
-    n_samples: int = 20
-    sigma_x: float = 1e-3
-    sigma_u: float = 1e-3
+    n_samples: int = _SYSID.n_samples
+    sigma_x: float = _SYSID.sigma_x
+    sigma_u: float = _SYSID.sigma_u
     init: Literal["zeros", "random"] = "random"
     init_scale: float = 0.1
     n_starts: int = 1
