@@ -110,9 +110,9 @@ def _one_line_tyro_error(text: str) -> ConfigError:
 
 
 def kinds():
-    from experiments import d2c_study, rollout_study
+    from experiments import d2c_study, predict_study, rollout_study
 
-    return {"rollout": rollout_study.run, "d2c": d2c_study.run}
+    return {"rollout": rollout_study.run, "d2c": d2c_study.run, "predict": predict_study.run}
 
 
 def run(cfg: Config, name: str = "run") -> str:

@@ -96,18 +96,63 @@ class SolverConfig:
 
 
 @dataclasses.dataclass(frozen=True)
+class DataConfig:
+    """Data sets sampled around the task's optimum (mjx_surrogate.data).
+
+    levels: control perturbation std as fractions of U_max (largest |u*| per channel).
+    n_traj trajectories of the task's horizon per level; split train : test by
+    test_fraction (paper: 2000 trajectories, 9 : 1). n_seeds data sets per level.
+    """
+
+    n_traj: int = 2000
+    levels: Tuple[float, ...] = (0.05, 0.10, 0.15, 0.25, 0.30, 0.60, 1.00)
+    x0_sigma: float = 0.0
+    test_fraction: float = 0.1
+    n_seeds: int = 1
+
+
+@dataclasses.dataclass(frozen=True)
+class SurrogateConfig:
+    """Global surrogates fitted on the data sets.
+
+    sindy_libraries: names "poly<d>" with optional suffixes "_nocross", "_trig", "_prod"
+    (aliases: cubic_trig = poly3_trig, quartic = poly4, quartic_trig = poly4_trig).
+    trig_coords: indices into z = [x, u] for sin/cos terms (None: the hinge angles).
+    stlsq_threshold > 0 fits by STLSQ (columns normalised), else plain least squares.
+    increment: models predict x_{t+1} - x_t instead of x_{t+1}.
+    mlp_*: the paper's MLP by default (32 -> ReLU -> 64 -> ReLU, Adam 1e-4, decay 1e-6).
+    """
+
+    sindy_libraries: Tuple[str, ...] = ("cubic_trig", "quartic", "quartic_trig")
+    trig_coords: Optional[Tuple[int, ...]] = None
+    harmonics: int = 1
+    stlsq_threshold: float = 0.0
+    stlsq_alpha: float = 0.05
+    sindy_method: Literal["svd", "normal"] = "svd"
+    increment: bool = False
+    mlp_widths: Tuple[int, ...] = (32, 64)
+    mlp_learning_rate: float = 1e-4
+    mlp_weight_decay: float = 1e-6
+    mlp_batch_size: int = 256
+    mlp_epochs: int = 200
+    mlp_checkpoints: Tuple[int, ...] = ()
+    mlp_seeds: int = 1
+
+
+@dataclasses.dataclass(frozen=True)
 class ExperimentConfig:
     """What to run and where to write it.
 
     kind: "rollout" (n_rollouts perturbed rollouts around the task's zero-control
-    nominal, with rollout_sigma_x / rollout_sigma_u) or "d2c" (data-driven iLQR
-    against the exact-Jacobian oracle, then feedback evaluation under noise_levels).
+    nominal, with rollout_sigma_x / rollout_sigma_u), "d2c" (data-driven iLQR
+    against the exact-Jacobian oracle, then feedback evaluation under noise_levels) or
+    "predict" (D2C optimum, data sets per level, SINDy / MLP / LTV predictions).
     x64: run in float64.
     exact_oracle: also solve with exact MJX Jacobians from the same start (needs a model
     MJX supports and, on 2 CPU cores, a small one; see docs/performance.md).
     """
 
-    kind: Literal["rollout", "d2c"] = "d2c"
+    kind: Literal["rollout", "d2c", "predict"] = "d2c"
     seed: int = 0
     out_dir: str = "runs"
     name: Optional[str] = None
@@ -127,6 +172,8 @@ class Config:
     task: TaskConfig = TaskConfig()
     solver: SolverConfig = SolverConfig()
     experiment: ExperimentConfig = ExperimentConfig()
+    data: DataConfig = DataConfig()
+    surrogate: SurrogateConfig = SurrogateConfig()
 
 
 def to_dict(cfg: Any) -> dict:
@@ -225,6 +272,31 @@ def validate_static(cfg: Config) -> None:
         raise ConfigError("system.substeps", f"must be >= 1, got {cfg.system.substeps}")
     if cfg.system.timestep is not None and not (cfg.system.timestep > 0):
         raise ConfigError("system.timestep", f"must be > 0 seconds, got {cfg.system.timestep}")
+    d, m = cfg.data, cfg.surrogate
+    for field, v in {"data.n_traj": d.n_traj, "data.n_seeds": d.n_seeds,
+                     "surrogate.harmonics": m.harmonics, "surrogate.mlp_batch_size": m.mlp_batch_size,
+                     "surrogate.mlp_epochs": m.mlp_epochs, "surrogate.mlp_seeds": m.mlp_seeds}.items():
+        if v < 1:
+            raise ConfigError(field, f"must be >= 1, got {v}")
+    check_finite("data.levels", d.levels)
+    if not d.levels or any(v < 0 for v in d.levels):
+        raise ConfigError("data.levels", "give one or more levels >= 0 (fractions of U_max)")
+    if not 0 < d.test_fraction < 1:
+        raise ConfigError("data.test_fraction", f"must be in (0, 1), got {d.test_fraction}")
+    if d.n_traj < 2:
+        raise ConfigError("data.n_traj", f"needs >= 2 trajectories to split, got {d.n_traj}")
+    for field, v in {"data.x0_sigma": d.x0_sigma, "surrogate.stlsq_threshold": m.stlsq_threshold,
+                     "surrogate.stlsq_alpha": m.stlsq_alpha,
+                     "surrogate.mlp_weight_decay": m.mlp_weight_decay}.items():
+        if not (math.isfinite(v) and v >= 0):
+            raise ConfigError(field, f"must be a finite number >= 0, got {v}")
+    if not (math.isfinite(m.mlp_learning_rate) and m.mlp_learning_rate > 0):
+        raise ConfigError("surrogate.mlp_learning_rate", f"must be > 0, got {m.mlp_learning_rate}")
+    if not m.mlp_widths or any(w < 1 for w in m.mlp_widths):
+        raise ConfigError("surrogate.mlp_widths", f"needs positive layer widths, got {m.mlp_widths}")
+    bad = [e for e in m.mlp_checkpoints if not 0 <= e <= m.mlp_epochs]
+    if bad:
+        raise ConfigError("surrogate.mlp_checkpoints", f"{bad} outside 0..mlp_epochs={m.mlp_epochs}")
     check_finite("experiment.noise_levels", cfg.experiment.noise_levels)
     if any(v < 0 for v in cfg.experiment.noise_levels):
         raise ConfigError("experiment.noise_levels", "noise levels must be >= 0")

@@ -76,3 +76,59 @@ def cost_vs_noise(noise: np.ndarray, costs: dict[str, np.ndarray], title: str = 
     ax.grid(alpha=0.3)
     fig.tight_layout()
     return fig
+
+
+def predictions(t: np.ndarray, true: np.ndarray, preds: dict[str, np.ndarray], coords: list[int],
+                labels: list[str], phase: tuple[int, int] | None = None, title: str = ""):
+    """Open-loop predictions against the black box along one trajectory.
+
+    true [T+1, nx]; preds name -> [T+1, nx]; one panel per state coordinate in coords,
+    plus a phase portrait (q, qdot) when phase = (i, j) is given. Diverged predictions are
+    clipped to 3x the true range so the panels stay readable.
+    """
+    n = len(coords) + (phase is not None)
+    fig, axes = plt.subplots(1, n, figsize=(3.6 * n, 3.2), squeeze=False)
+    axes = axes[0]
+
+    def clip(a, c):
+        lo, hi = np.nanmin(true[:, c]), np.nanmax(true[:, c])
+        pad = 3 * max(hi - lo, 1e-6)
+        return np.clip(a, lo - pad, hi + pad)
+
+    for ax, c in zip(axes, coords):
+        ax.plot(t, true[:, c], "k", lw=2.2, label="black box")
+        for name, p in preds.items():
+            ax.plot(t, clip(p[:, c], c), lw=1.2, label=name)
+        ax.set_xlabel("t (s)")
+        ax.set_ylabel(labels[c])
+        ax.grid(alpha=0.3)
+    if phase is not None:
+        i, j = phase
+        ax = axes[-1]
+        ax.plot(true[:, i], true[:, j], "k", lw=2.2, label="black box")
+        for name, p in preds.items():
+            ax.plot(clip(p[:, i], i), clip(p[:, j], j), lw=1.2, label=name)
+        ax.set_xlabel(labels[i])
+        ax.set_ylabel(labels[j])
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def error_vs_level(levels: np.ndarray, errors: dict[str, np.ndarray], ylabel: str, title: str = ""):
+    """Prediction error of each model against the perturbation level (log scale)."""
+    fig, ax = plt.subplots(figsize=(5, 3.4))
+    for name, e in errors.items():
+        e = np.asarray(e, float)
+        e = np.where(np.isfinite(e), e, np.nan)
+        ax.plot(100 * np.asarray(levels), e, marker="o", label=name)
+    ax.set_yscale("log")
+    ax.set_xlabel("control perturbation (% of U_max)")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    return fig

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 from typing import NamedTuple
 
+import mujoco
 import numpy as np
 
 from mjx_surrogate.config import Config, SystemConfig, TaskConfig, check_finite, validate_static
@@ -140,8 +141,51 @@ def resolve(cfg: Config) -> Resolved:
     if cfg.experiment.kind == "d2c" and cfg.solver.n_samples < system.nx + system.nu:
         raise ConfigError("solver.n_samples", f"must be >= nx + nu = {system.nx + system.nu} "
                           f"for the LTV least squares to be determined, got {cfg.solver.n_samples}")
+    if cfg.experiment.kind == "predict":
+        _check_surrogates(cfg, system, int(tc.T))
     sc = dataclasses.replace(cfg.system, backend=system.backend, substeps=system.substeps,
                              timestep=float(system.mj_model.opt.timestep))
     resolved = dataclasses.replace(cfg, system=sc, task=tc)
     task = make_task(tc.x0, tc.x_goal, tc.Q, tc.Q_f, tc.R, tc.T, tc.u_min, tc.u_max)
     return Resolved(resolved, system, task)
+
+
+def hinge_angles(system: System) -> tuple[int, ...]:
+    """State indices of hinge-joint angles (the default trig coordinates)."""
+    m = system.mj_model
+    return tuple(int(m.jnt_qposadr[j]) for j in range(m.njnt)
+                 if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE)
+
+
+def library_specs(cfg: Config, system: System) -> dict:
+    """Resolved SINDy libraries by name; ConfigError naming the field on a bad one."""
+    from mjx_surrogate.surrogates import library
+
+    sc = cfg.surrogate
+    coords = sc.trig_coords if sc.trig_coords is not None else hinge_angles(system)
+    nz = system.nx + system.nu
+    out = {}
+    for i, name in enumerate(sc.sindy_libraries):
+        try:
+            spec = library.parse(name, coords, sc.harmonics)
+            library.validate(spec, nz, f"surrogate.sindy_libraries[{i}]")
+        except ValueError as exc:
+            field = "surrogate.trig_coords" if "trig_coords" in str(exc) else f"surrogate.sindy_libraries[{i}]"
+            raise ConfigError(field, str(exc).split(": ", 1)[-1]) from None
+        out[name] = spec
+    return out
+
+
+def _check_surrogates(cfg: Config, system: System, T: int) -> None:
+    d, sc = cfg.data, cfg.surrogate
+    n_test = max(1, int(round(d.test_fraction * d.n_traj)))
+    n_train = d.n_traj - n_test
+    if n_train < 1:
+        raise ConfigError("data.test_fraction", f"leaves no training trajectory of {d.n_traj}")
+    if sc.mlp_batch_size > n_train * T:
+        raise ConfigError("surrogate.mlp_batch_size", f"{sc.mlp_batch_size} exceeds the "
+                          f"{n_train * T} training transitions (data.n_traj x task.T)")
+    if n_train < system.nx + system.nu:
+        raise ConfigError("data.n_traj", f"the LTV fit needs >= nx + nu = {system.nx + system.nu} "
+                          f"training trajectories, got {n_train}")
+    library_specs(cfg, system)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+
 import jax
 import jax.numpy as jnp
 import mujoco
@@ -10,13 +12,30 @@ from mujoco import mjx
 from mjx_surrogate.trajectory import simulate_batch
 
 
+def _without_batched_lapack(mj_model: mujoco.MjModel) -> mujoco.MjModel:
+    """A copy of the model that MJX steps without LAPACK custom calls.
+
+    jaxlib 0.10's CPU LAPACK kernels split a batch over XLA's intra-op thread pool and
+    block on it; when the pool's threads all run such kernels at once (vmapped rollouts,
+    ``jacfwd`` tangents), each waits for work only the others could do and the process
+    deadlocks (seen on the fish, 2 cores; docs/performance.md). MJX's sparse mass-matrix
+    path factors and solves M with its own loops, and its CG solver needs no Cholesky,
+    so neither emits LAPACK. Same physics, to round-off (tests/test_systems.py).
+    """
+    m = copy.copy(mj_model)
+    m.opt.jacobian = mujoco.mjtJacobian.mjJAC_SPARSE
+    if m.opt.solver == mujoco.mjtSolver.mjSOL_NEWTON:
+        m.opt.solver = mujoco.mjtSolver.mjSOL_CG
+    return m
+
+
 def make_mjx_step(mj_model: mujoco.MjModel, substeps: int):
     """Return ``step(x[nx], u[nu]) -> x_next[nx]`` advancing ``substeps`` physics steps.
 
     x = [qpos, qvel, act]. The MJX model is put on the device once, in the dtype that
     is active when this is called (float64 if ``jax_enable_x64`` is on).
     """
-    model = mjx.put_model(mj_model)
+    model = mjx.put_model(_without_batched_lapack(mj_model))
     data0 = mjx.make_data(model)
     if jax.config.jax_enable_x64:
         # Under x64 some int32 fields come back from mjx.step as int64 (e.g. tendon

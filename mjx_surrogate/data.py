@@ -1,0 +1,93 @@
+"""Data sets sampled around an optimal trajectory (the paper's "Sampling distributions").
+
+Given the optimum (X* [T+1, nx], U* [T, nu]) of a task, a data set is N trajectories of
+the black box driven by perturbed controls
+
+    u_t^i = u_t* + level * U_max * w_t^i,   w_t^i ~ N(0, I),
+    x_0^i = x_0* + x0_sigma * v^i,          v^i ~ N(0, I),
+
+where U_max [nu] is the largest |u_t*| per control channel over the horizon (a channel
+with u* = 0 everywhere gets U_max = 1 so that its level still means something). The
+paper quotes levels as percentages of U_max (5 ... 100 %); here ``level`` is the fraction.
+All N trajectories come from one batched black-box rollout. Trajectories, not
+transitions, are split train : test, so no test transition is a neighbour in time of a
+training one.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from mjx_surrogate.rollout import rollout
+from mjx_surrogate.systems.system import System
+
+
+class Dataset(NamedTuple):
+    """Perturbed trajectories around a nominal; the leading axis is the trajectory."""
+
+    X: jax.Array  # [N, T+1, nx] black-box states (NaN after a blow-up)
+    U: jax.Array  # [N, T, nu] applied controls
+
+
+class Transitions(NamedTuple):
+    """One-step regression data, flattened over trajectories and time."""
+
+    x: jax.Array  # [M, nx]
+    u: jax.Array  # [M, nu]
+    x_next: jax.Array  # [M, nx]
+
+
+def u_max(U_star: jax.Array) -> jax.Array:
+    """U_max [nu]: largest |u*| per channel over the horizon (1 where u* is all zero)."""
+    m = jnp.max(jnp.abs(U_star), axis=0)
+    return jnp.where(m > 0, m, jnp.ones_like(m))
+
+
+@partial(jax.jit, static_argnames=("system", "n_traj"))
+def sample(system: System, X_star: jax.Array, U_star: jax.Array, key: jax.Array,
+           n_traj: int, level: float, x0_sigma: float = 0.0) -> Dataset:
+    """N perturbed trajectories of the black box around (X*, U*) in one batched rollout.
+
+    X_star [T+1, nx], U_star [T, nu], level: control noise as a fraction of U_max.
+    """
+    k_u, k_x = jax.random.split(key)
+    T, nu = U_star.shape
+    scale = level * u_max(U_star)
+    U = U_star + scale * jax.random.normal(k_u, (n_traj, T, nu), U_star.dtype)
+    x0 = X_star[0] + x0_sigma * jax.random.normal(k_x, (n_traj, X_star.shape[-1]), X_star.dtype)
+    return Dataset(rollout(system, x0, U), U)
+
+
+def sample_seeds(system: System, X_star: jax.Array, U_star: jax.Array, keys: jax.Array,
+                 n_traj: int, level: float, x0_sigma: float = 0.0) -> Dataset:
+    """Data sets from one sampling distribution, one per key: X [S, N, T+1, nx]."""
+    return jax.vmap(lambda k: sample(system, X_star, U_star, k, n_traj, level, x0_sigma))(keys)
+
+
+def split(data: Dataset, key: jax.Array, test_fraction: float = 0.1) -> tuple[Dataset, Dataset]:
+    """Random train : test split by trajectory (paper: 9 : 1)."""
+    n = data.X.shape[0]
+    n_test = max(1, int(round(test_fraction * n)))
+    if n_test >= n:
+        raise ValueError(f"test_fraction={test_fraction} leaves no training trajectory of {n}")
+    perm = jax.random.permutation(key, n)
+    test, train = perm[:n_test], perm[n_test:]
+    take = lambda idx: Dataset(data.X[idx], data.U[idx])  # noqa: E731
+    return take(train), take(test)
+
+
+def transitions(data: Dataset) -> Transitions:
+    """Flatten [N, T, ...] into M = N*T transitions, dropping any with a non-finite entry.
+
+    Runs eagerly (the number kept depends on the data).
+    """
+    nx, nu = data.X.shape[-1], data.U.shape[-1]
+    x = data.X[:, :-1].reshape(-1, nx)
+    xn = data.X[:, 1:].reshape(-1, nx)
+    u = data.U.reshape(-1, nu)
+    ok = jnp.isfinite(x).all(-1) & jnp.isfinite(xn).all(-1) & jnp.isfinite(u).all(-1)
+    return Transitions(x[ok], u[ok], xn[ok])

@@ -1,0 +1,89 @@
+"""One interface for every model of the dynamics: a jittable time-indexed one-step map
+
+    step(t, x [nx], u [nu]) -> x_next [nx]
+
+for the exact black box, the local LTV model, SINDy and MLP surrogates. Time-invariant
+maps ignore t. ``predict`` rolls any of them out open loop (a ``lax.scan`` over t, vmapped
+over the batch); ``one_step`` evaluates them on given (x_t, u_t). ``step_fn`` gives the
+time-invariant ``step(x, u)`` the iLQR takes (Jacobians of a surrogate by autodiff).
+"""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from mjx_surrogate import sysid
+from mjx_surrogate.data import Dataset
+from mjx_surrogate.systems.system import System
+
+StepT = Callable[[jax.Array, jax.Array, jax.Array], jax.Array]
+
+
+class LTVModel(NamedTuple):
+    """x_{t+1} = X_{t+1} + A_t (x - X_t) + B_t (u - U_t) around a nominal (X, U)."""
+
+    X: jax.Array  # [T+1, nx]
+    U: jax.Array  # [T, nu]
+    A: jax.Array  # [T, nx, nx]
+    B: jax.Array  # [T, nx, nu]
+
+    def step_t(self, t: jax.Array, x: jax.Array, u: jax.Array) -> jax.Array:
+        return self.X[t + 1] + self.A[t] @ (x - self.X[t]) + self.B[t] @ (u - self.U[t])
+
+
+def fit_ltv(data: Dataset, X_nom: jax.Array, U_nom: jax.Array) -> LTVModel:
+    """The paper's local model from a data set: for each t, least squares of
+    x_{t+1} - X_{t+1} on [x_t - X_t, u_t - U_t] over the data set's trajectories."""
+    ok = jnp.isfinite(data.X).all((1, 2))
+    dX = (data.X - X_nom)[ok]
+    dU = (data.U - U_nom)[ok]
+    A, B = sysid.fit_from_trajectories(dX, dU)
+    return LTVModel(X_nom, U_nom, A, B)
+
+
+def time_invariant(step: Callable[[jax.Array, jax.Array], jax.Array]) -> StepT:
+    """Lift step(x, u) to the time-indexed interface."""
+    return lambda t, x, u: step(x, u)
+
+
+def black_box(system: System) -> StepT:
+    """The exact model: the system's own step (MJX or native MuJoCo)."""
+    return time_invariant(system.step)
+
+
+def step_fn(model) -> Callable[[jax.Array, jax.Array], jax.Array]:
+    """step(x, u) of a time-invariant surrogate (anything with a ``.step`` method)."""
+    return model.step
+
+
+def predict(step_t: StepT, x0: jax.Array, U: jax.Array) -> jax.Array:
+    """Open-loop multi-step prediction: x0 [B, nx], U [B, T, nu] -> X [B, T+1, nx]."""
+
+    def one(x0_i, U_i):
+        def body(x, tu):
+            t, u = tu
+            xn = step_t(t, x, u)
+            return xn, xn
+
+        ts = jnp.arange(U_i.shape[0])
+        _, xs = jax.lax.scan(body, x0_i, (ts, U_i))
+        return jnp.concatenate([x0_i[None], xs], axis=0)
+
+    return jax.vmap(one)(x0, U)
+
+
+def one_step(step_t: StepT, X: jax.Array, U: jax.Array) -> jax.Array:
+    """One-step predictions from the true states: X [B, T+1, nx], U [B, T, nu] -> [B, T, nx]."""
+    ts = jnp.arange(U.shape[1])
+    per_t = jax.vmap(step_t, in_axes=(0, 0, 0))  # over t
+    return jax.vmap(lambda x, u: per_t(ts, x[:-1], u))(X, U)
+
+
+def rmse(pred: jax.Array, true: jax.Array) -> jax.Array:
+    """Root-mean-square error over everything but the last (state) axis, per coordinate
+    averaged: sqrt(mean((pred - true)^2)); non-finite predictions count as +inf."""
+    err = (pred - true) ** 2
+    return jnp.sqrt(jnp.mean(jnp.where(jnp.isfinite(err), err, jnp.inf)))

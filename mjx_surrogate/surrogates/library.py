@@ -1,0 +1,138 @@
+"""Feature libraries Theta(z) for linear-in-parameters (SINDy-style) models.
+
+z = [x, u] [nz]. A :class:`LibrarySpec` names the candidate functions:
+
+* polynomials of z up to ``degree`` (with the constant if ``bias``); with ``cross_terms``
+  every monomial z_{i1} ... z_{ik}, k <= degree (index tuples in
+  ``itertools.combinations_with_replacement`` order), otherwise only pure powers z_i^k;
+* sin(h z_j), cos(h z_j) for j in ``trig_coords`` and h = 1 .. ``harmonics``;
+* with ``products``, every product of a non-constant monomial and a trig term.
+
+Column order (polynomials, then trig terms by harmonic and coordinate, then products)
+follows pysindy's PolynomialLibrary + FourierLibrary (* for products), so coefficients
+can be compared with pysindy column by column. The library size P is static.
+"""
+
+from __future__ import annotations
+
+import itertools
+from typing import NamedTuple, Tuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+
+class LibrarySpec(NamedTuple):
+    degree: int = 3
+    cross_terms: bool = True
+    bias: bool = True
+    trig_coords: Tuple[int, ...] = ()
+    harmonics: int = 1
+    products: bool = False
+
+
+def _monomials(spec: LibrarySpec, nz: int) -> list[tuple[int, ...]]:
+    terms = [()] if spec.bias else []
+    if spec.cross_terms:
+        for d in range(1, spec.degree + 1):
+            terms += list(itertools.combinations_with_replacement(range(nz), d))
+    else:
+        terms += [(j,) * d for d in range(1, spec.degree + 1) for j in range(nz)]
+    return terms
+
+
+def _trig_terms(spec: LibrarySpec) -> list[tuple[str, int, int]]:
+    return [(fn, h, j) for h in range(1, spec.harmonics + 1) for j in spec.trig_coords
+            for fn in ("sin", "cos")]
+
+
+def size(spec: LibrarySpec, nz: int) -> int:
+    """Number of features P."""
+    n_mono = len(_monomials(spec, nz))
+    n_trig = len(_trig_terms(spec))
+    n_prod = (n_mono - int(spec.bias)) * n_trig if spec.products else 0
+    return n_mono + n_trig + n_prod
+
+
+def validate(spec: LibrarySpec, nz: int, field: str = "library") -> None:
+    """Raise ValueError naming the field if the spec does not fit z of size nz."""
+    if spec.degree < 0:
+        raise ValueError(f"{field}.degree: must be >= 0, got {spec.degree}")
+    if spec.harmonics < 1:
+        raise ValueError(f"{field}.harmonics: must be >= 1, got {spec.harmonics}")
+    bad = [j for j in spec.trig_coords if not 0 <= j < nz]
+    if bad:
+        raise ValueError(f"{field}.trig_coords: {bad} out of range; valid indices into "
+                         f"z = [x, u] are 0..{nz - 1}")
+    if size(spec, nz) == 0:
+        raise ValueError(f"{field}: the library is empty")
+
+
+def names(spec: LibrarySpec, nz: int, symbols: list[str] | None = None) -> list[str]:
+    """Feature names in column order, pysindy style ("1", "x0 x1^2", "sin(1 x0)")."""
+    sym = symbols or [f"x{i}" for i in range(nz)]
+
+    def mono(t):
+        if not t:
+            return "1"
+        counts = [(j, t.count(j)) for j in sorted(set(t))]
+        return " ".join(sym[j] + (f"^{c}" if c > 1 else "") for j, c in counts)
+
+    monos = [mono(t) for t in _monomials(spec, nz)]
+    trig = [f"{fn}({h} {sym[j]})" for fn, h, j in _trig_terms(spec)]
+    prods = [f"{m} {t}" for m in monos[int(spec.bias):] for t in trig] if spec.products else []
+    return monos + trig + prods
+
+
+def features(spec: LibrarySpec, z: jax.Array) -> jax.Array:
+    """Theta(z): z [..., nz] -> [..., P]."""
+    nz = z.shape[-1]
+    monos = _monomials(spec, nz)
+    cols = []
+    for t in monos:
+        if not t:
+            cols.append(jnp.ones(z.shape[:-1], z.dtype))
+        else:
+            cols.append(jnp.prod(z[..., list(t)], axis=-1))
+    trig = []
+    for fn, h, j in _trig_terms(spec):
+        f = jnp.sin if fn == "sin" else jnp.cos
+        trig.append(f(h * z[..., j]))
+    out = cols + trig
+    if spec.products and trig:
+        out += [m * t for m in cols[int(spec.bias):] for t in trig]
+    return jnp.stack(out, axis=-1)
+
+
+def exponents(spec: LibrarySpec, nz: int) -> np.ndarray:
+    """[P_poly, nz] exponent of each z_j in each monomial (for tests and analysis)."""
+    e = np.zeros((len(_monomials(spec, nz)), nz), dtype=int)
+    for r, t in enumerate(_monomials(spec, nz)):
+        for j in t:
+            e[r, j] += 1
+    return e
+
+
+_ALIASES = {"cubic_trig": "poly3_trig", "quartic": "poly4", "quartic_trig": "poly4_trig",
+            "cubic": "poly3", "quadratic": "poly2"}
+
+
+def parse(name: str, trig_coords: Tuple[int, ...], harmonics: int = 1) -> LibrarySpec:
+    """A library name ("poly<d>[_nocross][_trig][_prod]" or an alias) -> LibrarySpec.
+
+    Raises ValueError naming what would be valid.
+    """
+    full = _ALIASES.get(name, name)
+    parts = full.split("_")
+    head, flags = parts[0], set(parts[1:])
+    valid = "'poly<d>' with optional _nocross, _trig, _prod (aliases: " + ", ".join(_ALIASES) + ")"
+    if not head.startswith("poly") or not head[4:].isdigit() or not flags <= {"nocross", "trig", "prod"}:
+        raise ValueError(f"unknown library {name!r}; valid: {valid}")
+    trig = "trig" in flags or "prod" in flags
+    if trig and not trig_coords:
+        raise ValueError(f"library {name!r} has trig terms but there are no trig coordinates "
+                         "(the model has no hinge joint; set surrogate.trig_coords)")
+    return LibrarySpec(degree=int(head[4:]), cross_terms="nocross" not in flags,
+                       trig_coords=tuple(trig_coords) if trig else (), harmonics=harmonics,
+                       products="prod" in flags)

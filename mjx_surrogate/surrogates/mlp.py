@@ -1,0 +1,170 @@
+"""MLP surrogates (Flax NNX + optax): [x, u] -> x_{t+1} (or the increment x_{t+1} - x_t).
+
+The paper's network is [x, u] -> 32 -> ReLU -> 64 -> ReLU -> x_next, trained with Adam
+(lr 1e-4, weight decay 1e-6 as an L2 term added to the gradient, as PyTorch's Adam does),
+minibatches of 256 and the mean-squared error. Inputs and targets are standardised with
+the training set's mean and standard deviation; the loss is the MSE of standardised
+targets. Training is one jitted ``lax.scan`` over epochs, each a ``lax.scan`` over
+minibatches of a fresh permutation drawn from the key; parameters are kept at chosen
+checkpoint epochs for the analysis. ``train_seeds`` vmaps training over K (key, data set)
+pairs, so K networks train in one program.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import NamedTuple, Tuple
+
+import jax
+import jax.numpy as jnp
+import optax
+from flax import nnx, struct
+
+
+class MLPSpec(NamedTuple):
+    widths: Tuple[int, ...] = (32, 64)
+    increment: bool = False
+    learning_rate: float = 1e-4
+    weight_decay: float = 1e-6
+    batch_size: int = 256
+    epochs: int = 200
+    checkpoints: Tuple[int, ...] = ()  # epochs (0 = before training) whose params are kept
+
+
+class Net(nnx.Module):
+    """Fully connected ReLU network; the last layer is linear."""
+
+    def __init__(self, sizes: Tuple[int, ...], rngs: nnx.Rngs):
+        self.layers = nnx.List([nnx.Linear(a, b, rngs=rngs) for a, b in zip(sizes[:-1], sizes[1:])])
+
+    def __call__(self, z: jax.Array) -> jax.Array:
+        for layer in self.layers[:-1]:
+            z = nnx.relu(layer(z))
+        return self.layers[-1](z)
+
+
+class Normalizer(NamedTuple):
+    z_mean: jax.Array  # [nz]
+    z_std: jax.Array
+    y_mean: jax.Array  # [nx]
+    y_std: jax.Array
+
+
+@struct.dataclass
+class MLPModel:
+    params: nnx.State
+    norm: Normalizer
+    graphdef: nnx.GraphDef = struct.field(pytree_node=False)
+    increment: bool = struct.field(pytree_node=False, default=False)
+
+    def step(self, x: jax.Array, u: jax.Array) -> jax.Array:
+        """x [nx], u [nu] -> x_next [nx] (any leading batch axes)."""
+        z = jnp.concatenate([x, u], axis=-1)
+        y = apply(self.graphdef, self.params, self.norm, z)
+        return x + y if self.increment else y
+
+
+class TrainResult(NamedTuple):
+    model: MLPModel
+    train_loss: jax.Array  # [epochs] mean minibatch loss per epoch (standardised MSE)
+    test_loss: jax.Array  # [epochs] full test-set loss after each epoch
+    checkpoints: nnx.State  # params with a leading [n_checkpoints] axis
+
+
+def graphdef(spec: MLPSpec, nz: int, nx: int) -> nnx.GraphDef:
+    return nnx.split(Net((nz, *spec.widths, nx), nnx.Rngs(0)))[0]
+
+
+def init_params(spec: MLPSpec, key: jax.Array, nz: int, nx: int) -> nnx.State:
+    return nnx.split(Net((nz, *spec.widths, nx), nnx.Rngs(key)))[1]
+
+
+def apply(gdef: nnx.GraphDef, params: nnx.State, norm: Normalizer, z: jax.Array) -> jax.Array:
+    """Network output in physical units: z [..., nz] -> y [..., nx]."""
+    zs = ((z - norm.z_mean) / norm.z_std).astype(jnp.float32)
+    ys = nnx.merge(gdef, params)(zs)
+    return ys.astype(z.dtype) * norm.y_std + norm.y_mean
+
+
+def normalizer(z: jax.Array, y: jax.Array) -> Normalizer:
+    std = lambda a: jnp.where(a.std(0) > 0, a.std(0), 1.0)  # noqa: E731
+    return Normalizer(z.mean(0), std(z), y.mean(0), std(y))
+
+
+def targets(x: jax.Array, x_next: jax.Array, increment: bool) -> jax.Array:
+    return x_next - x if increment else x_next
+
+
+def optimizer(spec: MLPSpec) -> optax.GradientTransformation:
+    return optax.chain(optax.add_decayed_weights(spec.weight_decay), optax.adam(spec.learning_rate))
+
+
+@partial(jax.jit, static_argnames=("spec",))
+def train(spec: MLPSpec, key: jax.Array, z: jax.Array, y: jax.Array,
+          z_test: jax.Array, y_test: jax.Array) -> TrainResult:
+    """Train one network on z [M, nz] -> y [M, nx]; test losses on z_test, y_test."""
+    M, nz = z.shape
+    nx = y.shape[-1]
+    if M < spec.batch_size:
+        raise ValueError(f"mlp.batch_size: {spec.batch_size} exceeds the {M} training transitions")
+    gdef = graphdef(spec, nz, nx)
+    k_init, k_epochs = jax.random.split(key)
+    params = init_params(spec, k_init, nz, nx)
+    norm = normalizer(z, y)
+    zs = ((z - norm.z_mean) / norm.z_std).astype(jnp.float32)
+    ys = ((y - norm.y_mean) / norm.y_std).astype(jnp.float32)
+    zt = ((z_test - norm.z_mean) / norm.z_std).astype(jnp.float32)
+    yt = ((y_test - norm.y_mean) / norm.y_std).astype(jnp.float32)
+    opt = optimizer(spec)
+    n_steps = M // spec.batch_size
+    ckpt = jnp.asarray(spec.checkpoints or (0,), jnp.int32)
+
+    def loss_fn(p, zb, yb):
+        return jnp.mean((nnx.merge(gdef, p)(zb) - yb) ** 2)
+
+    def sgd_step(carry, idx):
+        p, s = carry
+        loss, g = jax.value_and_grad(loss_fn)(p, zs[idx], ys[idx])
+        upd, s = opt.update(g, s, p)
+        return (optax.apply_updates(p, upd), s), loss
+
+    def epoch(carry, inp):
+        p, s, saved = carry
+        e, k = inp
+        perm = jax.random.permutation(k, M)[: n_steps * spec.batch_size]
+        (p, s), losses = jax.lax.scan(sgd_step, (p, s), perm.reshape(n_steps, spec.batch_size))
+        saved = _keep(saved, p, ckpt, e + 1)
+        return (p, s, saved), (losses.mean(), loss_fn(p, zt, yt))
+
+    saved = jax.tree.map(lambda a: jnp.zeros((ckpt.shape[0],) + a.shape, a.dtype), params)
+    saved = _keep(saved, params, ckpt, 0)
+    keys = jax.random.split(k_epochs, spec.epochs)
+    (params, _, saved), (tr, te) = jax.lax.scan(
+        epoch, (params, opt.init(params), saved), (jnp.arange(spec.epochs), keys))
+    return TrainResult(MLPModel(params, norm, gdef, spec.increment), tr, te, saved)
+
+
+def _keep(saved, params, ckpt: jax.Array, epoch: jax.Array):
+    """Write params into the checkpoint slots whose epoch equals ``epoch``."""
+    hit = (ckpt == epoch)  # [n_ckpt]
+
+    def put(buf, a):
+        h = hit.reshape((-1,) + (1,) * a.ndim)
+        return jnp.where(h, a[None], buf)
+
+    return jax.tree.map(put, saved, params)
+
+
+@partial(jax.jit, static_argnames=("spec",))
+def train_seeds(spec: MLPSpec, keys: jax.Array, z: jax.Array, y: jax.Array,
+                z_test: jax.Array, y_test: jax.Array) -> TrainResult:
+    """K networks at once: keys [K], z [K, M, nz], y [K, M, nx] (one data set per seed)."""
+    return jax.vmap(lambda k, a, b, c, d: train(spec, k, a, b, c, d))(keys, z, y, z_test, y_test)
+
+
+def unstack(result: TrainResult, i: int) -> TrainResult:
+    """The i-th network of a ``train_seeds`` result."""
+    m = result.model
+    take = lambda t: jax.tree.map(lambda a: a[i], t)  # noqa: E731
+    model = MLPModel(take(m.params), take(m.norm), m.graphdef, m.increment)
+    return TrainResult(model, result.train_loss[i], result.test_loss[i], take(result.checkpoints))
