@@ -34,6 +34,13 @@ BAD = [
     (["smoke_rollout", "--solver.sigma_x", "-1"], "solver.sigma_x"),
     (["default", "--solver.n_samples", "2"], "solver.n_samples"),
     (["smoke_rollout", "--system.name", "mjcf"], "system.mjcf_path"),
+    (["smoke_predict", "--surrogate.sindy_libraries", "poly3_banana"],
+     "surrogate.sindy_libraries[0]"),
+    (["smoke_predict", "--surrogate.trig_coords", "9"], "surrogate.trig_coords"),
+    (["smoke_predict", "--data.levels", "0.1", "nan"], "data.levels"),
+    (["smoke_predict", "--data.test_fraction", "1.5"], "data.test_fraction"),
+    (["smoke_predict", "--surrogate.mlp_batch_size", "100000"], "surrogate.mlp_batch_size"),
+    (["smoke_predict", "--surrogate.mlp_checkpoints", "9"], "surrogate.mlp_checkpoints"),
     (["smoke_rollout", "--system.name", "mjcf", "--system.mjcf_path", "/nonexistent.xml"],
      "system.mjcf_path"),
 ]

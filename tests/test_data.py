@@ -1,0 +1,55 @@
+"""Data sets around a nominal: distribution, determinism, split, transitions."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from mjx_surrogate import data
+from mjx_surrogate.rollout import rollout
+
+
+def test_u_max_and_perturbation_statistics(systems):
+    sys_ = systems("pendulum")
+    T = 8
+    U_star = jnp.linspace(-0.5, 0.3, T)[:, None]
+    X_star = rollout(sys_, jnp.array([[np.pi, 0.0]]), U_star[None])[0]
+    assert float(data.u_max(U_star)[0]) == pytest.approx(0.5)
+    assert float(data.u_max(jnp.zeros((T, 1)))[0]) == 1.0  # an all-zero channel
+    ds = data.sample(sys_, X_star, U_star, jax.random.key(0), 4000, 0.2)
+    dU = np.asarray(ds.U - U_star)
+    # std of the control noise = level * U_max, mean 0 (sampling error ~ 1/sqrt(32000))
+    assert dU.std() == pytest.approx(0.2 * 0.5, rel=0.02)
+    assert abs(dU.mean()) < 0.003
+    # states are the black box's response to those controls
+    np.testing.assert_allclose(ds.X, rollout(sys_, ds.X[:, 0], ds.U), atol=1e-12)
+    np.testing.assert_allclose(ds.X[:, 0], np.broadcast_to(X_star[0], ds.X[:, 0].shape))
+    again = data.sample(sys_, X_star, U_star, jax.random.key(0), 4000, 0.2)
+    np.testing.assert_array_equal(ds.U, again.U)
+
+
+def test_split_by_trajectory_and_transitions(systems):
+    sys_ = systems("pendulum")
+    X_star = jnp.zeros((6, 2)).at[:, 0].set(np.pi)
+    U_star = jnp.ones((5, 1))
+    ds = data.sample(sys_, X_star, U_star, jax.random.key(1), 50, 0.1, x0_sigma=0.01)
+    train, test = data.split(ds, jax.random.key(2), 0.1)
+    assert train.X.shape == (45, 6, 2) and test.X.shape == (5, 6, 2)
+    rows = {tuple(np.asarray(r).ravel()) for r in jnp.concatenate([train.U, test.U])}
+    assert len(rows) == 50  # a partition of the trajectories
+    tr = data.transitions(train)
+    assert tr.x.shape == (45 * 5, 2) and tr.u.shape == (225, 1)
+    np.testing.assert_array_equal(tr.x_next[0], train.X[0, 1])
+    bad = data.Dataset(train.X.at[0, 3].set(jnp.nan), train.U)
+    assert data.transitions(bad).x.shape[0] == 225 - 2  # both transitions touching the NaN
+
+
+def test_seeds_differ_but_share_the_distribution(systems):
+    sys_ = systems("pendulum")
+    X_star = jnp.zeros((6, 2))
+    U_star = 0.5 * jnp.ones((5, 1))
+    sets = data.sample_seeds(sys_, X_star, U_star, jax.random.split(jax.random.key(3), 3), 400, 0.3)
+    assert sets.X.shape == (3, 400, 6, 2)
+    stds = [float(jnp.std(sets.U[i] - U_star)) for i in range(3)]
+    assert not np.allclose(sets.U[0], sets.U[1])
+    np.testing.assert_allclose(stds, 0.15, rtol=0.05)
