@@ -40,6 +40,7 @@ def bench(name: str, backend: str, max_iter: int | None, exact: bool, numpy_ref:
     import dataclasses
 
     cfg = load_config(f"{name}_d2c")
+    jax.config.update("jax_enable_x64", cfg.experiment.x64)  # the preset's precision
     cfg = dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, backend=backend))
     if max_iter:
         cfg = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, max_iter=max_iter))
@@ -47,7 +48,8 @@ def bench(name: str, backend: str, max_iter: int | None, exact: bool, numpy_ref:
     params, sid = solver_params(cfg)
     U0 = initial_controls(jax.random.key(0), task.T, system.nu, cfg.solver.init,
                           cfg.solver.init_scale)
-    row = {"system": name, "backend": system.backend, "T": task.T, "n_samples": sid.n_samples}
+    row = {"system": name, "backend": system.backend, "T": task.T, "n_samples": sid.n_samples,
+           "precision": "f64" if cfg.experiment.x64 else "f32"}
     t = compile_then_run(solve_d2c, (system,), (task, U0, jax.random.key(1), params, sid))
     row.update(d2c_cost=float(t.out.cost), d2c_iters=int(t.out.iterations),
                d2c_compile=t.compile_s, d2c_run=t.run_s, d2c_conv=bool(t.out.converged))
@@ -78,18 +80,19 @@ def main() -> None:
     import mjx_surrogate  # noqa: F401
 
     f = lambda v, p=3: "-" if v is None else (f"{v:.{p}g}" if isinstance(v, float) else str(v))  # noqa
-    print("| system | backend | T | D2C cost | iters | D2C run s | D2C compile s | exact cost "
-          "| gap % | NumPy+native run s | NumPy cost | speed-up vs NumPy | published LLS-CD s / cost "
+    print("| system | backend | precision | T | D2C cost | iters | D2C run s | D2C compile s "
+          "| exact cost | exact iters | gap % | NumPy+native run s | NumPy cost | speed-up vs NumPy | published LLS-CD s / cost "
           "| published FD s / cost |")
-    print("|" + "---|" * 14)
+    print("|" + "---|" * 16)
     for name in a.systems:
         r = bench(name, a.backend, a.max_iter, not a.no_exact, not a.no_numpy)
         gap = (100 * (r["d2c_cost"] - r["exact_cost"]) / abs(r["exact_cost"])
                if "exact_cost" in r else None)
         sp = r["np_run"] / r["d2c_run"] if "np_run" in r else None
         p = PUBLISHED.get(name, (None,) * 4)
-        print(f"| {name} | {r['backend']} | {r['T']} | {f(r['d2c_cost'], 5)} | {r['d2c_iters']} | "
-              f"{f(r['d2c_run'])} | {f(r['d2c_compile'])} | {f(r.get('exact_cost'), 5)} | "
+        print(f"| {name} | {r['backend']} | {r['precision']} | {r['T']} | {f(r['d2c_cost'], 5)} | "
+              f"{r['d2c_iters']} | {f(r['d2c_run'])} | {f(r['d2c_compile'])} | "
+              f"{f(r.get('exact_cost'), 5)} | {r.get('exact_iters', '-')} | "
               f"{f(gap, 2)} | {f(r.get('np_run'))} | {f(r.get('np_cost'), 5)} | {f(sp)} | "
               f"{f(p[0])} / {f(p[1], 4)} | {f(p[2])} / {f(p[3], 4)} |", flush=True)
 

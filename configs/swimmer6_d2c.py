@@ -7,8 +7,8 @@ CONFIG = Config(
     system=SystemConfig(name="swimmer6", timestep=0.01, substeps=1),
     task=TaskConfig(preset="swimmer6_d2c"),
     solver=SolverConfig(sysid="central_difference", n_samples=25, init="random", init_scale=0.1,
-                        max_iter=250, rel_tol=1e-5),
+                        max_iter=250, rel_tol=1e-5, sigma_x=1e-5, sigma_u=1e-5),
     # The exact oracle needs MJX through 800 steps of a 6-link chain: impractical on 2 CPU
     # cores (docs/performance.md); turn it on with --experiment.exact_oracle True on a GPU.
-    experiment=ExperimentConfig(kind="d2c", exact_oracle=False),
+    experiment=ExperimentConfig(kind="d2c", exact_oracle=False, x64=True),
 )

@@ -140,19 +140,51 @@ class SurrogateConfig:
 
 
 @dataclasses.dataclass(frozen=True)
+class AnalysisConfig:
+    """The paper's analyses (kinds "analysis" and "theory").
+
+    n_datasets: data sets drawn with different seeds from one sampling distribution.
+    convergence_sindy_levels / convergence_mlp_levels: levels of the model-convergence
+    figures (paper: SINDy 10 % and 100 %, MLP 5 % and 25 %), with convergence_library.
+    gram_sindy_level, gram_libraries: the Gram-matrix spectra (paper: 5 %, cubic + trig
+    and quartic). gram_mlp_levels: the MLP parameter-Jacobian Gram (paper: 5 %, 15 %) on
+    gram_points transitions. variance_libraries / variance_levels (paired): projections
+    of the error on the basis across data sets (paper: cubic at 5 %, quartic + trig at 15 %).
+    theory_*: orders 1..theory_max_order, Gaussian scales, Monte Carlo size.
+    """
+
+    n_datasets: int = 5
+    convergence_library: str = "cubic_trig"
+    convergence_sindy_levels: Tuple[float, ...] = (0.10, 1.00)
+    convergence_mlp_levels: Tuple[float, ...] = (0.05, 0.25)
+    gram_sindy_level: float = 0.05
+    gram_libraries: Tuple[str, ...] = ("cubic_trig", "quartic")
+    gram_mlp_levels: Tuple[float, ...] = (0.05, 0.15)
+    gram_points: int = 1000
+    variance_libraries: Tuple[str, ...] = ("cubic", "quartic_trig")
+    variance_levels: Tuple[float, ...] = (0.05, 0.15)
+    theory_max_order: int = 10
+    theory_sigmas: Tuple[float, ...] = (0.5, 1.0)
+    theory_mc_samples: int = 1000
+    theory_mc_trials: int = 400
+
+
+@dataclasses.dataclass(frozen=True)
 class ExperimentConfig:
     """What to run and where to write it.
 
     kind: "rollout" (n_rollouts perturbed rollouts around the task's zero-control
     nominal, with rollout_sigma_x / rollout_sigma_u), "d2c" (data-driven iLQR
     against the exact-Jacobian oracle, then feedback evaluation under noise_levels) or
-    "predict" (D2C optimum, data sets per level, SINDy / MLP / LTV predictions).
+    "predict" (D2C optimum, data sets per level, SINDy / MLP / LTV predictions),
+    "analysis" (convergence across seeds, Gram conditioning, variance; section analysis)
+    or "theory" (exact moments against Monte Carlo and the paper's formulas).
     x64: run in float64.
     exact_oracle: also solve with exact MJX Jacobians from the same start (needs a model
     MJX supports and, on 2 CPU cores, a small one; see docs/performance.md).
     """
 
-    kind: Literal["rollout", "d2c", "predict"] = "d2c"
+    kind: Literal["rollout", "d2c", "predict", "analysis", "theory"] = "d2c"
     seed: int = 0
     out_dir: str = "runs"
     name: Optional[str] = None
@@ -174,6 +206,7 @@ class Config:
     experiment: ExperimentConfig = ExperimentConfig()
     data: DataConfig = DataConfig()
     surrogate: SurrogateConfig = SurrogateConfig()
+    analysis: AnalysisConfig = AnalysisConfig()
 
 
 def to_dict(cfg: Any) -> dict:
@@ -297,6 +330,26 @@ def validate_static(cfg: Config) -> None:
     bad = [e for e in m.mlp_checkpoints if not 0 <= e <= m.mlp_epochs]
     if bad:
         raise ConfigError("surrogate.mlp_checkpoints", f"{bad} outside 0..mlp_epochs={m.mlp_epochs}")
+    a = cfg.analysis
+    for field, v in {"analysis.n_datasets": a.n_datasets - 1, "analysis.gram_points": a.gram_points,
+                     "analysis.theory_max_order": a.theory_max_order,
+                     "analysis.theory_mc_samples": a.theory_mc_samples - 1,
+                     "analysis.theory_mc_trials": a.theory_mc_trials - 1}.items():
+        if v < 1:
+            raise ConfigError(field, "too small (n_datasets, theory_mc_* >= 2; others >= 1)")
+    if len(a.variance_libraries) != len(a.variance_levels):
+        raise ConfigError("analysis.variance_levels", "needs one level per variance library")
+    for field, vals in {"analysis.convergence_sindy_levels": a.convergence_sindy_levels,
+                        "analysis.convergence_mlp_levels": a.convergence_mlp_levels,
+                        "analysis.gram_mlp_levels": a.gram_mlp_levels,
+                        "analysis.variance_levels": a.variance_levels,
+                        "analysis.theory_sigmas": a.theory_sigmas,
+                        "analysis.gram_sindy_level": (a.gram_sindy_level,)}.items():
+        check_finite(field, vals)
+        if any(v <= 0 for v in vals):
+            raise ConfigError(field, "levels and scales must be > 0")
+    if a.theory_max_order > 14:
+        raise ConfigError("analysis.theory_max_order", "at most 14 (exact rational arithmetic)")
     check_finite("experiment.noise_levels", cfg.experiment.noise_levels)
     if any(v < 0 for v in cfg.experiment.noise_levels):
         raise ConfigError("experiment.noise_levels", "noise levels must be >= 0")

@@ -47,7 +47,7 @@ def solve_d2c(system: System, task: Task, U0: jax.Array, key: jax.Array,
               sysid: sid.SysIdParams = sid.SysIdParams()) -> ILQRResult:
     """D2C from U0 [T, nu]: LTV identification + iLQR until a stopping rule holds."""
     return ilqr(system.step, ltv_linearize(system, sysid), task_cost(task), task.x0,
-                U0, task.u_min, task.u_max, params, key)
+                U0, task.u_min, task.u_max, params, key, system.closed_loop)
 
 
 @functools.partial(jax.jit, static_argnames=("system",))

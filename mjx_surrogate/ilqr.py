@@ -34,6 +34,8 @@ from mjx_surrogate.linalg import spd_solve
 
 StepFn = Callable[[jax.Array, jax.Array], jax.Array]
 LinearizeFn = Callable[[jax.Array, jax.Array, jax.Array, jax.Array], tuple[jax.Array, jax.Array]]
+# (x0, X_bar, U_bar, k, K, alphas [A], lo, hi) -> (X [A, T+1, nx], U [A, T, nu])
+ClosedLoopFn = Callable[..., tuple[jax.Array, jax.Array]]
 
 STOP_REASONS = (
     "running",
@@ -200,8 +202,13 @@ class _State(NamedTuple):
 
 
 def ilqr(step: StepFn, linearize: LinearizeFn, cost: Cost, x0: jax.Array, U0: jax.Array,
-         u_min: jax.Array, u_max: jax.Array, params: ILQRParams, key: jax.Array) -> ILQRResult:
+         u_min: jax.Array, u_max: jax.Array, params: ILQRParams, key: jax.Array,
+         trial_rollouts: ClosedLoopFn | None = None) -> ILQRResult:
     """Solve min_U J(x0, U) s.t. u_min <= u_t <= u_max. x0 [nx], U0 [T, nu].
+
+    ``trial_rollouts`` replaces the default line-search forward pass (``closed_loop`` over
+    ``step``, vmapped over the step sizes) with one call for all step sizes; the native
+    backend uses it to make one host call per iteration instead of one per time step.
 
     Pure and traceable: wrap in ``jax.jit`` (with step/linearize/cost fixed) or ``vmap``
     over x0/U0/keys for multi-start solves.
@@ -230,8 +237,11 @@ def ilqr(step: StepFn, linearize: LinearizeFn, cost: Cost, x0: jax.Array, U0: ja
                             lambda: (s.A, s.B))
         derivs = cost_derivatives(cost, s.X, s.U)
         k, K, dV, ok = backward_pass(A, B, *derivs, s.U, u_min, u_max, s.mu)
-        trial = jax.vmap(closed_loop, in_axes=(None, None, None, None, None, None, 0, None, None))
-        Xa, Ua = trial(step, x0, s.X, s.U, k, K, alphas, u_min, u_max)
+        if trial_rollouts is None:
+            trial = jax.vmap(closed_loop, in_axes=(None, None, None, None, None, None, 0, None, None))
+            Xa, Ua = trial(step, x0, s.X, s.U, k, K, alphas, u_min, u_max)
+        else:
+            Xa, Ua = trial_rollouts(x0, s.X, s.U, k, K, alphas, u_min, u_max)
         Ja = jax.vmap(trajectory_cost, in_axes=(None, 0, 0))(cost, Xa, Ua)
         expected = -(alphas * dV[0] + alphas**2 * dV[1])
         ratio = (s.J - Ja) / jnp.where(expected > 0, expected, jnp.inf)

@@ -132,3 +132,79 @@ def error_vs_level(levels: np.ndarray, errors: dict[str, np.ndarray], ylabel: st
     ax.grid(alpha=0.3, which="both")
     fig.tight_layout()
     return fig
+
+
+def theory_curves(orders: np.ndarray, curves: dict[str, list[float]], ylabel: str, title: str = ""):
+    """Quantities against the basis order N, log scale; 'exact' solid, 'paper' dashed,
+    'Monte Carlo' as markers, one colour per basis."""
+    fig, ax = plt.subplots(figsize=(5.4, 3.8))
+    colours: dict[str, str] = {}
+    for name, vals in curves.items():
+        base = name.split(" ")[0].rstrip(",")
+        c = colours.setdefault(base, f"C{len(colours)}")
+        v = np.asarray(vals, float)
+        v = np.where(v > 0, v, np.nan)
+        if "paper" in name:
+            ax.plot(orders, v, "--", color=c, label=name)
+        elif "Monte Carlo" in name:
+            ax.plot(orders, v, "o", color=c, ms=4, mfc="none", label=name)
+        else:
+            ax.plot(orders, v, "-", color=c, label=name)
+    ax.set_yscale("log")
+    ax.set_xlabel("basis order N")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=6.5, ncol=2)
+    ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    return fig
+
+
+def seed_overlay(t: np.ndarray, X_true: np.ndarray, P: np.ndarray, coords: list[int],
+                 labels: list[str], title: str = ""):
+    """Predictions of K models P [K, T+1, nx] (one per data set) over the true trajectory."""
+    fig, axes = plt.subplots(1, len(coords), figsize=(4 * len(coords), 3.2), squeeze=False)
+    for ax, c in zip(axes[0], coords):
+        lo, hi = np.nanmin(X_true[:, c]), np.nanmax(X_true[:, c])
+        pad = 3 * max(hi - lo, 1e-6)
+        for k in range(P.shape[0]):
+            ax.plot(t, np.clip(P[k, :, c], lo - pad, hi + pad), lw=1.1, alpha=0.8, label=f"seed {k}")
+        ax.plot(t, X_true[:, c], "k", lw=2.2, label="black box")
+        ax.set_xlabel("t (s)")
+        ax.set_ylabel(labels[c])
+        ax.grid(alpha=0.3)
+    axes[0][0].legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def spectra(svals: dict[str, np.ndarray], title: str = ""):
+    """Sorted singular values (square roots of Gram eigenvalues), normalised by the largest."""
+    fig, ax = plt.subplots(figsize=(5.4, 3.6))
+    for name, s in svals.items():
+        s = np.asarray(s, float)
+        ax.plot(np.arange(1, s.size + 1) / s.size, s / s[0], label=f"{name} (n={s.size})")
+    ax.set_yscale("log")
+    ax.set_xlabel("index / number of columns")
+    ax.set_ylabel("singular value / largest")
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    return fig
+
+
+def projections(proj: dict[str, np.ndarray]):
+    """Error projections on each basis function, one line per data set: name -> [S, P]."""
+    fig, axes = plt.subplots(1, len(proj), figsize=(4.6 * len(proj), 3.2), squeeze=False)
+    for ax, (name, D) in zip(axes[0], proj.items()):
+        for s in range(D.shape[0]):
+            ax.plot(np.arange(D.shape[1]), D[s], lw=1, marker=".", ms=3, label=f"data set {s}")
+        ax.set_xlabel("basis function index")
+        ax.set_ylabel("(1/R) Theta' (y - Theta C)")
+        ax.set_title(name, fontsize=9)
+        ax.grid(alpha=0.3)
+    axes[0][0].legend(fontsize=7)
+    fig.tight_layout()
+    return fig

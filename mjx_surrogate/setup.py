@@ -141,7 +141,7 @@ def resolve(cfg: Config) -> Resolved:
     if cfg.experiment.kind == "d2c" and cfg.solver.n_samples < system.nx + system.nu:
         raise ConfigError("solver.n_samples", f"must be >= nx + nu = {system.nx + system.nu} "
                           f"for the LTV least squares to be determined, got {cfg.solver.n_samples}")
-    if cfg.experiment.kind == "predict":
+    if cfg.experiment.kind in ("predict", "analysis"):
         _check_surrogates(cfg, system, int(tc.T))
     sc = dataclasses.replace(cfg.system, backend=system.backend, substeps=system.substeps,
                              timestep=float(system.mj_model.opt.timestep))
@@ -189,3 +189,8 @@ def _check_surrogates(cfg: Config, system: System, T: int) -> None:
         raise ConfigError("data.n_traj", f"the LTV fit needs >= nx + nu = {system.nx + system.nu} "
                           f"training trajectories, got {n_train}")
     library_specs(cfg, system)
+    if cfg.experiment.kind == "analysis":
+        a = cfg.analysis
+        names = {a.convergence_library, *a.gram_libraries, *a.variance_libraries}
+        library_specs(dataclasses.replace(cfg, surrogate=dataclasses.replace(
+            sc, sindy_libraries=tuple(sorted(names)))), system)

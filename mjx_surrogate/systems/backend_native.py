@@ -89,6 +89,40 @@ class NativeSimulator:
         return X.reshape(lead + (T + 1, self.nx)).astype(x0.dtype, copy=False)
 
 
+    def closed_loop(self, x0, X_bar, U_bar, k, K, alphas, lo, hi):
+        """u_t = clip(U_bar_t + alpha k_t + K_t (x_t - X_bar_t)) for every alpha at once:
+        x0 [nx], X_bar [T+1, nx], U_bar, k [T, nu], K [T, nu, nx], alphas [A]
+        -> X [A, T+1, nx], U [A, T, nu]."""
+        x0, X_bar, U_bar, k, K, alphas, lo, hi = (
+            np.asarray(a) for a in (x0, X_bar, U_bar, k, K, alphas, lo, hi))
+        T, nu = U_bar.shape
+        A = len(alphas)
+        X = np.empty((A, T + 1, self.nx))
+        U = np.empty((A, T, nu))
+        X[:, 0] = x0
+        alphas = np.asarray(alphas, np.float64)[:, None]
+        for t in range(T):
+            u = U_bar[t] + alphas * k[t] + (X[:, t] - X_bar[t]) @ K[t].T
+            U[:, t] = np.clip(u, lo, hi)
+            X[:, t + 1] = self(X[:, t], U[:, t, None, :])[:, 1]
+        dtype = x0.dtype
+        return X.astype(dtype, copy=False), U.astype(dtype, copy=False)
+
+
+def make_native_closed_loop(sim: NativeSimulator):
+    """Jittable ``ilqr.ClosedLoopFn``: the whole line-search forward pass in one host call."""
+
+    def closed_loop(x0, X_bar, U_bar, k, K, alphas, lo, hi):
+        T, nu = U_bar.shape
+        dt = x0.dtype
+        out = (jax.ShapeDtypeStruct((alphas.shape[0], T + 1, sim.nx), dt),
+               jax.ShapeDtypeStruct((alphas.shape[0], T, nu), dt))
+        args = [a.astype(dt) for a in (x0, X_bar, U_bar, k, K, alphas,
+                                       jnp.broadcast_to(lo, (nu,)), jnp.broadcast_to(hi, (nu,)))]
+        return jax.pure_callback(sim.closed_loop, out, *args, vmap_method="sequential")
+
+    return closed_loop
+
 
 def make_native_rollout(sim: NativeSimulator):
     """Jittable ``rollout(x0[B, nx], U[B, T, nu]) -> X[B, T+1, nx]`` through a callback."""

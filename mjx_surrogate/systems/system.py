@@ -26,6 +26,8 @@ class System:
     Attributes:
       step: jittable ``(x[nx], u[nu]) -> x_next[nx]`` on the chosen backend.
       rollout: jittable ``(x0[B, nx], U[B, T, nu]) -> X[B, T+1, nx]``.
+      closed_loop: the iLQR line search's closed-loop rollouts for all step sizes in one
+        call (native backend: one host call instead of one per time step), or None.
     """
 
     name: str
@@ -36,6 +38,7 @@ class System:
     native_threads: int
     step: Callable[[jax.Array, jax.Array], jax.Array]
     rollout: Callable[[jax.Array, jax.Array], jax.Array]
+    closed_loop: Callable | None = None  # batched line-search rollout (ilqr.ClosedLoopFn)
 
     @property
     def nq(self) -> int:
@@ -124,7 +127,8 @@ def build_system(name: str, xml: str, substeps: int, backend: str,
         sim = backend_native.NativeSimulator(model, substeps, threads)
         step = backend_native.make_native_step(sim)
         rollout = backend_native.make_native_rollout(sim)
-    system = System(name, exact_xml, model, substeps, backend, threads, step, rollout)
+    closed = backend_native.make_native_closed_loop(sim) if backend == "native" else None
+    system = System(name, exact_xml, model, substeps, backend, threads, step, rollout, closed)
     if backend == "native":
         system.__dict__["native"] = sim  # share the one pool
     return system

@@ -1,0 +1,201 @@
+"""Experiment kind "analysis": the paper's model-convergence, ill-conditioning and variance
+experiments around the task's optimum (paper: the cartpole swing-up)."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from experiments.predict_study import mlp_spec, optimum
+from mjx_surrogate import data, models, plots
+from mjx_surrogate.analysis import spectra
+from mjx_surrogate.results import RunFolder
+from mjx_surrogate.setup import Resolved, library_specs
+from mjx_surrogate.surrogates import mlp, sindy
+from mjx_surrogate.systems.system import state_labels
+
+
+def _datasets(system, X_star, U_star, key, cfg, level):
+    """K data sets from one sampling distribution: (train list, test list) of Transitions."""
+    keys = jax.random.split(key, cfg.analysis.n_datasets)
+    sets = data.sample_seeds(system, X_star, U_star, keys, cfg.data.n_traj, level, cfg.data.x0_sigma)
+    out = []
+    for i in range(cfg.analysis.n_datasets):
+        ds = data.Dataset(sets.X[i], sets.U[i])
+        train, test = data.split(ds, jax.random.fold_in(key, i), cfg.data.test_fraction)
+        out.append((data.transitions(train), data.transitions(test)))
+    return out
+
+
+def _common(trs: list, m: int | None = None):
+    """Stack transitions of K data sets, truncated to the smallest size (for vmap)."""
+    m = m or min(t.x.shape[0] for t in trs)
+    z = jnp.stack([jnp.concatenate([t.x[:m], t.u[:m]], -1) for t in trs])
+    xn = jnp.stack([t.x_next[:m] for t in trs])
+    return z, xn
+
+
+def _spread(P: np.ndarray) -> float:
+    """Mean over time and coordinates of the std across seeds of predictions P [K, T+1, nx]."""
+    return float(np.nanmean(np.nanstd(P, axis=0))) if np.isfinite(P).any() else float("inf")
+
+
+def run(res: Resolved, folder: RunFolder, key: jax.Array) -> tuple[dict, dict]:
+    cfg, system, task = res
+    a = cfg.analysis
+    specs = library_specs(cfg, system) | _extra_specs(cfg, system)
+    keys = dict(zip(("opt", "conv", "gram", "var"), jax.random.split(key, 4)))
+    metrics: dict = {"status": "ok"}
+    m_opt, X_star, U_star = optimum(res, keys["opt"], cfg.experiment.progress)
+    metrics["optimum"] = m_opt
+    arrays: dict = {"X_star": X_star, "U_star": U_star}
+    if m_opt["cost"] is None:
+        metrics["status"] = "diverged"
+        return metrics, arrays
+    labels = state_labels(system.mj_model)
+    t = np.arange(task.T + 1) * system.dt
+    coords = list(range(min(system.nq, 2)))
+    x0, U1 = X_star[0][None], U_star[None]
+    spec_mlp = mlp_spec(cfg)
+
+    # 1. Model convergence across data sets ------------------------------------------
+    conv = {}
+    for kind, levels in (("SINDy", a.convergence_sindy_levels), ("MLP", a.convergence_mlp_levels)):
+        for j, level in enumerate(levels):
+            sets = _datasets(system, X_star, U_star, jax.random.fold_in(keys["conv"], 100 * j + len(kind)),
+                             cfg, level)
+            if kind == "SINDy":
+                spec = specs[a.convergence_library]
+                fits = [sindy.fit(spec, tr.x, tr.u, tr.x_next, increment=cfg.surrogate.increment,
+                                  method=cfg.surrogate.sindy_method) for tr, _ in sets]
+                steps = [m.step for m in fits]
+                C = np.stack([np.asarray(m.coef) for m in fits])
+                extra = {"coef_rel_std": float(np.mean(C.std(0)) / max(np.mean(np.abs(C.mean(0))), 1e-300))}
+            else:
+                z, xn = _common([tr for tr, _ in sets])
+                zt, xnt = _common([te for _, te in sets])
+                y, yt = (mlp.targets(z[..., :system.nx], xn, spec_mlp.increment),
+                         mlp.targets(zt[..., :system.nx], xnt, spec_mlp.increment))
+                kk = jax.random.split(jax.random.fold_in(keys["conv"], 7 + j), a.n_datasets)
+                trained = mlp.train_seeds(spec_mlp, kk, z, y, zt, yt)
+                steps = [mlp.unstack(trained, i).model.step for i in range(a.n_datasets)]
+                extra = {"final_test_loss": np.asarray(trained.test_loss[:, -1]).tolist()}
+            P = np.stack([np.asarray(models.predict(models.time_invariant(s), x0, U1))[0] for s in steps])
+            name = f"{kind} {100 * level:g}%"
+            conv[name] = {"prediction_spread": _spread(P), **extra,
+                          "final_state_spread": np.nanstd(P[:, -1], axis=0).tolist()}
+            arrays[f"convergence_{kind}_{level:g}"] = P
+            folder.write_figure(f"convergence_{kind.lower()}_{100 * level:g}pct.png", plots.seed_overlay(
+                t, np.asarray(X_star), P, coords, labels,
+                f"{kind} trained on {a.n_datasets} data sets, {100 * level:g}% U_max: optimal controls"))
+    metrics["convergence"] = conv
+
+    # 2. Ill-conditioning ---------------------------------------------------------------
+    gram = {}
+    spectra_plot = {}
+    (tr, _), = _datasets(system, X_star, U_star, keys["gram"], _one(cfg), a.gram_sindy_level)
+    for name in a.gram_libraries:
+        theta = sindy.design(specs[name], tr.x, tr.u)
+        eig = spectra.eigenvalues(sindy.gram(theta))
+        gram[f"SINDy {name} {100 * a.gram_sindy_level:g}%"] = {
+            "condition": spectra.condition(eig), "n_features": int(theta.shape[1]),
+            "precision": str(theta.dtype)}
+        spectra_plot[f"SINDy {name}"] = np.sqrt(eig)  # singular values of Theta / sqrt(R)
+    for j, level in enumerate(a.gram_mlp_levels):
+        (tr, te), = _datasets(system, X_star, U_star, jax.random.fold_in(keys["gram"], j + 1), _one(cfg), level)
+        z = jnp.concatenate([tr.x, tr.u], -1)
+        zt = jnp.concatenate([te.x, te.u], -1)
+        r = mlp.train(spec_mlp, jax.random.fold_in(keys["gram"], 50 + j), z,
+                      mlp.targets(tr.x, tr.x_next, spec_mlp.increment), zt,
+                      mlp.targets(te.x, te.x_next, spec_mlp.increment))
+        zs, _ = spectra.standardise(r.model, z[: a.gram_points], z[: a.gram_points, : system.nx])
+        eig = spectra.eigenvalues(spectra.mlp_gram(r.model, zs))
+        tiny = int(np.sum(eig < 1e-12 * eig[0]))
+        gram[f"MLP {100 * level:g}%"] = {"condition": spectra.condition(eig), "n_params": int(eig.size),
+                                         "eigenvalues_below_1e-12_of_max": tiny,
+                                         "precision": "float64 Gram of float32 Jacobians"}
+        spectra_plot[f"MLP {100 * level:g}%"] = np.sqrt(eig)
+        arrays[f"mlp_gram_eigs_{level:g}"] = eig
+    metrics["ill_conditioning"] = gram
+    folder.write_figure("gram_spectra.png", plots.spectra(spectra_plot, "Gram matrix spectra"))
+
+    # 3. Variance ---------------------------------------------------------------------
+    var = {}
+    proj_plot = {}
+    for j, (name, level) in enumerate(zip(a.variance_libraries, a.variance_levels)):
+        sets = _datasets(system, X_star, U_star, jax.random.fold_in(keys["var"], j), cfg, level)
+        spec = specs[name]
+        thetas = [sindy.design(spec, tr.x, tr.u) for tr, _ in sets]
+        ys = [tr.x_next - tr.x if cfg.surrogate.increment else tr.x_next for tr, _ in sets]
+        pooled = sindy.lstsq(jnp.concatenate(thetas), jnp.concatenate(ys), cfg.surrogate.sindy_method)
+        D = np.asarray(spectra.error_projections(thetas, ys, pooled))  # [S, P, nx]
+        rhs = np.asarray(jnp.stack([sindy.projections(th, y) for th, y in zip(thetas, ys)]))
+        label = f"SINDy {name} {100 * level:g}%"
+        var[label] = {"projection_std_mean": float(D.std(0).mean()),
+                      "relative_to_rhs": float(D.std(0).mean() / np.abs(rhs.mean(0)).mean()),
+                      "n_features": int(D.shape[1])}
+        proj_plot[label] = D[..., 1 % system.nx]  # a velocity-like coordinate's equation
+        arrays[f"variance_projections_{name}_{level:g}"] = D
+    var.update(_mlp_directions(cfg, system, X_star, U_star, keys["var"], spec_mlp, arrays))
+    metrics["variance"] = var
+    folder.write_figure("variance_projections.png", plots.projections(proj_plot))
+    folder.write_text("analysis_table.md", _table(metrics))
+    return metrics, arrays
+
+
+def _mlp_directions(cfg, system, X_star, U_star, key, spec_mlp, arrays) -> dict:
+    """(1/R) H' Delta at the first and last checkpoint, same initial weights, K data sets."""
+    a = cfg.analysis
+    level = a.gram_mlp_levels[0]
+    sets = _datasets(system, X_star, U_star, jax.random.fold_in(key, 99), cfg, level)
+    z, xn = _common([tr for tr, _ in sets])
+    y = mlp.targets(z[..., :system.nx], xn, spec_mlp.increment)
+    spec = spec_mlp._replace(checkpoints=(0, spec_mlp.epochs))
+    same = jnp.stack([jax.random.fold_in(key, 5)] * a.n_datasets)  # same init and batches
+    trained = mlp.train_seeds(spec, same, z, y, z[:, :256], y[:, :256])
+    out = {}
+    for c, epoch in enumerate(spec.checkpoints):
+        G = []
+        for i in range(a.n_datasets):
+            r = mlp.unstack(trained, i)
+            model = r.model.replace(params=jax.tree.map(lambda p: p[c], r.checkpoints))
+            zs, ys = spectra.standardise(model, z[i, : a.gram_points], y[i, : a.gram_points])
+            G.append(np.asarray(spectra.mlp_descent_direction(model, zs, ys)))
+        G = np.stack(G)
+        cos = spectra.cosine_matrix(G)
+        off = cos[~np.eye(len(G), dtype=bool)]
+        out[f"MLP {100 * level:g}% epoch {epoch}"] = {"mean_pairwise_cosine": float(off.mean()),
+                                                      "min_pairwise_cosine": float(off.min())}
+        arrays[f"mlp_descent_directions_epoch{epoch}"] = G
+    return out
+
+
+def _one(cfg):
+    import dataclasses
+
+    return dataclasses.replace(cfg, analysis=dataclasses.replace(cfg.analysis, n_datasets=1))
+
+
+def _extra_specs(cfg, system) -> dict:
+    """Libraries named in the analysis section but not in surrogate.sindy_libraries."""
+    import dataclasses
+
+    names = {cfg.analysis.convergence_library, *cfg.analysis.gram_libraries,
+             *cfg.analysis.variance_libraries} - set(cfg.surrogate.sindy_libraries)
+    sub = dataclasses.replace(cfg, surrogate=dataclasses.replace(cfg.surrogate,
+                                                                 sindy_libraries=tuple(sorted(names))))
+    return library_specs(sub, system) if names else {}
+
+
+def _table(m: dict) -> str:
+    lines = ["## Model convergence across data sets (optimal controls from the optimal start)\n",
+             "| model | prediction spread (mean std across seeds) |", "|---|---|"]
+    lines += [f"| {k} | {v['prediction_spread']:.3g} |" for k, v in m["convergence"].items()]
+    lines += ["\n## Gram-matrix conditioning\n", "| model | condition number | precision |", "|---|---|---|"]
+    lines += [f"| {k} | {v['condition']:.3g} | {v['precision']} |" for k, v in m["ill_conditioning"].items()]
+    lines += ["\n## Variance across data sets\n", "| quantity | value |", "|---|---|"]
+    for k, v in m["variance"].items():
+        lines += [f"| {k}: {q} | {x:.3g} |" for q, x in v.items()]
+    return "\n".join(lines) + "\n"
+

@@ -1,0 +1,1 @@
+"""The paper\x27s analyses: theory (exact moments), conditioning, variance, convergence."""

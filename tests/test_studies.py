@@ -1,0 +1,54 @@
+"""The "predict" experiment end to end on the smoke preset."""
+
+import json
+import os
+
+from experiments import run as cli
+
+
+def test_smoke_predict_writes_figures_table_and_metrics(tmp_path):
+    assert cli.main(["smoke_predict", "--out", str(tmp_path)]) == 0
+    (folder,) = os.listdir(tmp_path)
+    path = tmp_path / folder
+    files = set(os.listdir(path))
+    assert {"predict_10pct.png", "predict_60pct.png", "one_step_rmse_vs_level.png",
+            "multi_step_median_vs_level.png", "rmse_table.md", "arrays.npz"} <= files
+    m = json.loads((path / "metrics.json").read_text())
+    assert m["status"] == "ok" and m["optimum"]["converged"]
+    names = {"SINDy cubic_trig", "SINDy quartic", "MLP", "LTV"}
+    for level in ("0.1", "0.6"):
+        assert names <= set(m["results"][level])
+        for name in names:
+            assert m["results"][level][name]["one_step_rmse"] is not None
+    # near its own trajectory, at the smaller level, the LTV model predicts well
+    assert m["results"]["0.1"]["LTV"]["multi_step_median"] < 0.1
+    assert "| 10 |" in (path / "rmse_table.md").read_text()
+
+
+def _run(preset, tmp_path):
+    assert cli.main([preset, "--out", str(tmp_path)]) == 0
+    (folder,) = os.listdir(tmp_path)
+    return tmp_path / folder
+
+
+def test_smoke_analysis_writes_every_figure_and_table(tmp_path):
+    path = _run("smoke_analysis", tmp_path)
+    files = set(os.listdir(path))
+    assert {"convergence_sindy_10pct.png", "convergence_mlp_5pct.png", "gram_spectra.png",
+            "variance_projections.png", "analysis_table.md"} <= files
+    m = json.loads((path / "metrics.json").read_text())
+    assert m["status"] == "ok"
+    quartic = m["ill_conditioning"]["SINDy quartic 5%"]
+    cubic = m["ill_conditioning"]["SINDy cubic_trig 5%"]
+    assert quartic["precision"] == "float64" and quartic["condition"] > cubic["condition"] > 1e3
+    assert set(m["variance"]) >= {"SINDy cubic 5%", "SINDy quartic_trig 15%", "MLP 5% epoch 0"}
+
+
+def test_smoke_theory_reports_exact_monte_carlo_and_paper(tmp_path):
+    path = _run("smoke_theory", tmp_path)
+    m = json.loads((path / "metrics.json").read_text())
+    d = m["by_sigma"]["1"]
+    assert d["monomial"]["var_exact"] == d["monomial"]["var_paper"]
+    assert m["findings"]["1"]["monomial_variance_formula_exact"]
+    assert {"theory_variance_sigma1.png", "theory_condition_sigma1.png", "theory_table.md"} <= set(
+        os.listdir(path))
