@@ -110,10 +110,12 @@ def _one_line_tyro_error(text: str) -> ConfigError:
 
 
 def kinds():
-    from experiments import analysis_study, d2c_study, predict_study, rollout_study, theory_study
+    from experiments import (analysis_study, control_study, d2c_study, predict_study,
+                             rollout_study, theory_study)
 
     return {"rollout": rollout_study.run, "d2c": d2c_study.run, "predict": predict_study.run,
-            "analysis": analysis_study.run, "theory": theory_study.run}
+            "analysis": analysis_study.run, "theory": theory_study.run,
+            "control": control_study.run}
 
 
 def run(cfg: Config, name: str = "run") -> str:

@@ -178,13 +178,14 @@ class ExperimentConfig:
     against the exact-Jacobian oracle, then feedback evaluation under noise_levels) or
     "predict" (D2C optimum, data sets per level, SINDy / MLP / LTV predictions),
     "analysis" (convergence across seeds, Gram conditioning, variance; section analysis)
-    or "theory" (exact moments against Monte Carlo and the paper's formulas).
+    "theory" (exact moments against Monte Carlo and the paper's formulas) or "control"
+    (iLQR on each surrogate, judged on the black box against D2C and the exact oracle).
     x64: run in float64.
     exact_oracle: also solve with exact MJX Jacobians from the same start (needs a model
     MJX supports and, on 2 CPU cores, a small one; see docs/performance.md).
     """
 
-    kind: Literal["rollout", "d2c", "predict", "analysis", "theory"] = "d2c"
+    kind: Literal["rollout", "d2c", "predict", "analysis", "theory", "control"] = "d2c"
     seed: int = 0
     out_dir: str = "runs"
     name: Optional[str] = None

@@ -138,10 +138,10 @@ def resolve(cfg: Config) -> Resolved:
     validate_static(cfg)
     system = build_system_from_config(cfg.system)
     tc = resolve_task(cfg.task, system)
-    if cfg.experiment.kind == "d2c" and cfg.solver.n_samples < system.nx + system.nu:
+    if cfg.experiment.kind in ("d2c", "control") and cfg.solver.n_samples < system.nx + system.nu:
         raise ConfigError("solver.n_samples", f"must be >= nx + nu = {system.nx + system.nu} "
                           f"for the LTV least squares to be determined, got {cfg.solver.n_samples}")
-    if cfg.experiment.kind in ("predict", "analysis"):
+    if cfg.experiment.kind in ("predict", "analysis", "control"):
         _check_surrogates(cfg, system, int(tc.T))
     sc = dataclasses.replace(cfg.system, backend=system.backend, substeps=system.substeps,
                              timestep=float(system.mj_model.opt.timestep))

@@ -52,3 +52,18 @@ def test_smoke_theory_reports_exact_monte_carlo_and_paper(tmp_path):
     assert m["findings"]["1"]["monomial_variance_formula_exact"]
     assert {"theory_variance_sigma1.png", "theory_condition_sigma1.png", "theory_table.md"} <= set(
         os.listdir(path))
+
+
+def test_smoke_control_judges_surrogate_controllers_on_the_black_box(tmp_path):
+    path = _run("smoke_control", tmp_path)
+    m = json.loads((path / "metrics.json").read_text())
+    assert m["status"] == "ok" and m["d2c"]["cost"] is not None
+    assert abs(m["d2c_vs_exact_relative_gap"]) < 0.01
+    models = {r["model"] for r in m["surrogates"]}
+    assert models == {"SINDy cubic_trig", "MLP"}
+    for r in m["surrogates"]:
+        # the true cost of any controller is at best the optimum's (D2C within 1 %)
+        if r["true_cost_over_d2c"] is not None:
+            assert r["true_cost_over_d2c"] > 0.99
+    assert {"ltv_trajectory_evolution.png", "surrogate_controls.png", "control_table.md"} <= set(
+        os.listdir(path))

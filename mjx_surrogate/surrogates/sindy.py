@@ -18,20 +18,22 @@ degree >= 4 libraries: their Gram matrices pass what float32 can resolve.
 from __future__ import annotations
 
 from functools import partial
-from typing import Literal, NamedTuple
+from typing import Literal
 
 import jax
 import jax.numpy as jnp
+from flax import struct
 
 from mjx_surrogate.linalg import spd_solve
 from mjx_surrogate.surrogates import library
 from mjx_surrogate.surrogates.library import LibrarySpec
 
 
-class SindyModel(NamedTuple):
+@struct.dataclass
+class SindyModel:
     coef: jax.Array  # [P, nx]
-    spec: LibrarySpec  # static
-    increment: bool  # static: the library predicts x_{t+1} - x_t instead of x_{t+1}
+    spec: LibrarySpec = struct.field(pytree_node=False)
+    increment: bool = struct.field(pytree_node=False, default=False)  # predicts x_{t+1} - x_t
 
     def step(self, x: jax.Array, u: jax.Array) -> jax.Array:
         """x [nx], u [nu] -> x_next [nx] (any leading batch axes)."""

@@ -1,0 +1,12 @@
+"""CI smoke: control with surrogates on the pendulum, tiny sizes."""
+from mjx_surrogate.config import (Config, DataConfig, ExperimentConfig, SolverConfig,
+                                  SurrogateConfig, SystemConfig, TaskConfig)
+
+CONFIG = Config(
+    system=SystemConfig(name="pendulum"),
+    task=TaskConfig(preset="pendulum_swingup", T=10),
+    solver=SolverConfig(n_samples=6, max_iter=30, init="random"),
+    experiment=ExperimentConfig(kind="control", progress=False, x64=True),
+    data=DataConfig(n_traj=40, levels=(0.1,)),
+    surrogate=SurrogateConfig(sindy_libraries=("cubic_trig",), mlp_epochs=3, mlp_batch_size=32),
+)
