@@ -137,7 +137,10 @@ def run(res: Resolved, folder: RunFolder, key: jax.Array) -> tuple[dict, dict]:
                       "n_features": int(D.shape[1])}
         proj_plot[label] = D[..., 1 % system.nx]  # a velocity-like coordinate's equation
         arrays[f"variance_projections_{name}_{level:g}"] = D
-    var.update(_mlp_directions(cfg, system, X_star, U_star, keys["var"], spec_mlp, arrays))
+    mlp_var = _mlp_directions(cfg, system, X_star, U_star, keys["var"], spec_mlp, arrays)
+    folder.write_figure("mlp_descent_directions.png", plots.projections(
+        mlp_var.pop("_figure"), "parameter index (first 200)", "unit descent direction"))
+    var.update(mlp_var)
     metrics["variance"] = var
     folder.write_figure("variance_projections.png", plots.projections(proj_plot))
     folder.write_text("analysis_table.md", _table(metrics))
@@ -155,6 +158,7 @@ def _mlp_directions(cfg, system, X_star, U_star, key, spec_mlp, arrays) -> dict:
     same = jnp.stack([jax.random.fold_in(key, 5)] * a.n_datasets)  # same init and batches
     trained = mlp.train_seeds(spec, same, z, y, z[:, :256], y[:, :256])
     out = {}
+    dirs = {}
     for c, epoch in enumerate(spec.checkpoints):
         G = []
         for i in range(a.n_datasets):
@@ -168,6 +172,9 @@ def _mlp_directions(cfg, system, X_star, U_star, key, spec_mlp, arrays) -> dict:
         out[f"MLP {100 * level:g}% epoch {epoch}"] = {"mean_pairwise_cosine": float(off.mean()),
                                                       "min_pairwise_cosine": float(off.min())}
         arrays[f"mlp_descent_directions_epoch{epoch}"] = G
+        dirs[f"MLP {100 * level:g}%, epoch {epoch}: (1/R) H' Delta"] = G[:, :200] / np.linalg.norm(
+            G, axis=1, keepdims=True)
+    out["_figure"] = dirs
     return out
 
 

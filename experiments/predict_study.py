@@ -147,8 +147,8 @@ def run(res: Resolved, folder: RunFolder, key: jax.Array) -> tuple[dict, dict]:
                     for lv in dc.levels] for n in names}
         folder.write_figure(f"{key_}_vs_level.png", plots.error_vs_level(
             np.asarray(dc.levels), errs, label, f"{system.name}: test {label}"))
-    table = ("## One-step test RMSE\n\n" + _rmse_table(dc.levels, clean, "one_step_rmse")
-             + "\n## Open-loop multi-step test RMSE (median over test trajectories)\n\n"
+    table = ("**One-step test RMSE**\n\n" + _rmse_table(dc.levels, clean, "one_step_rmse")
+             + "\n**Open-loop multi-step test RMSE (median over test trajectories)**\n\n"
              + _rmse_table(dc.levels, clean, "multi_step_median"))
     folder.write_text("rmse_table.md", table)
     metrics["finding"] = _finding(dc.levels, clean)

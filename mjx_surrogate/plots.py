@@ -195,14 +195,16 @@ def spectra(svals: dict[str, np.ndarray], title: str = ""):
     return fig
 
 
-def projections(proj: dict[str, np.ndarray]):
-    """Error projections on each basis function, one line per data set: name -> [S, P]."""
+def projections(proj: dict[str, np.ndarray], xlabel: str = "basis function index",
+                ylabel: str = "(1/R) Theta' (y - Theta C)"):
+    """Vectors per data set, one line each: name -> [S, P] (error projections on the basis,
+    or the MLP's descent directions)."""
     fig, axes = plt.subplots(1, len(proj), figsize=(4.6 * len(proj), 3.2), squeeze=False)
     for ax, (name, D) in zip(axes[0], proj.items()):
         for s in range(D.shape[0]):
             ax.plot(np.arange(D.shape[1]), D[s], lw=1, marker=".", ms=3, label=f"data set {s}")
-        ax.set_xlabel("basis function index")
-        ax.set_ylabel("(1/R) Theta' (y - Theta C)")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
         ax.set_title(name, fontsize=9)
         ax.grid(alpha=0.3)
     axes[0][0].legend(fontsize=7)

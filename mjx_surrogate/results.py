@@ -101,6 +101,9 @@ class RunFolder:
     def write_figure(self, name: str, fig) -> str:
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+        import matplotlib.pyplot as plt  # only here, where a figure already exists
+
+        plt.close(fig)
         path = os.path.join(self.path, name)
         _atomic_write(path, buf.getvalue())
         return path

@@ -1,0 +1,111 @@
+"""Reproduce every experiment of the paper's "Empirical Results" and write the report.
+
+    python -m experiments.reproduce [--quick] [--out DIR] [--report PATH]
+
+Runs the presets below in the paper's order, each into its own run folder under DIR
+(default ``runs/reproduce`` or ``runs/reproduce-quick``). Resumable: an experiment whose
+finished run folder (status ok or diverged) is already in DIR is not run again. Then
+writes the report (default: ``docs/reproduction.md`` for the full size, DIR/reproduction.md
+for --quick) with every figure in order, the paper's caption, what was measured and
+whether the paper's claim held. ``--quick`` shrinks data sets, epochs and orders to a
+CI-scale check of the whole pipeline; its numbers are not evidence.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import glob
+import json
+import os
+import shutil
+import sys
+import time
+
+import mjx_surrogate  # noqa: F401  (XLA flags first)
+from experiments import report
+from experiments.run import load_config, run
+
+EXPERIMENTS = ("pendulum_predict", "cartpole_predict", "fish_predict", "cartpole_analysis",
+               "theory", "cartpole_control")
+
+
+def quick(cfg, name: str):
+    """The CI-scale version of a preset."""
+    r = dataclasses.replace
+    cfg = r(cfg, solver=r(cfg.solver, max_iter=min(cfg.solver.max_iter, 40)),
+            data=r(cfg.data, n_traj=min(cfg.data.n_traj, 40 if name == "fish_predict" else 60),
+                   n_seeds=1),
+            surrogate=r(cfg.surrogate, mlp_epochs=2, mlp_batch_size=64, mlp_checkpoints=()),
+            analysis=r(cfg.analysis, n_datasets=2, gram_points=64, theory_max_order=4,
+                       theory_mc_samples=200, theory_mc_trials=40),
+            experiment=r(cfg.experiment, progress=False))
+    if name == "fish_predict":
+        cfg = r(cfg, task=r(cfg.task, T=60))
+    if name in ("pendulum_predict", "cartpole_predict"):
+        cfg = r(cfg, data=r(cfg.data, levels=(0.1, 0.6)))
+    if name == "cartpole_control":
+        cfg = r(cfg, data=r(cfg.data, levels=(0.05,)),
+                surrogate=r(cfg.surrogate, sindy_libraries=("cubic_trig",)))
+    return cfg
+
+
+def finished(out: str, name: str) -> str | None:
+    """The newest finished run folder of ``name`` in ``out``, if any."""
+    for path in sorted(glob.glob(os.path.join(out, f"*_{name}")), reverse=True):
+        try:
+            with open(os.path.join(path, "metrics.json")) as f:
+                if json.load(f).get("status") in ("ok", "diverged"):
+                    return path
+        except (OSError, ValueError):
+            continue
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="CI-scale sizes")
+    ap.add_argument("--out", default=None, help="folder of the run folders")
+    ap.add_argument("--report", default=None, help="path of the report (markdown)")
+    ap.add_argument("--only", nargs="*", default=None, help="subset of: " + ", ".join(EXPERIMENTS))
+    a = ap.parse_args(argv)
+    out = a.out or os.path.join("runs", "reproduce-quick" if a.quick else "reproduce")
+    os.makedirs(out, exist_ok=True)
+    names = a.only or list(EXPERIMENTS)
+    t_start = time.perf_counter()
+    timing_file = os.path.join(out, "wall_times.json")
+    times = json.load(open(timing_file)) if os.path.exists(timing_file) else {}
+    for i, name in enumerate(names, 1):
+        done = finished(out, name)
+        if done:
+            print(f"[{i}/{len(names)}] {name}: done already ({done})", flush=True)
+            continue
+        print(f"[{i}/{len(names)}] {name}: running", flush=True)
+        cfg = load_config(name)
+        cfg = quick(cfg, name) if a.quick else cfg
+        cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(cfg.experiment, out_dir=out))
+        t0 = time.perf_counter()
+        run(cfg, name)
+        times[name] = time.perf_counter() - t0
+        with open(timing_file + ".tmp", "w") as f:
+            json.dump(times, f, indent=1)
+        os.replace(timing_file + ".tmp", timing_file)
+    folders = {n: finished(out, n) for n in EXPERIMENTS}
+    path = a.report or (os.path.join(out, "reproduction.md") if a.quick
+                        else os.path.join("docs", "reproduction.md"))
+    fig_dir = os.path.join(os.path.dirname(path) or ".", "figures" if not a.quick else "report_figures")
+    if os.path.isdir(fig_dir) and not a.quick:
+        shutil.rmtree(fig_dir)
+    text = report.render(folders, times, fig_dir, os.path.dirname(path) or ".", a.quick,
+                         time.perf_counter() - t_start)
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)
+    print(f"report: {path}")
+    missing = [n for n in names if folders.get(n) is None]
+    return 1 if missing else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
