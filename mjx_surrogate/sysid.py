@@ -6,7 +6,7 @@ Every scheme ends in the same regression, solved for all t at once:
 
 with Z_t [n, nx+nu] the perturbations and Y_t [n, nx] the responses. Columns of Z_t are
 scaled to unit RMS, then the normal equations (Z'Z/n) W = Z'Y/n are solved by elimination
-(:mod:`mjx_surrogate.linalg`; batched LAPACK SVD deadlocked on 2 cores). With random
+(:mod:`mjx_surrogate.linalg`: no batched LAPACK, which can deadlock jaxlib 0.10 on CPU). With random
 perturbations and n >= nx + nu the scaled Gram matrix is well conditioned.
 
 Schemes (``SysIdParams.scheme``):
