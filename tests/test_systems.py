@@ -122,3 +122,17 @@ def test_broken_mjcf_is_a_config_error(tmp_path, text, needle):
 def test_unknown_system_names_the_field():
     with pytest.raises(ConfigError, match=r"^system.name: unknown system 'swimmer1'"):
         make_system("swimmer1")
+
+
+def test_mjx_step_first_built_inside_a_trace_does_not_leak():
+    """A native system's lazily built MJX step, first touched inside jit, stays usable."""
+    import jax
+    import jax.numpy as jnp
+
+    from mjx_surrogate.systems import make_system
+
+    sys_ = make_system("pendulum", backend="native")
+    x, u = jnp.array([0.3, 0.0]), jnp.array([0.1])
+    inside = jax.jit(lambda a, b: sys_.mjx_step(a, b))(x, u)
+    outside = jax.jit(lambda a, b: sys_.mjx_step(a, b) * 1.0)(x, u)
+    assert jnp.allclose(inside, outside)

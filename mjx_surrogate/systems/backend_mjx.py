@@ -35,13 +35,16 @@ def make_mjx_step(mj_model: mujoco.MjModel, substeps: int):
     x = [qpos, qvel, act]. The MJX model is put on the device once, in the dtype that
     is active when this is called (float64 if ``jax_enable_x64`` is on).
     """
-    model = mjx.put_model(_without_batched_lapack(mj_model))
-    data0 = mjx.make_data(model)
-    if jax.config.jax_enable_x64:
-        # Under x64 some int32 fields come back from mjx.step as int64 (e.g. tendon
-        # wrap data), which a loop carry rejects: start from the dtypes step returns.
-        out = jax.eval_shape(mjx.step, model, data0)
-        data0 = jax.tree.map(lambda a, o: a.astype(o.dtype), data0, out)
+    # Built eagerly even when first requested inside a trace (System.mjx_step is created
+    # lazily): the model and data are constants of every program, never tracers.
+    with jax.ensure_compile_time_eval():
+        model = mjx.put_model(_without_batched_lapack(mj_model))
+        data0 = mjx.make_data(model)
+        if jax.config.jax_enable_x64:
+            # Under x64 some int32 fields come back from mjx.step as int64 (e.g. tendon
+            # wrap data), which a loop carry rejects: start from the dtypes step returns.
+            out = jax.eval_shape(mjx.step, model, data0)
+            data0 = jax.tree.map(lambda a, o: a.astype(o.dtype), data0, out)
     nq, nv, na = mj_model.nq, mj_model.nv, mj_model.na
 
     def step(x: jax.Array, u: jax.Array) -> jax.Array:
