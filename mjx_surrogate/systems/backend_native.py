@@ -106,7 +106,8 @@ class NativeSimulator:
             U[:, t] = np.clip(u, lo, hi)
             X[:, t + 1] = self(X[:, t], U[:, t, None, :])[:, 1]
         dtype = x0.dtype
-        return X.astype(dtype, copy=False), U.astype(dtype, copy=False)
+        with np.errstate(over="ignore"):  # a blown-up trial becomes inf: rejected as such
+            return X.astype(dtype, copy=False), U.astype(dtype, copy=False)
 
 
 def make_native_closed_loop(sim: NativeSimulator):
