@@ -124,3 +124,29 @@ def test_spd_solve_matches_numpy_and_detects_indefinite():
     np.testing.assert_allclose(x, np.linalg.solve(A, B[:, 0]), rtol=1e-9, atol=1e-12)
     _, ok = spd_solve(jnp.asarray(np.diag([1.0, -1.0, 2.0])), jnp.ones(3))
     assert not bool(ok)
+
+
+def test_native_one_call_line_search_equals_the_per_step_rollouts(systems):
+    """System.closed_loop (one host call for all step sizes) = closed_loop over step."""
+    import jax
+    import jax.numpy as jnp
+
+    from mjx_surrogate.ilqr import closed_loop
+
+    sys_ = systems("cartpole", "native")
+    T, nu, nx = 12, sys_.nu, sys_.nx
+    key = jax.random.key(0)
+    k1, k2, k3 = jax.random.split(key, 3)
+    x0 = jnp.array([0.0, 3.0, 0.0, 0.0])
+    Ub = 0.5 * jax.random.normal(k1, (T, nu))
+    Xb = sys_.rollout(x0[None], Ub[None])[0] + 0.01
+    k = jax.random.normal(k2, (T, nu))
+    K = 0.3 * jax.random.normal(k3, (T, nu, nx))
+    alphas = 0.5 ** jnp.arange(4.0)
+    lo, hi = jnp.full(nu, -0.8), jnp.full(nu, 0.9)
+    X1, U1 = jax.jit(sys_.closed_loop)(x0, Xb, Ub, k, K, alphas, lo, hi)
+    ref = jax.vmap(lambda a: closed_loop(sys_.step, x0, Xb, Ub, k, K, a, lo, hi))
+    X2, U2 = jax.jit(ref)(alphas)
+    assert float(jnp.max(U1)) <= 0.9 and float(jnp.min(U1)) >= -0.8
+    np.testing.assert_allclose(U1, U2, atol=1e-12)
+    np.testing.assert_allclose(X1, X2, atol=1e-12)

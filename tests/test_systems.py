@@ -136,3 +136,21 @@ def test_mjx_step_first_built_inside_a_trace_does_not_leak():
     inside = jax.jit(lambda a, b: sys_.mjx_step(a, b))(x, u)
     outside = jax.jit(lambda a, b: sys_.mjx_step(a, b) * 1.0)(x, u)
     assert jnp.allclose(inside, outside)
+
+
+@pytest.mark.parametrize("name", ["cartpole", "fish"])
+def test_mjx_programs_hold_no_lapack_call(systems, name):
+    """Batched LAPACK deadlocked jaxlib 0.10 on 2 cores (docs/performance.md): the MJX
+    step, vmapped and differentiated as the oracle uses it, must compile without it."""
+    import re
+
+    import jax
+    import jax.numpy as jnp
+
+    sys_ = systems(name)
+    x = jnp.zeros((3, sys_.nx)).at[:, : sys_.nq].set(jnp.asarray(sys_.mj_model.qpos0))
+    u = jnp.zeros((3, sys_.nu))
+    jac = jax.vmap(jax.jacfwd(sys_.mjx_step, argnums=(0, 1)))
+    hlo = jax.jit(jac).lower(x, u).compile().as_text()
+    targets = set(re.findall(r'custom_call_target="([^"]+)"', hlo))
+    assert not [t for t in targets if "lapack" in t.lower()], targets
