@@ -67,7 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="CI-scale sizes")
     ap.add_argument("--out", default=None, help="folder of the run folders")
     ap.add_argument("--report", default=None, help="path of the report (markdown)")
-    ap.add_argument("--only", nargs="*", default=None, help="subset of: " + ", ".join(EXPERIMENTS))
+    ap.add_argument("--only", nargs="*", default=None, choices=EXPERIMENTS, metavar="NAME",
+                    help="subset of: " + ", ".join(EXPERIMENTS))
     a = ap.parse_args(argv)
     out = a.out or os.path.join("runs", "reproduce-quick" if a.quick else "reproduce")
     os.makedirs(out, exist_ok=True)

@@ -5,12 +5,12 @@ from __future__ import annotations
 import dataclasses
 from typing import NamedTuple
 
-import mujoco
 import numpy as np
 
 from mjx_surrogate.config import Config, SystemConfig, TaskConfig, check_finite, validate_static
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.systems import System, from_mjcf, make_system
+from mjx_surrogate.systems.system import hinge_state_indices
 from mjx_surrogate.tasks import TASK_PRESETS, Task, make_task
 
 
@@ -152,28 +152,50 @@ def resolve(cfg: Config) -> Resolved:
 
 def hinge_angles(system: System) -> tuple[int, ...]:
     """State indices of hinge-joint angles (the default trig coordinates)."""
-    m = system.mj_model
-    return tuple(int(m.jnt_qposadr[j]) for j in range(m.njnt)
-                 if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE)
+    return tuple(q for q, _ in hinge_state_indices(system.mj_model))
 
 
-def library_specs(cfg: Config, system: System) -> dict:
-    """Resolved SINDy libraries by name; ConfigError naming the field on a bad one."""
+def library_specs(cfg: Config, system: System, names: tuple[str, ...] | str | None = None,
+                  field: str = "surrogate.sindy_libraries") -> dict:
+    """Resolved SINDy libraries by name (default: surrogate.sindy_libraries; a single name
+    for a scalar field); a bad one raises ConfigError naming ``field[i]`` (``field`` for a
+    single name), or surrogate.trig_coords / harmonics."""
     from mjx_surrogate.surrogates import library
 
     sc = cfg.surrogate
     coords = sc.trig_coords if sc.trig_coords is not None else hinge_angles(system)
     nz = system.nx + system.nu
+    scalar = isinstance(names, str)
     out = {}
-    for i, name in enumerate(sc.sindy_libraries):
+    for i, name in enumerate((names,) if scalar else sc.sindy_libraries if names is None else names):
         try:
             spec = library.parse(name, coords, sc.harmonics)
-            library.validate(spec, nz, f"surrogate.sindy_libraries[{i}]")
-        except ValueError as exc:
-            field = "surrogate.trig_coords" if "trig_coords" in str(exc) else f"surrogate.sindy_libraries[{i}]"
-            raise ConfigError(field, str(exc).split(": ", 1)[-1]) from None
+            library.validate(spec, nz)
+        except library.SpecError as exc:
+            where = (f"surrogate.{exc.part}" if exc.part in ("trig_coords", "harmonics")
+                     else field if scalar else f"{field}[{i}]")
+            raise ConfigError(where, exc.message) from None
         out[name] = spec
     return out
+
+
+def analysis_library_specs(cfg: Config, system: System) -> dict:
+    """The libraries the analysis section names, each checked under its own field."""
+    a = cfg.analysis
+    out = library_specs(cfg, system, a.convergence_library, "analysis.convergence_library")
+    out |= library_specs(cfg, system, a.gram_libraries, "analysis.gram_libraries")
+    return out | library_specs(cfg, system, a.variance_libraries, "analysis.variance_libraries")
+
+
+def mlp_spec(cfg: Config):
+    """SurrogateConfig -> the MLP's static spec."""
+    from mjx_surrogate.surrogates.mlp import MLPSpec
+
+    s = cfg.surrogate
+    return MLPSpec(widths=tuple(s.mlp_widths), increment=s.increment,
+                   learning_rate=s.mlp_learning_rate, weight_decay=s.mlp_weight_decay,
+                   batch_size=s.mlp_batch_size, epochs=s.mlp_epochs,
+                   checkpoints=tuple(s.mlp_checkpoints))
 
 
 def _check_surrogates(cfg: Config, system: System, T: int) -> None:
@@ -190,7 +212,4 @@ def _check_surrogates(cfg: Config, system: System, T: int) -> None:
                           f"training trajectories, got {n_train}")
     library_specs(cfg, system)
     if cfg.experiment.kind == "analysis":
-        a = cfg.analysis
-        names = {a.convergence_library, *a.gram_libraries, *a.variance_libraries}
-        library_specs(dataclasses.replace(cfg, surrogate=dataclasses.replace(
-            sc, sindy_libraries=tuple(sorted(names)))), system)
+        analysis_library_specs(cfg, system)

@@ -41,6 +41,9 @@ BAD = [
     (["smoke_predict", "--data.test_fraction", "1.5"], "data.test_fraction"),
     (["smoke_predict", "--surrogate.mlp_batch_size", "100000"], "surrogate.mlp_batch_size"),
     (["smoke_predict", "--surrogate.mlp_checkpoints", "9"], "surrogate.mlp_checkpoints"),
+    (["smoke_analysis", "--analysis.convergence_library", "foo"], "analysis.convergence_library"),
+    (["smoke_analysis", "--analysis.variance_libraries", "poly3"], "analysis.variance_levels"),
+    (["smoke_theory", "--analysis.theory_max_order", "20"], "analysis.theory_max_order"),
     (["smoke_rollout", "--system.name", "mjcf", "--system.mjcf_path", "/nonexistent.xml"],
      "system.mjcf_path"),
 ]

@@ -55,18 +55,27 @@ def size(spec: LibrarySpec, nz: int) -> int:
     return n_mono + n_trig + n_prod
 
 
-def validate(spec: LibrarySpec, nz: int, field: str = "library") -> None:
-    """Raise ValueError naming the field if the spec does not fit z of size nz."""
+class SpecError(ValueError):
+    """A library spec that does not fit; ``part`` names the offending part of the spec."""
+
+    def __init__(self, part: str, message: str):
+        super().__init__(f"{part}: {message}")
+        self.part, self.message = part, message
+
+
+def validate(spec: LibrarySpec, nz: int) -> None:
+    """Raise SpecError (naming degree, harmonics, trig_coords or library) if the spec does
+    not fit z of size nz."""
     if spec.degree < 0:
-        raise ValueError(f"{field}.degree: must be >= 0, got {spec.degree}")
+        raise SpecError("degree", f"must be >= 0, got {spec.degree}")
     if spec.harmonics < 1:
-        raise ValueError(f"{field}.harmonics: must be >= 1, got {spec.harmonics}")
+        raise SpecError("harmonics", f"must be >= 1, got {spec.harmonics}")
     bad = [j for j in spec.trig_coords if not 0 <= j < nz]
     if bad:
-        raise ValueError(f"{field}.trig_coords: {bad} out of range; valid indices into "
-                         f"z = [x, u] are 0..{nz - 1}")
+        raise SpecError("trig_coords", f"{bad} out of range; valid indices into "
+                        f"z = [x, u] are 0..{nz - 1}")
     if size(spec, nz) == 0:
-        raise ValueError(f"{field}: the library is empty")
+        raise SpecError("library", "the library is empty")
 
 
 def names(spec: LibrarySpec, nz: int, symbols: list[str] | None = None) -> list[str]:
@@ -121,18 +130,18 @@ _ALIASES = {"cubic_trig": "poly3_trig", "quartic": "poly4", "quartic_trig": "pol
 def parse(name: str, trig_coords: Tuple[int, ...], harmonics: int = 1) -> LibrarySpec:
     """A library name ("poly<d>[_nocross][_trig][_prod]" or an alias) -> LibrarySpec.
 
-    Raises ValueError naming what would be valid.
+    Raises SpecError naming what would be valid.
     """
     full = _ALIASES.get(name, name)
     parts = full.split("_")
     head, flags = parts[0], set(parts[1:])
     valid = "'poly<d>' with optional _nocross, _trig, _prod (aliases: " + ", ".join(_ALIASES) + ")"
     if not head.startswith("poly") or not head[4:].isdigit() or not flags <= {"nocross", "trig", "prod"}:
-        raise ValueError(f"unknown library {name!r}; valid: {valid}")
+        raise SpecError("library", f"unknown library {name!r}; valid: {valid}")
     trig = "trig" in flags or "prod" in flags
     if trig and not trig_coords:
-        raise ValueError(f"library {name!r} has trig terms but there are no trig coordinates "
-                         "(the model has no hinge joint; set surrogate.trig_coords)")
+        raise SpecError("trig_coords", f"library {name!r} has trig terms but there are no "
+                        "trig coordinates (the model has no hinge joint; set them)")
     return LibrarySpec(degree=int(head[4:]), cross_terms="nocross" not in flags,
                        trig_coords=tuple(trig_coords) if trig else (), harmonics=harmonics,
                        products="prod" in flags)

@@ -134,6 +134,12 @@ def build_system(name: str, xml: str, substeps: int, backend: str,
     return system
 
 
+def hinge_state_indices(m: mujoco.MjModel) -> list[tuple[int, int]]:
+    """(angle, angular velocity) state indices of every hinge joint, in joint order."""
+    return [(int(m.jnt_qposadr[j]), m.nq + int(m.jnt_dofadr[j])) for j in range(m.njnt)
+            if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+
+
 def state_labels(m: mujoco.MjModel) -> list[str]:
     """Names of the nx state coordinates [qpos, qvel, act] from the model's joints."""
     qpos, qvel = [], []
