@@ -7,11 +7,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from experiments.predict_study import mlp_spec, optimum
+from experiments.predict_study import optimum
 from mjx_surrogate import data, models, plots
 from mjx_surrogate.analysis import spectra
 from mjx_surrogate.results import RunFolder
-from mjx_surrogate.setup import Resolved, library_specs
+from mjx_surrogate.setup import Resolved, analysis_library_specs, library_specs, mlp_spec
 from mjx_surrogate.surrogates import mlp, sindy
 from mjx_surrogate.systems.system import state_labels
 
@@ -44,7 +44,7 @@ def _spread(P: np.ndarray) -> float:
 def run(res: Resolved, folder: RunFolder, key: jax.Array) -> tuple[dict, dict]:
     cfg, system, task = res
     a = cfg.analysis
-    specs = library_specs(cfg, system) | _extra_specs(cfg, system)
+    specs = library_specs(cfg, system) | analysis_library_specs(cfg, system)
     keys = dict(zip(("opt", "conv", "gram", "var"), jax.random.split(key, 4)))
     metrics: dict = {"status": "ok"}
     m_opt, X_star, U_star = optimum(res, keys["opt"], cfg.experiment.progress)
@@ -182,17 +182,6 @@ def _one(cfg):
     import dataclasses
 
     return dataclasses.replace(cfg, analysis=dataclasses.replace(cfg.analysis, n_datasets=1))
-
-
-def _extra_specs(cfg, system) -> dict:
-    """Libraries named in the analysis section but not in surrogate.sindy_libraries."""
-    import dataclasses
-
-    names = {cfg.analysis.convergence_library, *cfg.analysis.gram_libraries,
-             *cfg.analysis.variance_libraries} - set(cfg.surrogate.sindy_libraries)
-    sub = dataclasses.replace(cfg, surrogate=dataclasses.replace(cfg.surrogate,
-                                                                 sindy_libraries=tuple(sorted(names))))
-    return library_specs(sub, system) if names else {}
 
 
 def _table(m: dict) -> str:

@@ -7,16 +7,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from experiments.predict_study import _first_hinge_phase, mlp_spec
 from mjx_surrogate import data, plots
 from mjx_surrogate.d2c import initial_controls, solve_d2c, solve_exact
 from mjx_surrogate.progress import progress_bar
 from mjx_surrogate.results import RunFolder
 from mjx_surrogate.rollout import rollout
-from mjx_surrogate.setup import Resolved, library_specs, solver_params
+from mjx_surrogate.setup import Resolved, library_specs, mlp_spec, solver_params
 from mjx_surrogate.surrogate_control import on_black_box, solve_on_model
 from mjx_surrogate.surrogates import mlp, sindy
-from mjx_surrogate.systems.system import state_labels
+from mjx_surrogate.systems.system import hinge_state_indices, state_labels
 from mjx_surrogate.tasks import trajectory_cost
 
 
@@ -99,7 +98,7 @@ def run(res: Resolved, folder: RunFolder, key: jax.Array) -> tuple[dict, dict]:
     metrics["surrogates"] = rows
     coords = list(range(min(system.nq, 2)))
     folder.write_figure("surrogate_controls.png", plots.predictions(
-        t, np.asarray(X_d2c), trajectories, coords, labels, _first_hinge_phase(system.mj_model),
+        t, np.asarray(X_d2c), trajectories, coords, labels, (hinge_state_indices(system.mj_model) or [None])[0],
         f"{system.name}: surrogate-based controllers on the black box vs the D2C optimum"))
     folder.write_text("control_table.md", _table(metrics))
     return metrics, arrays

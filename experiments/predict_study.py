@@ -21,9 +21,9 @@ from mjx_surrogate.evaluation import prediction_errors
 from mjx_surrogate.progress import progress_bar
 from mjx_surrogate.results import RunFolder
 from mjx_surrogate.rollout import rollout
-from mjx_surrogate.setup import Resolved, library_specs, solver_params
+from mjx_surrogate.setup import Resolved, library_specs, mlp_spec, solver_params
 from mjx_surrogate.surrogates import mlp, sindy
-from mjx_surrogate.systems.system import state_labels
+from mjx_surrogate.systems.system import hinge_state_indices, state_labels
 from mjx_surrogate.tasks import trajectory_cost
 
 
@@ -42,14 +42,6 @@ def optimum(res: Resolved, key: jax.Array, progress: bool) -> tuple[dict, jax.Ar
     m = {"cost": cost if np.isfinite(cost) else None, "iterations": int(out.iterations),
          "converged": bool(out.converged), "wall_s": time.perf_counter() - t0}
     return m, X, out.U
-
-
-def mlp_spec(cfg) -> mlp.MLPSpec:
-    s = cfg.surrogate
-    return mlp.MLPSpec(widths=tuple(s.mlp_widths), increment=s.increment,
-                       learning_rate=s.mlp_learning_rate, weight_decay=s.mlp_weight_decay,
-                       batch_size=s.mlp_batch_size, epochs=s.mlp_epochs,
-                       checkpoints=tuple(s.mlp_checkpoints))
 
 
 def fit_models(cfg, specs: dict, train: data.Dataset, test: data.Dataset, X_star, U_star,
@@ -111,7 +103,7 @@ def run(res: Resolved, folder: RunFolder, key: jax.Array) -> tuple[dict, dict]:
     t = np.arange(task.T + 1) * system.dt
     nq = system.mj_model.nq
     coords = list(range(min(nq, 3)))
-    phase = _first_hinge_phase(system.mj_model)
+    phase = (hinge_state_indices(system.mj_model) or [None])[0]
     results, train_curves = {}, {}
     for i, (level, k) in enumerate(zip(dc.levels, jax.random.split(k_levels, len(dc.levels)))):
         k_data, k_split, k_mlp = jax.random.split(k, 3)
@@ -156,16 +148,6 @@ def run(res: Resolved, folder: RunFolder, key: jax.Array) -> tuple[dict, dict]:
         arrays[f"mlp_train_loss_{lv}"] = tr
         arrays[f"mlp_test_loss_{lv}"] = te
     return metrics, arrays
-
-
-def _first_hinge_phase(m) -> tuple[int, int] | None:
-    """State indices (angle, angular velocity) of the first hinge joint, if any."""
-    import mujoco
-
-    for j in range(m.njnt):
-        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE:
-            return int(m.jnt_qposadr[j]), m.nq + int(m.jnt_dofadr[j])
-    return None
 
 
 def _finding(levels, clean: dict) -> dict:

@@ -163,20 +163,8 @@ def theory_curves(orders: np.ndarray, curves: dict[str, list[float]], ylabel: st
 def seed_overlay(t: np.ndarray, X_true: np.ndarray, P: np.ndarray, coords: list[int],
                  labels: list[str], title: str = ""):
     """Predictions of K models P [K, T+1, nx] (one per data set) over the true trajectory."""
-    fig, axes = plt.subplots(1, len(coords), figsize=(4 * len(coords), 3.2), squeeze=False)
-    for ax, c in zip(axes[0], coords):
-        lo, hi = np.nanmin(X_true[:, c]), np.nanmax(X_true[:, c])
-        pad = 3 * max(hi - lo, 1e-6)
-        for k in range(P.shape[0]):
-            ax.plot(t, np.clip(P[k, :, c], lo - pad, hi + pad), lw=1.1, alpha=0.8, label=f"seed {k}")
-        ax.plot(t, X_true[:, c], "k", lw=2.2, label="black box")
-        ax.set_xlabel("t (s)")
-        ax.set_ylabel(labels[c])
-        ax.grid(alpha=0.3)
-    axes[0][0].legend(fontsize=7)
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    return fig
+    return predictions(t, X_true, {f"seed {k}": P[k] for k in range(P.shape[0])}, coords,
+                       labels, None, title)
 
 
 def spectra(svals: dict[str, np.ndarray], title: str = ""):
