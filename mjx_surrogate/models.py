@@ -4,8 +4,8 @@
 
 for the exact black box, the local LTV model, SINDy and MLP surrogates. Time-invariant
 maps ignore t. ``predict`` rolls any of them out open loop (a ``lax.scan`` over t, vmapped
-over the batch); ``one_step`` evaluates them on given (x_t, u_t). ``step_fn`` gives the
-time-invariant ``step(x, u)`` the iLQR takes (Jacobians of a surrogate by autodiff).
+over the batch); ``one_step`` evaluates them on given (x_t, u_t). A surrogate's own
+time-invariant ``step(x, u)`` is what the iLQR takes (``surrogate_control``).
 """
 
 from __future__ import annotations
@@ -52,11 +52,6 @@ def time_invariant(step: Callable[[jax.Array, jax.Array], jax.Array]) -> StepT:
 def black_box(system: System) -> StepT:
     """The exact model: the system's own step (MJX or native MuJoCo)."""
     return time_invariant(system.step)
-
-
-def step_fn(model) -> Callable[[jax.Array, jax.Array], jax.Array]:
-    """step(x, u) of a time-invariant surrogate (anything with a ``.step`` method)."""
-    return model.step
 
 
 def predict(step_t: StepT, x0: jax.Array, U: jax.Array) -> jax.Array:

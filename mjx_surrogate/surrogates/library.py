@@ -20,7 +20,6 @@ from typing import NamedTuple, Tuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 
 class LibrarySpec(NamedTuple):
@@ -112,15 +111,6 @@ def features(spec: LibrarySpec, z: jax.Array) -> jax.Array:
     if spec.products and trig:
         out += [m * t for m in cols[int(spec.bias):] for t in trig]
     return jnp.stack(out, axis=-1)
-
-
-def exponents(spec: LibrarySpec, nz: int) -> np.ndarray:
-    """[P_poly, nz] exponent of each z_j in each monomial (for tests and analysis)."""
-    e = np.zeros((len(_monomials(spec, nz)), nz), dtype=int)
-    for r, t in enumerate(_monomials(spec, nz)):
-        for j in t:
-            e[r, j] += 1
-    return e
 
 
 _ALIASES = {"cubic_trig": "poly3_trig", "quartic": "poly4", "quartic_trig": "poly4_trig",
