@@ -1,7 +1,7 @@
 """Reference D2C in plain NumPy + native ``mujoco.rollout`` (no JAX).
 
-The same algorithm as ``mjx_surrogate.d2c.solve_d2c`` with central-difference LTV
-identification: one multi-threaded ``mujoco.rollout`` call identifies all T models; the
+The same algorithm as ``mjx_surrogate.d2c.solve_d2c`` with central- or forward-difference
+LTV identification: one multi-threaded ``mujoco.rollout`` call identifies all T models; the
 line search simulates all step sizes together, one batched call per control step. It is
 the same-run speed reference of ``benchmarks/d2c.py`` and an independent numerical
 cross-check (tests/test_reference_d2c.py). No control limits (D2C 2.0 used none).
@@ -59,16 +59,23 @@ def cost(X, U, xg, Q, Qf, R):
     return np.where(bad | ~np.isfinite(J), np.inf, J)
 
 
-def identify(step, X, U, rng, n, sigma):
-    """Central differences: A [T, nx, nx], B [T, nx, nu] from one batched simulation."""
+def identify(step, X, U, rng, n, sigma, scheme="central_difference"):
+    """A [T, nx, nx], B [T, nx, nu] from one batched simulation; ``scheme`` is
+    "central_difference" (2 n T steps) or "forward_difference" ((n + 1) T steps)."""
     T, nu = U.shape
     nx = X.shape[1]
     dx = sigma * rng.standard_normal((T, n, nx))
     du = sigma * rng.standard_normal((T, n, nu))
-    xs = np.concatenate([X[:-1, None] + dx, X[:-1, None] - dx], 1).reshape(-1, nx)
-    us = np.concatenate([U[:, None] + du, U[:, None] - du], 1).reshape(-1, nu)
-    f = step(xs, us).reshape(T, 2 * n, nx)
-    Y = 0.5 * (f[:, :n] - f[:, n:])
+    if scheme == "forward_difference":
+        xs = np.concatenate([X[:-1, None], X[:-1, None] + dx], 1).reshape(-1, nx)
+        us = np.concatenate([U[:, None], U[:, None] + du], 1).reshape(-1, nu)
+        f = step(xs, us).reshape(T, n + 1, nx)
+        Y = f[:, 1:] - f[:, :1]
+    else:
+        xs = np.concatenate([X[:-1, None] + dx, X[:-1, None] - dx], 1).reshape(-1, nx)
+        us = np.concatenate([U[:, None] + du, U[:, None] - du], 1).reshape(-1, nu)
+        f = step(xs, us).reshape(T, 2 * n, nx)
+        Y = 0.5 * (f[:, :n] - f[:, n:])
     Z = np.concatenate([dx, du], -1)
     W = np.stack([np.linalg.lstsq(Z[t], Y[t], rcond=None)[0] for t in range(T)])
     return np.transpose(W[:, :nx], (0, 2, 1)), np.transpose(W[:, nx:], (0, 2, 1))
@@ -82,16 +89,16 @@ def backward(A, B, X, U, xg, Q, Qf, R, mu):
     dV = np.zeros(2)
     for t in reversed(range(T)):
         At, Bt = A[t], B[t]
-        Vreg = Vxx + mu * np.eye(nx)
         Qx, Qu = Q @ (X[t] - xg) + At.T @ Vx, R @ U[t] + Bt.T @ Vx
-        Qxx, Quu = Q + At.T @ Vxx @ At, R + Bt.T @ Vreg @ Bt
-        Qux = Bt.T @ Vreg @ At
+        Qxx, Quu = Q + At.T @ Vxx @ At, R + Bt.T @ Vxx @ Bt
+        Qux = Bt.T @ Vxx @ At
+        Quu_r, Qux_r = Quu + mu * Bt.T @ Bt, Qux + mu * Bt.T @ At  # shape the step only
         try:
-            np.linalg.cholesky(Quu)
+            np.linalg.cholesky(Quu_r)
         except np.linalg.LinAlgError:
             return None
-        k[t] = -np.linalg.solve(Quu, Qu)
-        K[t] = -np.linalg.solve(Quu, Qux)
+        kK = -np.linalg.solve(Quu_r, np.column_stack([Qu, Qux_r]))
+        k[t], K[t] = kK[:, 0], kK[:, 1:]
         Vx = Qx + K[t].T @ Quu @ k[t] + K[t].T @ Qu + Qux.T @ k[t]
         Vxx = Qxx + K[t].T @ Quu @ K[t] + K[t].T @ Qux + Qux.T @ K[t]
         Vxx = 0.5 * (Vxx + Vxx.T)
@@ -101,7 +108,7 @@ def backward(A, B, X, U, xg, Q, Qf, R, mu):
 
 def solve(step, x0, U0, xg, Q, Qf, R, seed=0, n_samples=10, sigma=1e-3, max_iter=100,
           rel_tol=1e-6, n_alphas=8, mu=1e-6, mu_min=1e-8, mu_max=1e10, factor=4.0,
-          accept_ratio=1e-4):
+          accept_ratio=1e-4, scheme="central_difference"):
     """Returns dict(U, X, cost, iterations, history)."""
     rng = np.random.default_rng(seed)
     T, nu = U0.shape
@@ -113,7 +120,7 @@ def solve(step, x0, U0, xg, Q, Qf, R, seed=0, n_samples=10, sigma=1e-3, max_iter
     history, fresh, it = [J], True, 0
     while it < max_iter and np.isfinite(J):
         if fresh:
-            A, B = identify(step, X, U, rng, n_samples, sigma)
+            A, B = identify(step, X, U, rng, n_samples, sigma, scheme)
         it += 1
         bp = backward(A, B, X, U, xg, Q, Qf, R, mu)
         accepted = False

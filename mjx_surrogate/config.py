@@ -71,7 +71,8 @@ class TaskConfig:
 class SolverConfig:
     """iLQR and data-driven (D2C) iLQR settings.
 
-    sysid: "central_difference" (D2C 2.0 one-step scheme), "rollout" (the paper's
+    sysid: "central_difference" (D2C 2.0 one-step scheme), "forward_difference" (one-sided,
+    half the simulator calls, first-order accurate), "rollout" (the paper's
     open-loop perturbed rollouts) or "closed_loop" (perturbed rollouts under the
     current feedback gains).
     """
@@ -86,7 +87,8 @@ class SolverConfig:
     mu_factor: float = _ILQR.mu_factor
     n_alphas: int = _ILQR.n_alphas
     accept_ratio: float = _ILQR.accept_ratio
-    sysid: Literal["central_difference", "rollout", "closed_loop"] = "central_difference"
+    sysid: Literal["central_difference", "forward_difference", "rollout", "closed_loop"] = (
+        "central_difference")
     n_samples: int = _SYSID.n_samples
     sigma_x: float = _SYSID.sigma_x
     sigma_u: float = _SYSID.sigma_u

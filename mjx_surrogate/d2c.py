@@ -29,6 +29,8 @@ def ltv_linearize(system: System, p: sid.SysIdParams):
     """linearize(X, U, K, key) -> (A, B) from black-box samples with scheme ``p.scheme``."""
     if p.scheme == "central_difference":
         return lambda X, U, K, key: sid.central_difference(system.step, X, U, key, p)
+    if p.scheme == "forward_difference":
+        return lambda X, U, K, key: sid.forward_difference(system.step, X, U, key, p)
     if p.scheme == "rollout":
         return lambda X, U, K, key: sid.open_loop_rollouts(system.rollout, X, U, key, p)
     if p.scheme == "closed_loop":
@@ -101,5 +103,6 @@ def simulated_steps(result: ILQRResult, T: int, n_alphas: int, sysid: sid.SysIdP
     it = int(result.iterations)
     accepted = int(np.sum(h[1 : it + 1] < h[:it]))
     per_id = {"central_difference": 2 * sysid.n_samples * T,
+              "forward_difference": (sysid.n_samples + 1) * T,
               "rollout": sysid.n_samples * T, "closed_loop": sysid.n_samples * T}[sysid.scheme]
     return T + it * n_alphas * T + min(accepted + 1, it) * per_id

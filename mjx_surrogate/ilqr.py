@@ -10,12 +10,17 @@ The solver sees only functions:
 Backward pass (Tassa-style regularisation mu on V_xx; Q_uu positive definite at every t):
 
     Q_x  = l_x + A' V_x            Q_u  = l_u + B' V_x
-    Q_xx = l_xx + A' V_xx A        Q_uu = l_uu + B' (V_xx + mu I) B
-    Q_ux = l_ux + B' (V_xx + mu I) A
-    k = argmin_{lo <= k <= hi} 1/2 k' Q_uu k + Q_u' k   (box QP, projected Newton)
-    K = -Q_uu^-1 Q_ux on the free controls, 0 on clamped ones
+    Q_xx = l_xx + A' V_xx A        Q_uu = l_uu + B' V_xx B        Q_ux = l_ux + B' V_xx A
+    Q~_uu = Q_uu + mu B'B          Q~_ux = Q_ux + mu B'A          (regularised: the step only)
+    k = argmin_{lo <= k <= hi} 1/2 k' Q~_uu k + Q_u' k   (box QP, projected Newton)
+    K = -Q~_uu^-1 Q~_ux on the free controls, 0 on clamped ones
     V_x  = Q_x + K' Q_uu k + K' Q_u + Q_ux' k
     V_xx = Q_xx + K' Q_uu K + K' Q_ux + Q_ux' K
+    dV   = (sum k' Q_u, sum 1/2 k' Q_uu k)
+
+V and dV use the plain Q terms: the value of the regularised policy under the model. With
+the regularised terms there, V_xx tends to -mu A'B (B'B)^-1 B'A as mu grows, goes
+indefinite and makes every later Q~_uu fail (seen on swimmer6, where B is small).
 
 Forward pass: u_t = clip(u_bar_t + alpha k_t + K_t (x_t - x_bar_t)), for ``n_alphas`` step
 sizes at once (vmap); a trial is accepted when its cost is finite and
@@ -144,23 +149,33 @@ def box_qp(Quu: jax.Array, Qu: jax.Array, lo: jax.Array, hi: jax.Array, iters: i
 def backward_pass(A, B, lx, lu, lxx, luu, lux, VxT, VxxT, U, lo, hi, mu):
     """Riccati sweep. Returns k [T, nu], K [T, nu, nx], dV = (sum k'Q_u, sum 1/2 k'Q_uu k),
     and ok (Q_uu positive definite at every t)."""
-    nx = A.shape[-1]
-    eye = jnp.eye(nx, dtype=A.dtype)
+    bounded = jnp.any(jnp.isfinite(lo) | jnp.isfinite(hi))
 
     def body(carry, inp):
         Vx, Vxx, ok = carry
         At, Bt, lxt, lut, lxxt, luut, luxt, ut = inp
-        Vreg = Vxx + mu * eye
         Qx = lxt + At.T @ Vx
         Qu = lut + Bt.T @ Vx
         Qxx = lxxt + At.T @ Vxx @ At
-        Quu = luut + Bt.T @ Vreg @ Bt
-        Qux = luxt + Bt.T @ Vreg @ At
+        Quu = luut + Bt.T @ Vxx @ Bt
+        Qux = luxt + Bt.T @ Vxx @ At
         Quu = 0.5 * (Quu + Quu.T)
-        _, ok_t = spd_solve(Quu, Qu)  # positive definiteness of Q_uu
-        kt, free = box_qp(Quu, Qu, lo - ut, hi - ut)
-        Hf = jnp.where(free[:, None] & free[None, :], Quu, jnp.eye(Qu.shape[0], dtype=Qu.dtype))
-        Kt = -spd_solve(Hf, jnp.where(free[:, None], Qux, 0.0))[0]
+        # The regularised pair only shapes the step (k, K); V and dV use the plain Q terms.
+        Quu_r = Quu + mu * Bt.T @ Bt
+        Qux_r = Qux + mu * Bt.T @ At
+
+        def boxed():
+            _, ok = spd_solve(Quu_r, Qu)  # positive definiteness of the regularised Q_uu
+            kt, free = box_qp(Quu_r, Qu, lo - ut, hi - ut)
+            Hf = jnp.where(free[:, None] & free[None, :], Quu_r,
+                           jnp.eye(Qu.shape[0], dtype=Qu.dtype))
+            return kt, -spd_solve(Hf, jnp.where(free[:, None], Qux_r, 0.0))[0], ok
+
+        def free():  # no finite limit: one solve gives k, K and the definiteness test
+            sol, ok = spd_solve(Quu_r, jnp.concatenate([Qu[:, None], Qux_r], axis=1))
+            return -sol[:, 0], -sol[:, 1:], ok
+
+        kt, Kt, ok_t = jax.lax.cond(bounded, boxed, free)
         Vx_new = Qx + Kt.T @ Quu @ kt + Kt.T @ Qu + Qux.T @ kt
         Vxx_new = Qxx + Kt.T @ Quu @ Kt + Kt.T @ Qux + Qux.T @ Kt
         Vxx_new = 0.5 * (Vxx_new + Vxx_new.T)

@@ -14,7 +14,10 @@ Schemes (``SysIdParams.scheme``):
 * ``closed_loop``: the same under the current feedback u = U + dU + K (x - X), which
   keeps the perturbations from lining up with unstable directions;
 * ``central_difference``: D2C 2.0: one step from (x_t +- dx, u_t +- du) at every t,
-  Y = (f+ - f-) / 2; exact to second order and independent across t.
+  Y = (f+ - f-) / 2; exact to second order and independent across t;
+* ``forward_difference``: one step from (x_t + dx, u_t + du) and one from (x_t, u_t),
+  Y = f+ - f0: (n + 1) T calls instead of 2 n T, exact to first order only (use a small
+  sigma in float64).
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from flax import struct
 from mjx_surrogate.linalg import spd_solve
 
 
-SCHEMES = ("central_difference", "rollout", "closed_loop")
+SCHEMES = ("central_difference", "forward_difference", "rollout", "closed_loop")
 
 
 @struct.dataclass
@@ -62,19 +65,42 @@ def fit_from_trajectories(dX: jax.Array, dU: jax.Array) -> tuple[jax.Array, jax.
     return lstsq_ltv(jnp.swapaxes(Z, 0, 1), jnp.swapaxes(dX[:, 1:], 0, 1), nx)
 
 
+def _one_step_perturbations(key: jax.Array, T: int, nx: int, nu: int, p: SysIdParams,
+                            dtype) -> tuple[jax.Array, jax.Array]:
+    """dx [T, n, nx] ~ N(0, sigma_x^2), du [T, n, nu] ~ N(0, sigma_u^2)."""
+    kx, ku = jax.random.split(key)
+    return (p.sigma_x * jax.random.normal(kx, (T, p.n_samples, nx), dtype),
+            p.sigma_u * jax.random.normal(ku, (T, p.n_samples, nu), dtype))
+
+
 def central_difference(step: Callable, X: jax.Array, U: jax.Array, key: jax.Array,
                        p: SysIdParams) -> tuple[jax.Array, jax.Array]:
     """D2C 2.0 scheme around the nominal X [T+1, nx], U [T, nu]; 2 n T one-step calls."""
     T, nu = U.shape
     nx = X.shape[-1]
-    kx, ku = jax.random.split(key)
-    dx = p.sigma_x * jax.random.normal(kx, (T, p.n_samples, nx), X.dtype)
-    du = p.sigma_u * jax.random.normal(ku, (T, p.n_samples, nu), U.dtype)
+    dx, du = _one_step_perturbations(key, T, nx, nu, p, X.dtype)
     xs = jnp.concatenate([X[:-1, None] + dx, X[:-1, None] - dx], axis=1)  # [T, 2n, nx]
     us = jnp.concatenate([U[:, None] + du, U[:, None] - du], axis=1)
     f = jax.vmap(step)(xs.reshape(-1, nx), us.reshape(-1, nu)).reshape(T, 2 * p.n_samples, nx)
     Y = 0.5 * (f[:, : p.n_samples] - f[:, p.n_samples :])
     return lstsq_ltv(jnp.concatenate([dx, du], axis=-1), Y, nx)
+
+
+def forward_difference(step: Callable, X: jax.Array, U: jax.Array, key: jax.Array,
+                       p: SysIdParams) -> tuple[jax.Array, jax.Array]:
+    """One-sided scheme around X [T+1, nx], U [T, nu]; (n + 1) T one-step calls.
+
+    f(x_t, u_t) is recomputed in the same batch rather than taken from X[t+1], so that a
+    simulator whose step depends on more than (x, u) (e.g. a warm-started constraint
+    solver) is differenced against itself.
+    """
+    T, nu = U.shape
+    nx = X.shape[-1]
+    dx, du = _one_step_perturbations(key, T, nx, nu, p, X.dtype)
+    xs = jnp.concatenate([X[:-1, None], X[:-1, None] + dx], axis=1)  # [T, n+1, nx]
+    us = jnp.concatenate([U[:, None], U[:, None] + du], axis=1)
+    f = jax.vmap(step)(xs.reshape(-1, nx), us.reshape(-1, nu)).reshape(T, p.n_samples + 1, nx)
+    return lstsq_ltv(jnp.concatenate([dx, du], axis=-1), f[:, 1:] - f[:, :1], nx)
 
 
 def open_loop_rollouts(rollout: Callable, X: jax.Array, U: jax.Array, key: jax.Array,

@@ -11,13 +11,19 @@ import jax
 class Timed(NamedTuple):
     out: Any
     compile_s: float  # tracing, lowering and XLA compilation
-    run_s: float  # the compiled call, to completion
+    run_s: float  # the compiled call, to completion (median over the repeats)
 
 
-def compile_then_run(fn: Callable, static_args: tuple, dynamic_args: tuple) -> Timed:
-    """``fn`` is a ``jax.jit`` whose leading positional parameters are static."""
+def compile_then_run(fn: Callable, static_args: tuple, dynamic_args: tuple,
+                     repeats: int = 1) -> Timed:
+    """``fn`` is a ``jax.jit`` whose leading positional parameters are static; the compiled
+    call runs ``repeats`` times on the same inputs and the median time is reported."""
     t0 = time.perf_counter()
     compiled = fn.lower(*static_args, *dynamic_args).compile()
     t1 = time.perf_counter()
-    out = jax.block_until_ready(compiled(*dynamic_args))
-    return Timed(out, t1 - t0, time.perf_counter() - t1)
+    times = []
+    for _ in range(max(1, repeats)):
+        t = time.perf_counter()
+        out = jax.block_until_ready(compiled(*dynamic_args))
+        times.append(time.perf_counter() - t)
+    return Timed(out, t1 - t0, sorted(times)[len(times) // 2])

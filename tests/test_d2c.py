@@ -26,11 +26,14 @@ def problem(name, preset, backend, **task):
     return res.system, res.task
 
 
-def test_pendulum_d2c_matches_exact_oracle():
+@pytest.mark.parametrize("sid", [SysIdParams(n_samples=10),
+                                 SysIdParams(1e-6, 1e-6, "forward_difference", 10)],
+                         ids=["central", "forward"])
+def test_pendulum_d2c_matches_exact_oracle(sid):
     s, task = problem("pendulum", "pendulum_d2c", "mjx")
     U0 = initial_controls(jax.random.key(0), task.T, 1, "random", 0.1)
     p = ILQRParams(max_iter=100, rel_tol=1e-7)
-    d2c = solve_d2c(s, task, U0, jax.random.key(1), p, SysIdParams(n_samples=10))
+    d2c = solve_d2c(s, task, U0, jax.random.key(1), p, sid)
     ex = solve_exact(s, task, U0, p)
     assert bool(d2c.converged) and bool(ex.converged)
     assert float(d2c.cost) == pytest.approx(float(ex.cost), rel=1e-4)
@@ -39,7 +42,7 @@ def test_pendulum_d2c_matches_exact_oracle():
     assert float(trajectory_cost(task, X, d2c.U)) == pytest.approx(float(d2c.cost), rel=1e-9)
     # no recompilation for new values of the same shapes
     n = solve_d2c._cache_size()
-    solve_d2c(s, task, U0 + 0.01, jax.random.key(5), p, SysIdParams(n_samples=10))
+    solve_d2c(s, task, U0 + 0.01, jax.random.key(5), p, sid.replace(sigma_x=2e-6))
     assert solve_d2c._cache_size() == n
 
 

@@ -85,6 +85,29 @@ def test_box_limits_match_convex_qp_reference():
     assert float(res.cost) > float(unconstrained.cost)
 
 
+@pytest.mark.parametrize("mu", [0.0, 1.0, 1e4, 1e8])
+def test_regularised_step_keeps_an_exact_value_model(mu):
+    """On a linear system with a quadratic cost, the full step (alpha 1) of the regularised
+    policy changes J by exactly dV1 + dV2 for every mu, and Q~_uu stays positive definite:
+    V and dV are the plain (unregularised) value of that policy. A small B (as on swimmer6)
+    made the regularised value update go indefinite at large mu."""
+    from mjx_surrogate.ilqr import backward_pass, closed_loop, cost_derivatives, trajectory_cost
+
+    Bs = 1e-2 * B
+    step, lin, cost = linear_problem(B=Bs)
+    U = 0.3 * jax.random.normal(jax.random.key(3), (T, 1))
+    inf = jnp.full(1, jnp.inf)
+    X, _ = closed_loop(step, jnp.asarray(X0), jnp.zeros((T + 1, 2)), U, jnp.zeros((T, 1)),
+                       jnp.zeros((T, 1, 2)), 0.0, -inf, inf)
+    Aa, Ba = lin(X, U, None, None)
+    k, K, dV, ok = backward_pass(Aa, Ba, *cost_derivatives(cost, X, U), U, -inf, inf, mu)
+    assert bool(ok)
+    Xn, Un = closed_loop(step, jnp.asarray(X0), X, U, k, K, 1.0, -inf, inf)
+    dJ = float(trajectory_cost(cost, Xn, Un) - trajectory_cost(cost, X, U))
+    assert dJ < 0
+    assert dJ == pytest.approx(float(dV[0] + dV[1]), rel=1e-9)
+
+
 def test_blown_up_trials_rejected_and_nonfinite_start_reported():
     # Unstable system: the initial controls blow the state up -> reported, no crash.
     step, lin, cost = linear_problem(A=np.array([[1.3, 0.1], [0.0, 1.3]]))
