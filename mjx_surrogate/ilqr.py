@@ -148,7 +148,8 @@ def box_qp(Quu: jax.Array, Qu: jax.Array, lo: jax.Array, hi: jax.Array, iters: i
 
 def backward_pass(A, B, lx, lu, lxx, luu, lux, VxT, VxxT, U, lo, hi, mu):
     """Riccati sweep. Returns k [T, nu], K [T, nu, nx], dV = (sum k'Q_u, sum 1/2 k'Q_uu k),
-    and ok (Q_uu positive definite at every t)."""
+    and ok (the regularised Q~_uu positive definite at every t). Without any finite limit
+    the box QP is skipped: one solve per t gives k and K."""
     bounded = jnp.any(jnp.isfinite(lo) | jnp.isfinite(hi))
 
     def body(carry, inp):
@@ -171,11 +172,11 @@ def backward_pass(A, B, lx, lu, lxx, luu, lux, VxT, VxxT, U, lo, hi, mu):
                            jnp.eye(Qu.shape[0], dtype=Qu.dtype))
             return kt, -spd_solve(Hf, jnp.where(free[:, None], Qux_r, 0.0))[0], ok
 
-        def free():  # no finite limit: one solve gives k, K and the definiteness test
+        def unbounded():  # no finite limit: one solve gives k, K and the definiteness test
             sol, ok = spd_solve(Quu_r, jnp.concatenate([Qu[:, None], Qux_r], axis=1))
             return -sol[:, 0], -sol[:, 1:], ok
 
-        kt, Kt, ok_t = jax.lax.cond(bounded, boxed, free)
+        kt, Kt, ok_t = jax.lax.cond(bounded, boxed, unbounded)
         Vx_new = Qx + Kt.T @ Quu @ kt + Kt.T @ Qu + Qux.T @ kt
         Vxx_new = Qxx + Kt.T @ Quu @ Kt + Kt.T @ Qux + Qux.T @ Kt
         Vxx_new = 0.5 * (Vxx_new + Vxx_new.T)

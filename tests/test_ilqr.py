@@ -61,6 +61,10 @@ def test_matches_discrete_riccati():
     assert res.U.dtype == jnp.float64
     # one Newton step solves an LQ problem exactly: the first step takes alpha = 1
     assert float(res.alpha_history[0]) == 1.0
+    # limits that never bind take the box-QP path and give the same answer
+    wide = solve(jnp.zeros((T, 1)), -1e9, 1e9, rel_tol=1e-12)
+    np.testing.assert_allclose(wide.U, res.U, atol=1e-10)
+    np.testing.assert_allclose(wide.K, res.K, atol=1e-8)
 
 
 def test_box_limits_match_convex_qp_reference():
