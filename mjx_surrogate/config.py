@@ -280,8 +280,21 @@ def check_finite(field: str, values: Any) -> None:
             raise ConfigError(field, f"holds a non-finite value ({v}); all entries must be finite")
 
 
+def _check_choices(obj: Any, prefix: str) -> None:
+    """Every Literal-typed field of a (nested) config dataclass holds one of its choices,
+    also when the config was built in Python rather than parsed from a file."""
+    hints = typing.get_type_hints(type(obj))
+    for f in dataclasses.fields(obj):
+        value, hint = getattr(obj, f.name), hints[f.name]
+        if dataclasses.is_dataclass(value):
+            _check_choices(value, f"{prefix}{f.name}.")
+        elif typing.get_origin(hint) is Literal:
+            _convert(value, hint, f"{prefix}{f.name}")
+
+
 def validate_static(cfg: Config) -> None:
-    """Checks that need no model: signs, ranges, finiteness of the solver settings."""
+    """Checks that need no model: choices, signs, ranges, finiteness of the solver settings."""
+    _check_choices(cfg, "")
     s = cfg.solver
     positive_int = {"solver.max_iter": s.max_iter, "solver.n_samples": s.n_samples,
                     "solver.n_alphas": s.n_alphas, "solver.n_starts": s.n_starts,

@@ -92,6 +92,21 @@ def test_config_json_roundtrip_and_strictness():
         from_dict(Config, {"solver": {"max_iter": "ten"}})
 
 
+def test_config_built_in_python_has_its_choices_checked():
+    """A notebook user's dataclass config gets the same one-line error as a config file."""
+    import dataclasses
+
+    from mjx_surrogate.setup import resolve
+
+    cfg = cli.load_config("smoke_d2c")
+    bad = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, sysid="bogus"))
+    with pytest.raises(ConfigError, match="^solver.sysid: got 'bogus'; valid: .*forward_difference"):
+        resolve(bad)
+    bad = dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, backend="gpu"))
+    with pytest.raises(ConfigError, match="^system.backend: got 'gpu'"):
+        resolve(bad)
+
+
 def _cost(cfg, X, U):
     x_goal = np.array(cfg["task"]["x_goal"])
     Q, Qf, R = (np.array(cfg["task"][k]) for k in ("Q", "Q_f", "R"))
