@@ -27,10 +27,9 @@ def task_cost(task: Task) -> Cost:
 
 def ltv_linearize(system: System, p: sid.SysIdParams):
     """linearize(X, U, K, key) -> (A, B) from black-box samples with scheme ``p.scheme``."""
-    if p.scheme == "central_difference":
-        return lambda X, U, K, key: sid.central_difference(system.step, X, U, key, p)
-    if p.scheme == "forward_difference":
-        return lambda X, U, K, key: sid.forward_difference(system.step, X, U, key, p)
+    if p.scheme in ("central_difference", "forward_difference"):
+        one_step = getattr(sid, p.scheme)
+        return lambda X, U, K, key: one_step(system.step, X, U, key, p)
     if p.scheme == "rollout":
         return lambda X, U, K, key: sid.open_loop_rollouts(system.rollout, X, U, key, p)
     if p.scheme == "closed_loop":
@@ -43,21 +42,30 @@ def exact_linearize(system: System):
     return lambda X, U, K, key: sid.exact_jacobians(system.mjx_step, X, U)
 
 
+def _solve(system: System, task: Task, U0: jax.Array, key: jax.Array, params: ILQRParams,
+           sysid: sid.SysIdParams, method: str) -> ILQRResult:
+    """One iLQR solve: "d2c" on the black box (LTV models, the backend's own line-search
+    rollouts) or "exact" on the MJX step with ``jax.jacfwd`` Jacobians."""
+    if method == "d2c":
+        return ilqr(system.step, ltv_linearize(system, sysid), task_cost(task), task.x0, U0,
+                    task.u_min, task.u_max, params, key, system.closed_loop)
+    return ilqr(system.mjx_step, exact_linearize(system), task_cost(task), task.x0, U0,
+                task.u_min, task.u_max, params, key)
+
+
 @functools.partial(jax.jit, static_argnames=("system",))
 def solve_d2c(system: System, task: Task, U0: jax.Array, key: jax.Array,
               params: ILQRParams = ILQRParams(),
               sysid: sid.SysIdParams = sid.SysIdParams()) -> ILQRResult:
     """D2C from U0 [T, nu]: LTV identification + iLQR until a stopping rule holds."""
-    return ilqr(system.step, ltv_linearize(system, sysid), task_cost(task), task.x0,
-                U0, task.u_min, task.u_max, params, key, system.closed_loop)
+    return _solve(system, task, U0, key, params, sysid, "d2c")
 
 
 @functools.partial(jax.jit, static_argnames=("system",))
 def solve_exact(system: System, task: Task, U0: jax.Array,
                 params: ILQRParams = ILQRParams()) -> ILQRResult:
     """Model-based iLQR from U0 [T, nu] with exact MJX Jacobians (the oracle)."""
-    return ilqr(system.mjx_step, exact_linearize(system), task_cost(task), task.x0, U0,
-                task.u_min, task.u_max, params, jax.random.key(0))
+    return _solve(system, task, U0, jax.random.key(0), params, sid.SysIdParams(), "exact")
 
 
 class MultiStart(NamedTuple):
@@ -73,13 +81,8 @@ def solve_multistart(system: System, task: Task, U0s: jax.Array, key: jax.Array,
                      method: str = "d2c") -> MultiStart:
     """vmap of the solve over S initial control sequences U0s [S, T, nu]; keeps the best."""
     keys = jax.random.split(key, U0s.shape[0])
-    if method == "d2c":
-        run = lambda U0, k: ilqr(system.step, ltv_linearize(system, sysid),  # noqa: E731
-                                 task_cost(task), task.x0, U0, task.u_min, task.u_max, params, k)
-    else:
-        run = lambda U0, k: ilqr(system.mjx_step, exact_linearize(system),  # noqa: E731
-                                 task_cost(task), task.x0, U0, task.u_min, task.u_max, params, k)
-    results = jax.vmap(run)(U0s, keys)
+    results = jax.vmap(lambda U0, k: _solve(system, task, U0, k, params, sysid, method))(
+        U0s, keys)
     costs = jnp.where(jnp.isfinite(results.cost), results.cost, jnp.inf)
     i = jnp.argmin(costs)
     return MultiStart(jax.tree.map(lambda a: a[i], results), results.cost, i)

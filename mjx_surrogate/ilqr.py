@@ -120,8 +120,9 @@ def closed_loop(step: StepFn, x0: jax.Array, X_bar: jax.Array, U_bar: jax.Array,
 
 
 def box_qp(Quu: jax.Array, Qu: jax.Array, lo: jax.Array, hi: jax.Array, iters: int = 6
-           ) -> tuple[jax.Array, jax.Array]:
-    """min 1/2 k'Quu k + Qu'k s.t. lo <= k <= hi by projected Newton; returns (k, free mask)."""
+           ) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """min 1/2 k'Quu k + Qu'k s.t. lo <= k <= hi by projected Newton; returns (k, free mask,
+    ok), ok = Quu positive definite (from the unconstrained solve that starts the search)."""
     n = Qu.shape[0]
     eye = jnp.eye(n, dtype=Qu.dtype)
     obj = lambda x: 0.5 * x @ Quu @ x + Qu @ x  # noqa: E731
@@ -141,9 +142,9 @@ def box_qp(Quu: jax.Array, Qu: jax.Array, lo: jax.Array, hi: jax.Array, iters: i
         best = cands[jnp.argmin(vals)]
         return jnp.where(jnp.min(vals) < obj(x), best, x)
 
-    x = jnp.clip(-spd_solve(Quu, Qu)[0], lo, hi)
-    x = jax.lax.fori_loop(0, iters, body, x)
-    return x, free_set(x)[0]
+    x0, ok = spd_solve(Quu, Qu)
+    x = jax.lax.fori_loop(0, iters, body, jnp.clip(-x0, lo, hi))
+    return x, free_set(x)[0], ok
 
 
 def backward_pass(A, B, lx, lu, lxx, luu, lux, VxT, VxxT, U, lo, hi, mu):
@@ -166,8 +167,7 @@ def backward_pass(A, B, lx, lu, lxx, luu, lux, VxT, VxxT, U, lo, hi, mu):
         Qux_r = Qux + mu * Bt.T @ At
 
         def boxed():
-            _, ok = spd_solve(Quu_r, Qu)  # positive definiteness of the regularised Q_uu
-            kt, free = box_qp(Quu_r, Qu, lo - ut, hi - ut)
+            kt, free, ok = box_qp(Quu_r, Qu, lo - ut, hi - ut)
             Hf = jnp.where(free[:, None] & free[None, :], Quu_r,
                            jnp.eye(Qu.shape[0], dtype=Qu.dtype))
             return kt, -spd_solve(Hf, jnp.where(free[:, None], Qux_r, 0.0))[0], ok
