@@ -3,7 +3,7 @@
 * the jitted engine (``solve_d2c``; compile time apart from run time),
 * the exact-Jacobian oracle from the same initial controls (the 1 % cost target),
 * the NumPy + native ``mujoco.rollout`` reference of the same algorithm
-  (``benchmarks/d2c_numpy.py``), same start, samples and stopping rules,
+  (``tests/reference_d2c_numpy.py``), same start, samples and stopping rules,
 * the published D2C 2.0 wall times and costs (their models differ: indicative only).
 
     python benchmarks/d2c.py [--systems pendulum cartpole fish swimmer6] [--backend auto]
@@ -25,6 +25,7 @@ import os as _os
 import sys as _sys
 
 _sys.path.insert(0, _os.path.dirname(_os.path.dirname(_os.path.abspath(__file__))))
+_sys.path.insert(0, _os.path.join(_os.path.dirname(_os.path.dirname(_os.path.abspath(__file__))), "tests"))
 
 import argparse
 import time
@@ -41,12 +42,12 @@ def bench(name: str, backend: str, max_iter: int | None, exact: bool, numpy_ref:
           sysid: str | None = None, n_samples: int | None = None, sigma: float | None = None,
           rel_tol: float | None = None, repeats: int = 1, polish: bool = False) -> dict:
     import jax
-    import jax.numpy as jnp
 
-    from benchmarks import d2c_numpy
-    from experiments.run import load_config
-    from mjx_surrogate.d2c import initial_controls, solve_d2c, solve_exact
-    from mjx_surrogate.setup import resolve, solver_params
+    import reference_d2c_numpy as d2c_numpy  # the test oracle, tests/reference_d2c_numpy.py
+    from configs import load as load_config
+    from mjx_surrogate.d2c import solve_d2c, solve_exact
+    from mjx_surrogate.pipeline import initial_controls
+    from mjx_surrogate.resolution import resolve, solver_params
     from mjx_surrogate.timing import compile_then_run
     import dataclasses
 
@@ -106,7 +107,9 @@ def main() -> None:
     ap.add_argument("--no-exact", action="store_true")
     ap.add_argument("--no-numpy", action="store_true")
     a = ap.parse_args()
-    import mjx_surrogate  # noqa: F401
+    from mjx_surrogate.runtime import configure_runtime
+
+    configure_runtime()
 
     f = lambda v, p=3: "-" if v is None else (f"{v:.{p}g}" if isinstance(v, float) else str(v))  # noqa
     print("| system | backend | precision | identification | T | D2C cost | iters | D2C run s | D2C compile s "

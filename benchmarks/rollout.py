@@ -16,6 +16,7 @@ import os as _os
 import sys as _sys
 
 _sys.path.insert(0, _os.path.dirname(_os.path.dirname(_os.path.abspath(__file__))))
+_sys.path.insert(0, _os.path.join(_os.path.dirname(_os.path.dirname(_os.path.abspath(__file__))), "tests"))
 
 import argparse
 import json
@@ -119,7 +120,9 @@ def main() -> None:
     ap.add_argument("--constraint-on", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
-    import mjx_surrogate  # noqa: F401  (XLA flags)
+    from mjx_surrogate.runtime import configure_runtime
+
+    configure_runtime()
 
     common = ["--batches", *map(str, a.batches), "--T", str(a.T), "--repeats", str(a.repeats)]
     if a.json:

@@ -12,6 +12,7 @@ import os as _os
 import sys as _sys
 
 _sys.path.insert(0, _os.path.dirname(_os.path.dirname(_os.path.abspath(__file__))))
+_sys.path.insert(0, _os.path.join(_os.path.dirname(_os.path.dirname(_os.path.abspath(__file__))), "tests"))
 
 import argparse
 import time
@@ -28,12 +29,15 @@ def main() -> None:
     import jax
     import jax.numpy as jnp
 
-    import mjx_surrogate  # noqa: F401
-    from experiments.run import load_config
+    from mjx_surrogate.runtime import configure_runtime
+
+    configure_runtime()
+    from configs import load as load_config
     from mjx_surrogate import data
-    from mjx_surrogate.d2c import initial_controls, solve_d2c
+    from mjx_surrogate.d2c import solve_d2c
+    from mjx_surrogate.pipeline import initial_controls
     from mjx_surrogate.rollout import rollout
-    from mjx_surrogate.setup import library_specs, resolve, solver_params
+    from mjx_surrogate.resolution import library_specs, resolve, solver_params
     from mjx_surrogate.surrogates import mlp, sindy
 
     jax.config.update("jax_enable_x64", True)
@@ -89,7 +93,7 @@ def main() -> None:
                          0.0, time.perf_counter() - t0))
     except ImportError:
         rows.append(("pysindy not installed", 0.0, float("nan")))
-    print(f"| step | compile s | run s |\n|---|---|---|")
+    print("| step | compile s | run s |\n|---|---|---|")
     for label, c, r in rows:
         print(f"| {label} | {c:.2f} | {r:.3f} |")
 

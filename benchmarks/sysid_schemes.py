@@ -17,6 +17,7 @@ import os as _os
 import sys as _sys
 
 _sys.path.insert(0, _os.path.dirname(_os.path.dirname(_os.path.abspath(__file__))))
+_sys.path.insert(0, _os.path.join(_os.path.dirname(_os.path.dirname(_os.path.abspath(__file__))), "tests"))
 
 import argparse
 import dataclasses
@@ -33,12 +34,15 @@ def main() -> None:
     a = ap.parse_args()
     import jax
 
-    import mjx_surrogate  # noqa: F401
-    from experiments.run import load_config
-    from mjx_surrogate.d2c import (exact_linearize, initial_controls, ltv_linearize, solve_d2c,
-                                   solve_exact)
-    from mjx_surrogate.ilqr import STOP_REASONS
-    from mjx_surrogate.setup import resolve, solver_params
+    from mjx_surrogate.runtime import configure_runtime
+
+    configure_runtime()
+    from configs import load as load_config
+    from mjx_surrogate.d2c import exact_linearize, solve_d2c, solve_exact
+    from mjx_surrogate.ilqr import StopReason
+    from mjx_surrogate.pipeline import initial_controls
+    from mjx_surrogate.sysid import ltv_linearize
+    from mjx_surrogate.resolution import resolve, solver_params
     from mjx_surrogate.sysid import SCHEMES
 
     print(f"n_samples={a.n_samples}, sigma={a.sigma}, float32, backend={a.backend}\n")
@@ -64,7 +68,7 @@ def main() -> None:
             gap = 100 * (float(r.cost) - float(ex.cost)) / abs(float(ex.cost))
             print(f"| {name} | {scheme} | {np.median(rel):.2e} | {np.max(rel):.2e} | "
                   f"{float(r.cost):.5g} | {float(ex.cost):.5g} | {gap:.2f} | {int(r.iterations)} | "
-                  f"{STOP_REASONS[int(r.stop_reason)]} |", flush=True)
+                  f"{StopReason(int(r.stop_reason)).description} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -4,7 +4,7 @@ each), SINDy at 10 % / 100 %, MLP at 5 % / 25 %; Gram spectra at 5 % (SINDy) and
 (MLP); error projections for cubic at 5 % and quartic + trig at 15 %. MLPs train for 100
 epochs here (the paper's 5000 are out of reach on 2 CPU cores)."""
 from mjx_surrogate.config import (AnalysisConfig, Config, DataConfig, ExperimentConfig,
-                                  SolverConfig, SurrogateConfig, SystemConfig, TaskConfig)
+                                  SolverConfig, MLPConfig, SindyConfig, SurrogateConfig, SystemConfig, TaskConfig)
 
 CONFIG = Config(
     system=SystemConfig(name="cartpole"),
@@ -12,6 +12,6 @@ CONFIG = Config(
     solver=SolverConfig(n_samples=25, max_iter=300, rel_tol=1e-6, init="zeros"),
     experiment=ExperimentConfig(kind="analysis", x64=True),
     data=DataConfig(n_traj=2000),
-    surrogate=SurrogateConfig(sindy_libraries=("cubic_trig", "quartic"), mlp_epochs=100),
+    surrogate=SurrogateConfig(sindy=SindyConfig(libraries=("cubic_trig", "quartic")), mlp=MLPConfig(epochs=100)),
     analysis=AnalysisConfig(n_datasets=5, gram_points=1000),
 )

@@ -3,7 +3,7 @@ approach (D2C) starts from a random trajectory; SINDy and MLP models trained on 
 around its optimum (two levels, two seeds) are then used for iLQR, and every controller is
 executed on the black box."""
 from mjx_surrogate.config import (Config, DataConfig, ExperimentConfig, SolverConfig,
-                                  SurrogateConfig, SystemConfig, TaskConfig)
+                                  MLPConfig, SindyConfig, SurrogateConfig, SystemConfig, TaskConfig)
 
 CONFIG = Config(
     system=SystemConfig(name="cartpole"),
@@ -12,5 +12,5 @@ CONFIG = Config(
                         max_iter=300, rel_tol=1e-6),
     experiment=ExperimentConfig(kind="control", x64=True),
     data=DataConfig(n_traj=2000, levels=(0.05, 0.25), n_seeds=2),
-    surrogate=SurrogateConfig(sindy_libraries=("cubic_trig", "quartic"), mlp_epochs=200),
+    surrogate=SurrogateConfig(sindy=SindyConfig(libraries=("cubic_trig", "quartic")), mlp=MLPConfig(epochs=200)),
 )

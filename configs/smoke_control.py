@@ -1,6 +1,6 @@
 """CI smoke: control with surrogates on the pendulum, tiny sizes."""
 from mjx_surrogate.config import (Config, DataConfig, ExperimentConfig, SolverConfig,
-                                  SurrogateConfig, SystemConfig, TaskConfig)
+                                  MLPConfig, SindyConfig, SurrogateConfig, SystemConfig, TaskConfig)
 
 CONFIG = Config(
     system=SystemConfig(name="pendulum"),
@@ -8,5 +8,5 @@ CONFIG = Config(
     solver=SolverConfig(n_samples=6, max_iter=30, init="random"),
     experiment=ExperimentConfig(kind="control", progress=False, x64=True),
     data=DataConfig(n_traj=40, levels=(0.1,)),
-    surrogate=SurrogateConfig(sindy_libraries=("cubic_trig",), mlp_epochs=3, mlp_batch_size=32),
+    surrogate=SurrogateConfig(sindy=SindyConfig(libraries=("cubic_trig",)), mlp=MLPConfig(epochs=3, batch_size=32)),
 )

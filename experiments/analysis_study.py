@@ -1,5 +1,8 @@
 """Experiment kind "analysis": the paper's model-convergence, ill-conditioning and variance
-experiments around the task's optimum (paper: the cartpole swing-up)."""
+experiments around the task's optimum (paper: the cartpole swing-up).
+
+Stages: ``optimum``, ``convergence``, ``ill_conditioning``, ``variance``; then figures.
+"""
 
 from __future__ import annotations
 
@@ -7,12 +10,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from experiments.predict_study import optimum
-from mjx_surrogate import data, models, plots
+from mjx_surrogate import data, pipeline, plots, step_models
 from mjx_surrogate.analysis import spectra
-from mjx_surrogate.results import RunFolder
-from mjx_surrogate.setup import Resolved, analysis_library_specs, library_specs, mlp_spec
+from mjx_surrogate.resolution import Resolved, analysis_library_specs
+from mjx_surrogate.results import Run
 from mjx_surrogate.surrogates import mlp, sindy
+from mjx_surrogate.surrogates.registry import library_specs, mlp_spec
 from mjx_surrogate.systems.system import state_labels
 
 
@@ -41,110 +44,123 @@ def _spread(P: np.ndarray) -> float:
     return float(np.nanmean(np.nanstd(P, axis=0))) if np.isfinite(P).any() else float("inf")
 
 
-def run(res: Resolved, folder: RunFolder, key: jax.Array) -> tuple[dict, dict]:
+def run(res: Resolved, record: Run, key: jax.Array) -> str:
     cfg, system, task = res
     a = cfg.analysis
     specs = library_specs(cfg, system) | analysis_library_specs(cfg, system)
     keys = dict(zip(("opt", "conv", "gram", "var"), jax.random.split(key, 4)))
-    metrics: dict = {"status": "ok"}
-    m_opt, X_star, U_star = optimum(res, keys["opt"], cfg.experiment.progress)
-    metrics["optimum"] = m_opt
-    arrays: dict = {"X_star": X_star, "U_star": U_star}
+    record.add_arrays({"x0": task.x0})
+    m_opt, a_opt = record.stage("optimum", pipeline.optimum_stage(res, keys["opt"]))
     if m_opt["cost"] is None:
-        metrics["status"] = "diverged"
-        return metrics, arrays
+        return "diverged"
+    X_star, U_star = jnp.asarray(a_opt["X_star"]), jnp.asarray(a_opt["U_star"])
     labels = state_labels(system.mj_model)
     t = np.arange(task.T + 1) * system.dt
     coords = list(range(min(system.nq, 2)))
     x0, U1 = X_star[0][None], U_star[None]
     spec_mlp = mlp_spec(cfg)
 
-    # 1. Model convergence across data sets ------------------------------------------
-    conv = {}
+    def convergence():  # 1. Model convergence across data sets
+        conv, arrays = {}, {}
+        for kind, levels in (("SINDy", a.convergence_sindy_levels), ("MLP", a.convergence_mlp_levels)):
+            for j, level in enumerate(levels):
+                sets = _datasets(system, X_star, U_star,
+                                 jax.random.fold_in(keys["conv"], 100 * j + len(kind)), cfg, level)
+                if kind == "SINDy":
+                    spec = specs[a.convergence_library]
+                    fits = [sindy.fit(spec, tr.x, tr.u, tr.x_next, increment=cfg.surrogate.increment,
+                                      method=cfg.surrogate.sindy.method) for tr, _ in sets]
+                    steps = [m.step for m in fits]
+                    C = np.stack([np.asarray(m.coef) for m in fits])
+                    extra = {"coef_rel_std": float(np.mean(C.std(0)) / max(np.mean(np.abs(C.mean(0))), 1e-300))}
+                else:
+                    z, xn = _common([tr for tr, _ in sets])
+                    zt, xnt = _common([te for _, te in sets])
+                    y, yt = (mlp.targets(z[..., :system.nx], xn, spec_mlp.increment),
+                             mlp.targets(zt[..., :system.nx], xnt, spec_mlp.increment))
+                    kk = jax.random.split(jax.random.fold_in(keys["conv"], 7 + j), a.n_datasets)
+                    trained = mlp.train_seeds(spec_mlp, kk, z, y, zt, yt)
+                    steps = [mlp.unstack(trained, i).model.step for i in range(a.n_datasets)]
+                    extra = {"final_test_loss": np.asarray(trained.test_loss[:, -1]).tolist()}
+                P = np.stack([np.asarray(step_models.predict(step_models.time_invariant(s), x0, U1))[0]
+                              for s in steps])
+                conv[f"{kind} {100 * level:g}%"] = {"prediction_spread": _spread(P), **extra,
+                                                     "final_state_spread": np.nanstd(P[:, -1], axis=0).tolist()}
+                arrays[f"convergence_{kind}_{level:g}"] = P
+        return conv, arrays
+
+    conv, a_conv = record.stage("convergence", convergence)
     for kind, levels in (("SINDy", a.convergence_sindy_levels), ("MLP", a.convergence_mlp_levels)):
-        for j, level in enumerate(levels):
-            sets = _datasets(system, X_star, U_star, jax.random.fold_in(keys["conv"], 100 * j + len(kind)),
-                             cfg, level)
-            if kind == "SINDy":
-                spec = specs[a.convergence_library]
-                fits = [sindy.fit(spec, tr.x, tr.u, tr.x_next, increment=cfg.surrogate.increment,
-                                  method=cfg.surrogate.sindy_method) for tr, _ in sets]
-                steps = [m.step for m in fits]
-                C = np.stack([np.asarray(m.coef) for m in fits])
-                extra = {"coef_rel_std": float(np.mean(C.std(0)) / max(np.mean(np.abs(C.mean(0))), 1e-300))}
-            else:
-                z, xn = _common([tr for tr, _ in sets])
-                zt, xnt = _common([te for _, te in sets])
-                y, yt = (mlp.targets(z[..., :system.nx], xn, spec_mlp.increment),
-                         mlp.targets(zt[..., :system.nx], xnt, spec_mlp.increment))
-                kk = jax.random.split(jax.random.fold_in(keys["conv"], 7 + j), a.n_datasets)
-                trained = mlp.train_seeds(spec_mlp, kk, z, y, zt, yt)
-                steps = [mlp.unstack(trained, i).model.step for i in range(a.n_datasets)]
-                extra = {"final_test_loss": np.asarray(trained.test_loss[:, -1]).tolist()}
-            P = np.stack([np.asarray(models.predict(models.time_invariant(s), x0, U1))[0] for s in steps])
-            name = f"{kind} {100 * level:g}%"
-            conv[name] = {"prediction_spread": _spread(P), **extra,
-                          "final_state_spread": np.nanstd(P[:, -1], axis=0).tolist()}
-            arrays[f"convergence_{kind}_{level:g}"] = P
-            folder.write_figure(f"convergence_{kind.lower()}_{100 * level:g}pct.png", plots.seed_overlay(
-                t, np.asarray(X_star), P, coords, labels,
+        for level in levels:
+            record.figure(f"convergence_{kind.lower()}_{100 * level:g}pct.png", lambda: plots.seed_overlay(
+                t, np.asarray(X_star), a_conv[f"convergence_{kind}_{level:g}"], coords, labels,
                 f"{kind} trained on {a.n_datasets} data sets, {100 * level:g}% U_max: optimal controls"))
-    metrics["convergence"] = conv
 
-    # 2. Ill-conditioning ---------------------------------------------------------------
-    gram = {}
-    spectra_plot = {}
-    (tr, _), = _datasets(system, X_star, U_star, keys["gram"], _one(cfg), a.gram_sindy_level)
-    for name in a.gram_libraries:
-        theta = sindy.design(specs[name], tr.x, tr.u)
-        eig = spectra.eigenvalues(sindy.gram(theta))
-        gram[f"SINDy {name} {100 * a.gram_sindy_level:g}%"] = {
-            "condition": spectra.condition(eig), "n_features": int(theta.shape[1]),
-            "precision": str(theta.dtype)}
-        spectra_plot[f"SINDy {name}"] = np.sqrt(eig)  # singular values of Theta / sqrt(R)
-    for j, level in enumerate(a.gram_mlp_levels):
-        (tr, te), = _datasets(system, X_star, U_star, jax.random.fold_in(keys["gram"], j + 1), _one(cfg), level)
-        z = jnp.concatenate([tr.x, tr.u], -1)
-        zt = jnp.concatenate([te.x, te.u], -1)
-        r = mlp.train(spec_mlp, jax.random.fold_in(keys["gram"], 50 + j), z,
-                      mlp.targets(tr.x, tr.x_next, spec_mlp.increment), zt,
-                      mlp.targets(te.x, te.x_next, spec_mlp.increment))
-        zs, _ = spectra.standardise(r.model, z[: a.gram_points], z[: a.gram_points, : system.nx])
-        eig = spectra.eigenvalues(spectra.mlp_gram(r.model, zs))
-        tiny = int(np.sum(eig < 1e-12 * eig[0]))
-        gram[f"MLP {100 * level:g}%"] = {"condition": spectra.condition(eig), "n_params": int(eig.size),
-                                         "eigenvalues_below_1e-12_of_max": tiny,
-                                         "precision": "float64 Gram of float32 Jacobians"}
-        spectra_plot[f"MLP {100 * level:g}%"] = np.sqrt(eig)
-        arrays[f"mlp_gram_eigs_{level:g}"] = eig
-    metrics["ill_conditioning"] = gram
-    folder.write_figure("gram_spectra.png", plots.spectra(spectra_plot, "Gram matrix spectra"))
+    def ill_conditioning():  # 2. Gram spectra
+        gram, arrays = {}, {}
+        (tr, _), = _datasets(system, X_star, U_star, keys["gram"], _one(cfg), a.gram_sindy_level)
+        for name in a.gram_libraries:
+            theta = sindy.design(specs[name], tr.x, tr.u)
+            eig = spectra.eigenvalues(sindy.gram(theta))
+            gram[f"SINDy {name} {100 * a.gram_sindy_level:g}%"] = {
+                "condition": spectra.condition(eig), "n_features": int(theta.shape[1]),
+                "precision": str(theta.dtype)}
+            arrays[f"sindy_gram_eigs_{name}"] = eig
+        for j, level in enumerate(a.gram_mlp_levels):
+            (tr, te), = _datasets(system, X_star, U_star, jax.random.fold_in(keys["gram"], j + 1),
+                                  _one(cfg), level)
+            z = jnp.concatenate([tr.x, tr.u], -1)
+            zt = jnp.concatenate([te.x, te.u], -1)
+            r = mlp.train(spec_mlp, jax.random.fold_in(keys["gram"], 50 + j), z,
+                          mlp.targets(tr.x, tr.x_next, spec_mlp.increment), zt,
+                          mlp.targets(te.x, te.x_next, spec_mlp.increment))
+            zs, _ = spectra.standardise(r.model, z[: a.gram_points], z[: a.gram_points, : system.nx])
+            eig = spectra.eigenvalues(spectra.mlp_gram(r.model, zs))
+            gram[f"MLP {100 * level:g}%"] = {
+                "condition": spectra.condition(eig), "n_params": int(eig.size),
+                "eigenvalues_below_1e-12_of_max": int(np.sum(eig < 1e-12 * eig[0])),
+                "precision": "float64 Gram of float32 Jacobians"}
+            arrays[f"mlp_gram_eigs_{level:g}"] = eig
+        return gram, arrays
 
-    # 3. Variance ---------------------------------------------------------------------
-    var = {}
-    proj_plot = {}
-    for j, (name, level) in enumerate(zip(a.variance_libraries, a.variance_levels)):
-        sets = _datasets(system, X_star, U_star, jax.random.fold_in(keys["var"], j), cfg, level)
-        spec = specs[name]
-        thetas = [sindy.design(spec, tr.x, tr.u) for tr, _ in sets]
-        ys = [tr.x_next - tr.x if cfg.surrogate.increment else tr.x_next for tr, _ in sets]
-        pooled = sindy.lstsq(jnp.concatenate(thetas), jnp.concatenate(ys), cfg.surrogate.sindy_method)
-        D = np.asarray(spectra.error_projections(thetas, ys, pooled))  # [S, P, nx]
-        rhs = np.asarray(jnp.stack([sindy.projections(th, y) for th, y in zip(thetas, ys)]))
-        label = f"SINDy {name} {100 * level:g}%"
-        var[label] = {"projection_std_mean": float(D.std(0).mean()),
-                      "relative_to_rhs": float(D.std(0).mean() / np.abs(rhs.mean(0)).mean()),
-                      "n_features": int(D.shape[1])}
-        proj_plot[label] = D[..., 1 % system.nx]  # a velocity-like coordinate's equation
-        arrays[f"variance_projections_{name}_{level:g}"] = D
-    mlp_var = _mlp_directions(cfg, system, X_star, U_star, keys["var"], spec_mlp, arrays)
-    folder.write_figure("mlp_descent_directions.png", plots.projections(
-        mlp_var.pop("_figure"), "parameter index (first 200)", "unit descent direction"))
-    var.update(mlp_var)
-    metrics["variance"] = var
-    folder.write_figure("variance_projections.png", plots.projections(proj_plot))
-    folder.write_text("analysis_table.md", _table(metrics))
-    return metrics, arrays
+    _, a_gram = record.stage("ill_conditioning", ill_conditioning)
+    spectra_plot = {f"SINDy {n}": np.sqrt(a_gram[f"sindy_gram_eigs_{n}"]) for n in a.gram_libraries}
+    spectra_plot |= {f"MLP {100 * lv:g}%": np.sqrt(a_gram[f"mlp_gram_eigs_{lv:g}"])
+                     for lv in a.gram_mlp_levels}  # singular values of Theta / sqrt(R)
+    record.figure("gram_spectra.png", lambda: plots.spectra(spectra_plot, "Gram matrix spectra"))
+
+    def variance():  # 3. Variance of the projections across data sets
+        var, arrays = {}, {}
+        for j, (name, level) in enumerate(zip(a.variance_libraries, a.variance_levels)):
+            sets = _datasets(system, X_star, U_star, jax.random.fold_in(keys["var"], j), cfg, level)
+            spec = specs[name]
+            thetas = [sindy.design(spec, tr.x, tr.u) for tr, _ in sets]
+            ys = [tr.x_next - tr.x if cfg.surrogate.increment else tr.x_next for tr, _ in sets]
+            pooled = sindy.lstsq(jnp.concatenate(thetas), jnp.concatenate(ys), cfg.surrogate.sindy.method)
+            D = np.asarray(spectra.error_projections(thetas, ys, pooled))  # [S, P, nx]
+            rhs = np.asarray(jnp.stack([sindy.projections(th, y) for th, y in zip(thetas, ys)]))
+            var[f"SINDy {name} {100 * level:g}%"] = {
+                "projection_std_mean": float(D.std(0).mean()),
+                "relative_to_rhs": float(D.std(0).mean() / np.abs(rhs.mean(0)).mean()),
+                "n_features": int(D.shape[1])}
+            arrays[f"variance_projections_{name}_{level:g}"] = D
+        var.update(_mlp_directions(cfg, system, X_star, U_star, keys["var"], spec_mlp, arrays))
+        return var, arrays
+
+    var, a_var = record.stage("variance", variance)
+    level = a.gram_mlp_levels[0]
+    dirs = {}
+    for epoch in (0, spec_mlp.epochs):
+        G = a_var[f"mlp_descent_directions_epoch{epoch}"]
+        dirs[f"MLP {100 * level:g}%, epoch {epoch}: (1/R) H' Delta"] = (
+            G[:, :200] / np.linalg.norm(G, axis=1, keepdims=True))
+    record.figure("mlp_descent_directions.png", lambda: plots.projections(
+        dirs, "parameter index (first 200)", "unit descent direction"))
+    proj_plot = {f"SINDy {n} {100 * lv:g}%": a_var[f"variance_projections_{n}_{lv:g}"][..., 1 % system.nx]
+                 for n, lv in zip(a.variance_libraries, a.variance_levels)}  # a velocity-like equation
+    record.figure("variance_projections.png", lambda: plots.projections(proj_plot))
+    record.folder.write_text("analysis_table.md", _table(record.metrics))
+    return m_opt["status"]
 
 
 def _mlp_directions(cfg, system, X_star, U_star, key, spec_mlp, arrays) -> dict:
@@ -158,7 +174,6 @@ def _mlp_directions(cfg, system, X_star, U_star, key, spec_mlp, arrays) -> dict:
     same = jnp.stack([jax.random.fold_in(key, 5)] * a.n_datasets)  # same init and batches
     trained = mlp.train_seeds(spec, same, z, y, z[:, :256], y[:, :256])
     out = {}
-    dirs = {}
     for c, epoch in enumerate(spec.checkpoints):
         G = []
         for i in range(a.n_datasets):
@@ -172,9 +187,6 @@ def _mlp_directions(cfg, system, X_star, U_star, key, spec_mlp, arrays) -> dict:
         out[f"MLP {100 * level:g}% epoch {epoch}"] = {"mean_pairwise_cosine": float(off.mean()),
                                                       "min_pairwise_cosine": float(off.min())}
         arrays[f"mlp_descent_directions_epoch{epoch}"] = G
-        dirs[f"MLP {100 * level:g}%, epoch {epoch}: (1/R) H' Delta"] = G[:, :200] / np.linalg.norm(
-            G, axis=1, keepdims=True)
-    out["_figure"] = dirs
     return out
 
 

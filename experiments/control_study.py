@@ -1,5 +1,10 @@
 """Experiment kind "control": optimal control with the global surrogates against the local
-LTV approach (D2C) and the exact oracle, all judged by their true cost on the black box."""
+LTV approach (D2C) and the exact oracle, all judged by their true cost on the black box.
+
+Stages: ``d2c`` (the optimum), ``exact`` (if enabled), then ``surrogates/<level>_<seed>``:
+a data set around the optimum, every kind of ``surrogate.kinds`` fitted on it, iLQR on each
+surrogate from the same start, its controls replayed on the black box.
+"""
 
 from __future__ import annotations
 
@@ -7,101 +12,106 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import data, plots
-from mjx_surrogate.d2c import initial_controls, solve_d2c, solve_exact
-from mjx_surrogate.progress import progress_bar
-from mjx_surrogate.results import RunFolder
-from mjx_surrogate.rollout import rollout
-from mjx_surrogate.setup import Resolved, library_specs, mlp_spec, solver_params
-from mjx_surrogate.surrogate_control import on_black_box, solve_on_model
-from mjx_surrogate.surrogates import mlp, sindy
+from mjx_surrogate import data, pipeline, plots, progress
+from mjx_surrogate.d2c import solve_exact
+from mjx_surrogate.evaluation import finite_or_none, replay
+from mjx_surrogate.resolution import Resolved, solver_params
+from mjx_surrogate.results import Run
+from mjx_surrogate.surrogate_control import solve_on_model
+from mjx_surrogate.surrogates import FitContext, fit_all
 from mjx_surrogate.systems.system import hinge_state_indices, state_labels
-from mjx_surrogate.tasks import trajectory_cost
+
+GOAL_RULE = "final-state error < 10 % of |x0 - x_goal|"
 
 
-def _num(v) -> float | None:
-    v = float(v)
-    return v if np.isfinite(v) else None
+def _surrogate_stage(res, X_d2c, U_d2c, U0, J_d2c, level, seed, key, params):
+    cfg, system, task = res
+    dc = cfg.data
+    scale = float(jnp.linalg.norm(task.x0 - task.x_goal))
+
+    def compute():
+        ds = data.sample(system, X_d2c, U_d2c, key, dc.n_traj, level, dc.x0_sigma)
+        train, test = data.split(ds, jax.random.fold_in(key, 1), dc.test_fraction)
+        fitted = fit_all(FitContext(cfg, system), data.transitions(train),
+                         data.transitions(test), jax.random.fold_in(key, 2))
+        rows, arrays = [], {}
+        for name, f in fitted.items():
+            sol = solve_on_model(f.model, task, U0, params)
+            out = replay(system, task, sol.X, sol.U, sol.K)
+            row = {"model": name, "level": level, "seed": seed,
+                   "model_cost": finite_or_none(sol.cost), "iterations": int(sol.iterations),
+                   "true_cost_open": finite_or_none(out.cost_open),
+                   "true_cost_closed": finite_or_none(out.cost_closed),
+                   "final_error_open": finite_or_none(out.final_error_open),
+                   "final_error_closed": finite_or_none(out.final_error_closed)}
+            best = min(v for v in (row["true_cost_open"], row["true_cost_closed"], np.inf)
+                       if v is not None)
+            row["true_cost_over_d2c"] = best / J_d2c if np.isfinite(best) else None
+            err = min(v for v in (row["final_error_open"], row["final_error_closed"], np.inf)
+                      if v is not None)
+            row["reached_goal"] = bool(err < 0.1 * scale)
+            rows.append(row)
+            tag = f"{name.replace(' ', '_')}_{level:g}"
+            arrays[f"control_{tag}_s{seed}_U"] = sol.U
+            arrays[f"control_{tag}_s{seed}_K"] = sol.K
+            arrays[f"control_{tag}_s{seed}_X_closed"] = out.X_closed
+        return {"rows": rows}, arrays
+
+    return compute
 
 
-def run(res: Resolved, folder: RunFolder, key: jax.Array) -> tuple[dict, dict]:
+def run(res: Resolved, record: Run, key: jax.Array) -> str:
     cfg, system, task = res
     ex, sc, dc = cfg.experiment, cfg.solver, cfg.data
-    params, sid = solver_params(cfg, record_trajectories=True, progress=ex.progress)
-    k_init, k_d2c, k_data = jax.random.split(key, 3)
-    U0 = initial_controls(k_init, task.T, system.nu, sc.init, sc.init_scale, None, task.x0.dtype)
-    with progress_bar("D2C (local LTV models)", sc.max_iter, ex.progress):
-        d2c = jax.block_until_ready(solve_d2c(system, task, U0, k_d2c, params, sid))
-    X_d2c = rollout(system, task.x0[None], d2c.U[None])[0]
-    J_d2c = _num(trajectory_cost(task, X_d2c, d2c.U))
+    params, _ = solver_params(cfg, record_trajectories=True)
+    k_opt, k_data = jax.random.split(key)
+    record.add_arrays({"x0": task.x0})
+    record.set("goal_rule", GOAL_RULE)
+
+    m_d2c, a_d2c = record.stage("d2c", pipeline.optimum_stage(res, k_opt, True))
+    if m_d2c["cost"] is None:
+        return "diverged"
+    X_d2c, U_d2c = jnp.asarray(a_d2c["X_star"]), jnp.asarray(a_d2c["U_star"])
+    U0 = jnp.asarray(a_d2c["U0_star"])
+    J_d2c = m_d2c["cost"]
     scale = float(jnp.linalg.norm(task.x0 - task.x_goal))
-    reached = lambda err: bool(err < 0.1 * scale)  # noqa: E731
-    metrics: dict = {"status": "ok", "d2c": {"cost": J_d2c, "iterations": int(d2c.iterations),
-                                             "final_state_error": _num(jnp.linalg.norm(X_d2c[-1] - task.x_goal))},
-                     "goal_rule": "final-state error < 10 % of |x0 - x_goal|"}
-    metrics["d2c"]["reached_goal"] = reached(metrics["d2c"]["final_state_error"] or np.inf)
-    arrays = {"d2c_U0": U0, "d2c_U": d2c.U, "d2c_X": X_d2c, "d2c_K": d2c.K}
-    if J_d2c is None:
-        metrics["status"] = "diverged"
-        return metrics, arrays
+    m_d2c["reached_goal"] = bool((m_d2c["final_state_error"] or np.inf) < 0.1 * scale)
+    record.set("d2c", m_d2c)
+
     if ex.exact_oracle:
-        exact = solve_exact(system, task, U0, params)
-        X_ex = rollout(system, task.x0[None], exact.U[None])[0]
-        J_ex = _num(trajectory_cost(task, X_ex, exact.U))
-        metrics["exact"] = {"cost": J_ex, "iterations": int(exact.iterations)}
-        if J_ex is not None:
-            metrics["d2c_vs_exact_relative_gap"] = (J_d2c - J_ex) / abs(J_ex)
-        arrays["exact_U"] = exact.U
+        def exact_stage():
+            with progress.meter("exact-Jacobian iLQR (oracle)", sc.max_iter, ex.progress) as pm:
+                exact = jax.block_until_ready(solve_exact(system, task, U0, params, pm))
+            m, X_ex = pipeline.summary(exact, system, task)
+            return m, {"exact_U": exact.U, "exact_X": X_ex, "exact_K": exact.K}
 
-    t = np.arange(task.T + 1) * system.dt
-    labels = state_labels(system.mj_model)
-    Xh = np.asarray(d2c.X_history)[: int(d2c.iterations) + 1]
-    folder.write_figure("ltv_trajectory_evolution.png", plots.trajectory_evolution(
-        t, Xh, np.asarray(task.x_goal), labels, f"LTV approach (D2C) on {system.name} from {sc.init} controls"))
+        m_ex, _ = record.stage("exact", exact_stage)
+        if m_ex["cost"] is not None:
+            record.set("d2c_vs_exact_relative_gap", (J_d2c - m_ex["cost"]) / abs(m_ex["cost"]))
 
-    specs = library_specs(cfg, system)
-    spec_mlp = mlp_spec(cfg)
     rows, trajectories = [], {}
     for i, level in enumerate(dc.levels):
         for s in range(dc.n_seeds):
             k = jax.random.fold_in(jax.random.fold_in(k_data, i), s)
-            ds = data.sample(system, X_d2c, d2c.U, k, dc.n_traj, level, dc.x0_sigma)
-            train, test = data.split(ds, jax.random.fold_in(k, 1), dc.test_fraction)
-            tr, te = data.transitions(train), data.transitions(test)
-            fitted = {f"SINDy {n}": sindy.fit(sp, tr.x, tr.u, tr.x_next, increment=cfg.surrogate.increment,
-                                              threshold=cfg.surrogate.stlsq_threshold,
-                                              alpha=cfg.surrogate.stlsq_alpha,
-                                              method=cfg.surrogate.sindy_method)
-                      for n, sp in specs.items()}
-            z = jnp.concatenate([tr.x, tr.u], -1)
-            zt = jnp.concatenate([te.x, te.u], -1)
-            fitted["MLP"] = mlp.train(spec_mlp, jax.random.fold_in(k, 2), z,
-                                      mlp.targets(tr.x, tr.x_next, spec_mlp.increment), zt,
-                                      mlp.targets(te.x, te.x_next, spec_mlp.increment)).model
-            for name, model in fitted.items():
-                sol = solve_on_model(model, task, U0, params)
-                out = on_black_box(system, task, sol)
-                row = {"model": name, "level": level, "seed": s,
-                       "model_cost": _num(sol.cost), "iterations": int(sol.iterations),
-                       "true_cost_open": _num(out.cost_open), "true_cost_closed": _num(out.cost_closed),
-                       "final_error_open": _num(out.final_error_open),
-                       "final_error_closed": _num(out.final_error_closed)}
-                best = min(v for v in (row["true_cost_open"], row["true_cost_closed"], np.inf) if v is not None)
-                row["true_cost_over_d2c"] = best / J_d2c if np.isfinite(best) else None
-                row["reached_goal"] = reached(min(v for v in (row["final_error_open"],
-                                                              row["final_error_closed"], np.inf)
-                                                  if v is not None))
-                rows.append(row)
-                if s == 0:
-                    trajectories[f"{name} {100 * level:g}%"] = np.asarray(out.X_closed)
-                    arrays[f"control_{name.replace(' ', '_')}_{level:g}_U"] = sol.U
-    metrics["surrogates"] = rows
-    coords = list(range(min(system.nq, 2)))
-    folder.write_figure("surrogate_controls.png", plots.predictions(
-        t, np.asarray(X_d2c), trajectories, coords, labels, (hinge_state_indices(system.mj_model) or [None])[0],
+            out, arrays = record.stage(f"surrogates/{level:g}_{s}", _surrogate_stage(
+                res, X_d2c, U_d2c, U0, J_d2c, level, s, k, params))
+            rows += out["rows"]
+            if s == 0:
+                for r in out["rows"]:
+                    tag = f"{r['model'].replace(' ', '_')}_{level:g}"
+                    trajectories[f"{r['model']} {100 * level:g}%"] = arrays[f"control_{tag}_s0_X_closed"]
+    record.set("surrogate_rows", rows)
+    t = np.arange(task.T + 1) * system.dt
+    labels = state_labels(system.mj_model)
+    record.figure("ltv_trajectory_evolution.png", lambda: plots.trajectory_evolution(
+        t, a_d2c["X_history"], np.asarray(task.x_goal), labels,
+        f"LTV approach (D2C) on {system.name} from {sc.init} controls"))
+    record.figure("surrogate_controls.png", lambda: plots.predictions(
+        t, np.asarray(X_d2c), trajectories, list(range(min(system.nq, 2))), labels,
+        (hinge_state_indices(system.mj_model) or [None])[0],
         f"{system.name}: surrogate-based controllers on the black box vs the D2C optimum"))
-    folder.write_text("control_table.md", _table(metrics))
-    return metrics, arrays
+    record.folder.write_text("control_table.md", _table(record.metrics))
+    return m_d2c["status"]
 
 
 def _table(m: dict) -> str:
@@ -110,7 +120,7 @@ def _table(m: dict) -> str:
              f"{f(m.get('exact', {}).get('cost'))}\n",
              "| model | level (% U_max) | seed | cost on model | true cost open loop | "
              "true cost closed loop | true / D2C | reached goal |", "|---|---|---|---|---|---|---|---|"]
-    for r in m["surrogates"]:
+    for r in m["surrogate_rows"]:
         lines.append(f"| {r['model']} | {100 * r['level']:g} | {r['seed']} | {f(r['model_cost'])} | "
                      f"{f(r['true_cost_open'])} | {f(r['true_cost_closed'])} | "
                      f"{f(r['true_cost_over_d2c'])} | {r['reached_goal']} |")

@@ -1,5 +1,9 @@
 """Experiment kind "d2c": data-driven iLQR on the black box against the exact oracle,
-the LTV estimates against exact Jacobians, and the feedback policy under noise."""
+the LTV estimates against exact Jacobians, and the feedback policy under noise.
+
+Stages (each written as it finishes): ``d2c``, ``exact`` (if enabled), ``ltv_error``,
+``feedback``; then the figures. The run's status is the D2C solve's verdict.
+"""
 
 from __future__ import annotations
 
@@ -7,116 +11,118 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import plots, sysid
-from mjx_surrogate.d2c import (exact_linearize, initial_controls, ltv_linearize,
-                               simulated_steps, solve_d2c, solve_exact, solve_multistart)
-from mjx_surrogate.feedback import evaluate_feedback
-from mjx_surrogate.ilqr import STOP_REASONS
-from mjx_surrogate.progress import progress_bar
-from mjx_surrogate.results import RunFolder
-from mjx_surrogate.rollout import rollout
-from mjx_surrogate.setup import Resolved, solver_params
+from mjx_surrogate import pipeline, plots, progress, sysid
+from mjx_surrogate.d2c import exact_linearize, solve_d2c, solve_exact, solve_multistart
+from mjx_surrogate.evaluation import evaluate_feedback
+from mjx_surrogate.resolution import Resolved, solver_params
+from mjx_surrogate.results import Run
 from mjx_surrogate.systems.system import state_labels
-from mjx_surrogate.tasks import trajectory_cost
 from mjx_surrogate.timing import compile_then_run
 
 
-def _summary(res, timed, system, task, T, n_alphas, sid_params=None) -> dict:
-    X_bb = rollout(system, task.x0[None], res.U[None])[0]  # replay on the black box
-    cost_bb = float(trajectory_cost(task, X_bb, res.U))
-    it = int(res.iterations)
-    out = {"cost": cost_bb if np.isfinite(cost_bb) else None,
-           "cost_solver": float(res.cost) if np.isfinite(float(res.cost)) else None,
-           "iterations": it, "converged": bool(res.converged),
-           "stop_reason": STOP_REASONS[int(res.stop_reason)],
-           "compile_s": timed.compile_s, "run_s": timed.run_s,
-           "final_state_error": float(jnp.linalg.norm(X_bb[-1] - task.x_goal))}
-    if sid_params is not None:
-        out["simulated_steps"] = simulated_steps(res, T, n_alphas, sid_params)
-    return out, X_bb
-
-
-def ltv_error(system, task, X, U, K, key, sid_params) -> dict:
+def ltv_error(system, X, U, K, key, sid_params) -> dict:
     """Relative Frobenius error of the LTV estimate [A B] against jacfwd through MJX, per t."""
-    A, B = jax.jit(ltv_linearize(system, sid_params))(X, U, K, key)
+    A, B = jax.jit(sysid.ltv_linearize(system, sid_params))(X, U, K, key)
     Ae, Be = jax.jit(exact_linearize(system))(X, U, K, key)
     est = np.concatenate([np.asarray(A), np.asarray(B)], axis=-1)
     ex = np.concatenate([np.asarray(Ae), np.asarray(Be)], axis=-1)
     rel = np.linalg.norm(est - ex, axis=(1, 2)) / np.maximum(np.linalg.norm(ex, axis=(1, 2)), 1e-12)
-    return {"median": float(np.median(rel)), "max": float(np.max(rel)),
-            "scheme": sid_params.scheme}
+    return {"median": float(np.median(rel)), "max": float(np.max(rel)), "scheme": sid_params.scheme}
 
 
-def run(res: Resolved, folder: RunFolder, key: jax.Array) -> tuple[dict, dict]:
+def _solve_arrays(prefix: str, result, X_bb) -> dict:
+    out = {f"{prefix}_U": result.U, f"{prefix}_X": X_bb, f"{prefix}_K": result.K,
+           f"{prefix}_cost_history": result.cost_history}
+    if result.X_history.ndim == 3:
+        out[f"{prefix}_X_history"] = result.X_history
+        out[f"{prefix}_alpha_history"] = result.alpha_history
+    return out
+
+
+def run(res: Resolved, record: Run, key: jax.Array) -> str:
     cfg, system, task = res
     ex, sc = cfg.experiment, cfg.solver
-    params, sid_params = solver_params(cfg, record_trajectories=True, progress=ex.progress)
+    params, sid_params = solver_params(cfg, record_trajectories=True)
     k_init, k_d2c, k_ltv, k_noise = jax.random.split(key, 4)
     dtype = task.x0.dtype
-    metrics: dict = {"status": "ok"}
-    arrays: dict = {"x0": task.x0}
+    record.add_arrays({"x0": task.x0})
 
-    if sc.n_starts > 1:
-        U0s = initial_controls(k_init, task.T, system.nu, sc.init, sc.init_scale, sc.n_starts, dtype)
-        with progress_bar(f"D2C multi-start x{sc.n_starts}", sc.max_iter, ex.progress):
-            ms = compile_then_run(solve_multistart, (system,),
-                                  (task, U0s, k_d2c, params, sid_params))
-        d2c = ms.out.best
-        U0 = U0s[int(ms.out.best_index)]
-        timed_d2c = ms
-        metrics["multistart_costs"] = np.asarray(ms.out.costs).tolist()
-    else:
-        U0 = initial_controls(k_init, task.T, system.nu, sc.init, sc.init_scale, None, dtype)
-        with progress_bar("D2C (LTV identification + iLQR)", sc.max_iter, ex.progress):
-            timed_d2c = compile_then_run(solve_d2c, (system,), (task, U0, k_d2c, params, sid_params))
-        d2c = timed_d2c.out
-    arrays["d2c_U0"] = U0
-    metrics["d2c"], X_d2c = _summary(d2c, timed_d2c, system, task, task.T, sc.n_alphas, sid_params)
-    arrays.update(d2c_U=d2c.U, d2c_X=X_d2c, d2c_K=d2c.K, d2c_cost_history=d2c.cost_history,
-                  d2c_alpha_history=d2c.alpha_history, d2c_X_history=d2c.X_history)
-    if metrics["d2c"]["cost"] is None or int(d2c.stop_reason) in (4, 5):
-        metrics["status"] = "diverged"
+    def d2c_stage():
+        arrays = {}
+        if sc.n_starts > 1:
+            U0s = pipeline.initial_controls(k_init, task.T, system.nu, sc.init, sc.init_scale,
+                                            sc.n_starts, dtype)
+            with progress.meter(f"D2C multi-start x{sc.n_starts}", sc.max_iter, ex.progress) as pm:
+                timed = compile_then_run(solve_multistart, (system,),
+                                         (task, U0s, k_d2c, params, sid_params),
+                                         static_kwargs={"method": "d2c"},
+                                         dynamic_kwargs={"progress": pm})
+            result, U0 = timed.out.best, U0s[int(timed.out.best_index)]
+            extra = {"multistart_costs": np.asarray(timed.out.costs).tolist()}
+        else:
+            U0 = pipeline.initial_controls(k_init, task.T, system.nu, sc.init, sc.init_scale,
+                                           None, dtype)
+            with progress.meter("D2C (LTV identification + iLQR)", sc.max_iter, ex.progress) as pm:
+                timed = compile_then_run(solve_d2c, (system,),
+                                         (task, U0, k_d2c, params, sid_params, pm))
+            result, extra = timed.out, {}
+        m, X_bb = pipeline.summary(result, system, task)
+        m.update(extra, compile_s=timed.compile_s, run_s=timed.run_s,
+                 simulated_steps=pipeline.simulated_steps(result, task.T, sc.n_alphas, sid_params))
+        arrays = {"d2c_U0": U0, **_solve_arrays("d2c", result, X_bb)}
+        return m, arrays
 
-    timed_ex = None
+    m_d2c, a_d2c = record.stage("d2c", d2c_stage)
+    X_d2c, U_d2c, K_d2c = (jnp.asarray(a_d2c[k]) for k in ("d2c_X", "d2c_U", "d2c_K"))
+    U0 = jnp.asarray(a_d2c["d2c_U0"])
+
+    exact_hist = None
     if not ex.exact_oracle:
-        metrics["exact"] = {"skipped": "experiment.exact_oracle is false"}
+        record.set("exact", {"skipped": "experiment.exact_oracle is false"})
     else:
+        def exact_stage():
+            with progress.meter("exact-Jacobian iLQR (oracle)", sc.max_iter, ex.progress) as pm:
+                timed = compile_then_run(solve_exact, (system,), (task, U0, params, pm))
+            m, X_bb = pipeline.summary(timed.out, system, task)
+            m.update(compile_s=timed.compile_s, run_s=timed.run_s)
+            return m, _solve_arrays("exact", timed.out, X_bb)
+
         try:
-            with progress_bar("exact-Jacobian iLQR (oracle)", sc.max_iter, ex.progress):
-                timed_ex = compile_then_run(solve_exact, (system,), (task, U0, params))
+            m_ex, a_ex = record.stage("exact", exact_stage)
         except Exception as exc:  # e.g. a user model using a feature MJX lacks
-            metrics["exact"] = {"error": f"{type(exc).__name__}: {exc}"}
-    if timed_ex is not None:
-        exact = timed_ex.out
-        metrics["exact"], X_ex = _summary(exact, timed_ex, system, task, task.T, sc.n_alphas)
-        arrays.update(exact_U=exact.U, exact_X=X_ex, exact_K=exact.K,
-                      exact_cost_history=exact.cost_history)
-        c_d, c_e = metrics["d2c"]["cost"], metrics["exact"]["cost"]
-        if c_d is not None and c_e is not None:
-            metrics["d2c_vs_exact_relative_gap"] = (c_d - c_e) / abs(c_e)
-        metrics["ltv_relative_error"] = ltv_error(system, task, d2c.X, d2c.U, d2c.K, k_ltv,
-                                                  sid_params)
+            record.set("exact", {"error": f"{type(exc).__name__}: {exc}"})
+        else:
+            exact_hist = a_ex["exact_cost_history"][: m_ex["iterations"] + 1]
+            c_d, c_e = m_d2c["cost"], m_ex["cost"]
+            if c_d is not None and c_e is not None:
+                record.set("d2c_vs_exact_relative_gap", (c_d - c_e) / abs(c_e))
+            record.stage("ltv_relative_error", lambda: (
+                ltv_error(system, jnp.asarray(a_d2c["d2c_X"]), U_d2c, K_d2c, k_ltv, sid_params), {}))
 
-    levels = jnp.asarray(ex.noise_levels, dtype)
-    closed, opened = evaluate_feedback(system, task, d2c.X, d2c.U, d2c.K, levels, k_noise,
-                                       ex.n_noise_trials)
-    closed, opened = np.asarray(closed), np.asarray(opened)
-    metrics["feedback"] = {
-        "noise_levels": list(ex.noise_levels), "noise": "std = level * max|u*| per channel",
-        "closed_loop_median": np.nanmedian(closed, axis=1).tolist(),
-        "open_loop_median": np.nanmedian(opened, axis=1).tolist()}
-    arrays.update(feedback_closed_costs=closed, feedback_open_costs=opened)
+    def feedback_stage():
+        levels = jnp.asarray(ex.noise_levels, dtype)
+        closed, opened = evaluate_feedback(system, task, X_d2c, U_d2c, K_d2c, levels, k_noise,
+                                           ex.n_noise_trials)
+        closed, opened = np.asarray(closed), np.asarray(opened)
+        m = {"noise_levels": list(ex.noise_levels), "noise": "std = level * max|u*| per channel",
+             "closed_loop_median": np.median(closed, axis=1).tolist(),
+             "open_loop_median": np.median(opened, axis=1).tolist()}
+        return m, {"feedback_closed_costs": closed, "feedback_open_costs": opened}
 
-    hist = {"D2C (LTV)": np.asarray(d2c.cost_history)[: int(d2c.iterations) + 1]}
-    if timed_ex is not None:
-        hist["exact Jacobians"] = np.asarray(exact.cost_history)[: int(exact.iterations) + 1]
-    folder.write_figure("cost_history.png", plots.cost_history(hist, f"{system.name}: {cfg.task.preset}"))
+    _, a_fb = record.stage("feedback", feedback_stage)
+
+    hist = {"D2C (LTV)": a_d2c["d2c_cost_history"][: m_d2c["iterations"] + 1]}
+    if exact_hist is not None:
+        hist["exact Jacobians"] = exact_hist
+    record.figure("cost_history.png", lambda: plots.cost_history(
+        hist, f"{system.name}: {cfg.task.preset}"))
     t = np.arange(task.T + 1) * system.dt
-    Xh = np.asarray(d2c.X_history)[: int(d2c.iterations) + 1]
-    folder.write_figure("trajectory_evolution.png", plots.trajectory_evolution(
+    Xh = a_d2c["d2c_X_history"][: m_d2c["iterations"] + 1]
+    record.figure("trajectory_evolution.png", lambda: plots.trajectory_evolution(
         t, Xh, np.asarray(task.x_goal), state_labels(system.mj_model),
         f"D2C on {system.name} from {cfg.solver.init} controls"))
-    folder.write_figure("feedback_noise.png", plots.cost_vs_noise(
-        np.asarray(ex.noise_levels), {"closed loop (u* + K dx)": closed, "open loop (u*)": opened},
+    record.figure("feedback_noise.png", lambda: plots.cost_vs_noise(
+        np.asarray(ex.noise_levels), {"closed loop (u* + K dx)": a_fb["feedback_closed_costs"],
+                                      "open loop (u*)": a_fb["feedback_open_costs"]},
         f"{system.name}: cost under control noise"))
-    return metrics, arrays
+    return m_d2c["status"]

@@ -171,7 +171,7 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
 
     c = _load(folders.get("cartpole_control"))
     L += ["## Optimal control with the surrogates (cartpole to upright)", ""]
-    rows = c.get("surrogates", [])
+    rows = c.get("surrogate_rows", [])
     gap = c.get("d2c_vs_exact_relative_gap")
     worse = [r for r in rows if r["true_cost_over_d2c"] is None or r["true_cost_over_d2c"] > 1.01]
     text = (f"D2C true cost {_f(c.get('d2c', {}).get('cost'), 5)}, exact oracle "

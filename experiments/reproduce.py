@@ -36,7 +36,8 @@ def quick(cfg, name: str):
     cfg = r(cfg, solver=r(cfg.solver, max_iter=min(cfg.solver.max_iter, 40)),
             data=r(cfg.data, n_traj=min(cfg.data.n_traj, 40 if name == "fish_predict" else 60),
                    n_seeds=1),
-            surrogate=r(cfg.surrogate, mlp_epochs=2, mlp_batch_size=64, mlp_checkpoints=()),
+            surrogate=r(cfg.surrogate, mlp=r(cfg.surrogate.mlp, epochs=2, batch_size=64,
+                                             checkpoints=())),
             analysis=r(cfg.analysis, n_datasets=2, gram_points=64, theory_max_order=4,
                        theory_mc_samples=200, theory_mc_trials=40),
             experiment=r(cfg.experiment, progress=False))
@@ -46,7 +47,7 @@ def quick(cfg, name: str):
         cfg = r(cfg, data=r(cfg.data, levels=(0.1, 0.6)))
     if name == "cartpole_control":
         cfg = r(cfg, data=r(cfg.data, levels=(0.05,)),
-                surrogate=r(cfg.surrogate, sindy_libraries=("cubic_trig",)))
+                surrogate=r(cfg.surrogate, sindy=r(cfg.surrogate.sindy, libraries=("cubic_trig",))))
     return cfg
 
 

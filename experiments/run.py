@@ -15,15 +15,13 @@ import importlib.util
 import io
 import json
 import os
-import pkgutil
 import re
 import sys
-import time
-import traceback
+import threading
 
-import mjx_surrogate  # noqa: F401  (sets XLA flags before jax initialises)
 from mjx_surrogate.config import Config, from_dict, to_dict
 from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.runtime import configure_runtime
 
 DEFAULT_PRESET = "default"
 
@@ -31,7 +29,7 @@ DEFAULT_PRESET = "default"
 def preset_names() -> list[str]:
     import configs
 
-    return sorted(m.name for m in pkgutil.iter_modules(configs.__path__) if not m.name.startswith("_"))
+    return configs.names()
 
 
 def load_config(spec: str) -> Config:
@@ -118,45 +116,70 @@ def kinds():
             "control": control_study.run}
 
 
-def run(cfg: Config, name: str = "run") -> str:
-    """Run a config; returns the run folder. Raises ConfigError on bad input."""
+def run(cfg: Config, name: str = "run", resume_from: str | None = None) -> str:
+    """Run a config; returns the run folder. Raises ConfigError on bad input (before any
+    compile). Every stage is written as it finishes; SIGINT/SIGTERM end the run after the
+    current solver iteration with status ``interrupted``; ``resume_from`` reuses the stages
+    a previous run of the same config finished."""
     import jax
 
-    from mjx_surrogate.results import RunFolder, versions
-    from mjx_surrogate.setup import resolve
+    from mjx_surrogate import progress
+    from mjx_surrogate.resolution import resolve
+    from mjx_surrogate.results import Interrupted, Run, RunFolder, versions
 
-    if cfg.experiment.x64:
-        jax.config.update("jax_enable_x64", True)
+    configure_runtime(x64=cfg.experiment.x64 or None)
     # Record the precision actually used (a session may already run in x64).
     cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(
         cfg.experiment, x64=bool(jax.config.jax_enable_x64)))
     res = resolve(cfg)
     ex = res.config.experiment
     folder = RunFolder(ex.out_dir, ex.name or name)
+    for path in folder.recovered:
+        print(f"note: recovered a run folder left unfinished by a killed process: {path}",
+              file=sys.stderr)
     folder.write_json("config.json", to_dict(res.config))
     folder.write_text("model.xml", res.system.xml)
     folder.write_json("versions.json", versions())
+    record = Run(folder, resume_from)
     key = jax.random.key(ex.seed)
-    t0 = time.perf_counter()
-    metrics, arrays = {"status": "failed"}, {"x0": res.task.x0}
+    status, error = "failed", None
+    guard = (progress.stop_on_signals() if threading.current_thread() is threading.main_thread()
+             else contextlib.nullcontext())
+    progress.clear_stop()
     try:
-        metrics, arrays = kinds()[ex.kind](res, folder, key)
-    except KeyboardInterrupt:
-        metrics = {"status": "interrupted"}
-        raise
+        with guard:
+            status = kinds()[ex.kind](res, record, key)
+    except (Interrupted, KeyboardInterrupt) as exc:
+        status, error = "interrupted", exc
     except Exception as exc:  # keep what was produced, say what happened
-        metrics = {"status": "failed", "error": f"{type(exc).__name__}: {exc}",
-                   "traceback": traceback.format_exc()}
+        status, error = "failed", exc
     finally:
-        metrics["wall_time_s"] = time.perf_counter() - t0
-        folder.write_json("metrics.json", metrics)
-        folder.write_arrays("arrays.npz", arrays)
-        path = folder.close()
-    print(f"[{metrics['status']}] run folder: {path}")
+        path = record.finish(status, error)
+        progress.clear_stop()
+    print(summary_line(record.metrics, path))
     return path
 
 
+def summary_line(metrics: dict, path: str) -> str:
+    """One line: status, the main costs, the time, the folder."""
+    parts = [f"[{metrics.get('status')}]"]
+    for key in ("d2c", "optimum", "exact"):
+        m = metrics.get(key)
+        if isinstance(m, dict) and "cost" in m:
+            parts.append(f"{key} cost {m['cost']}")
+    if "d2c_vs_exact_relative_gap" in metrics:
+        parts.append(f"gap {100 * metrics['d2c_vs_exact_relative_gap']:.3g} %")
+    if metrics.get("error"):
+        parts.append(f"({metrics['error'].splitlines()[0][:200]})")
+    parts.append(f"{metrics.get('wall_time_s', 0):.1f} s; run folder: {path}")
+    return " ".join(parts)
+
+
 def main(argv: list[str] | None = None) -> int:
+    """CLI entry; exit status 0 (converged, stalled, max_iter, completed), 1 (diverged,
+    failed), 2 (bad input, nothing run), 130 (interrupted)."""
+    from mjx_surrogate.results import EXIT_CODES
+
     argv = sys.argv[1:] if argv is None else argv
     try:
         cfg, name = parse_args(argv)
@@ -166,7 +189,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     with open(os.path.join(path, "metrics.json")) as f:
         status = json.load(f)["status"]
-    return 0 if status in ("ok", "diverged") else 1
+    return EXIT_CODES.get(status, 1)
 
 
 if __name__ == "__main__":

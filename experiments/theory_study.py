@@ -10,58 +10,66 @@ import numpy as np
 
 from mjx_surrogate import plots
 from mjx_surrogate.analysis import theory as th
-from mjx_surrogate.results import RunFolder
-from mjx_surrogate.setup import Resolved
+from mjx_surrogate.results import Run
+from mjx_surrogate.resolution import Resolved
 
 BASES = (("monomial", "gauss"), ("hermite", "gauss"), ("legendre", "uniform"))
 
 
-def run(res: Resolved, folder: RunFolder, key: jax.Array) -> tuple[dict, dict]:
+def _one_sigma(a, sigma: float, orders: np.ndarray, rng) -> tuple[dict, dict, list]:
+    s = Fraction(sigma).limit_denominator(10**6)
+    out, arrays = {}, {}
+    for basis, dist in BASES:
+        exact = [float(th.entry_variance(basis, int(n), int(n), dist, s)) for n in orders]
+        mean = [float(th.gram_exact(basis, int(n), dist, s)[n][n]) for n in orders]
+        cond = [th.condition_number(th.gram_exact(basis, int(n), dist, s)) for n in orders]
+        paper = {"monomial": th.paper_monomial_variance, "hermite": th.paper_hermite_samples,
+                 "legendre": th.paper_legendre_samples}[basis]
+        paper_v = [paper(int(n), sigma) for n in orders]
+        needed = [th.samples_needed(v, m) for v, m in zip(exact, mean)]
+        # Monte Carlo: variance of G^R_NN across trials, times R, against sigma_NN^2
+        mc = []
+        for n in orders:
+            G = th.monte_carlo_gram(basis, int(n), dist, sigma, a.theory_mc_samples,
+                                    a.theory_mc_trials, rng)
+            mc.append(float(G[:, n, n].var(ddof=1) * a.theory_mc_samples))
+        out[basis] = {"distribution": dist, "var_exact": exact, "var_paper": paper_v,
+                      "var_monte_carlo": mc, "gram_NN": mean, "condition_exact": cond,
+                      "samples_for_10pct": needed}
+        arrays[f"{basis}_sigma{sigma:g}_var"] = np.array([exact, paper_v, mc])
+    out["monomial"]["condition_paper"] = [th.paper_condition(int(n), sigma) for n in orders]
+    return out, arrays
+
+
+def run(res: Resolved, record: Run, key: jax.Array) -> str:
     a = res.config.analysis
     orders = np.arange(1, a.theory_max_order + 1)
-    seed = int(jax.random.randint(key, (), 0, 2**31 - 1))
-    rng = np.random.default_rng(seed)
-    metrics: dict = {"status": "ok", "orders": orders.tolist(), "by_sigma": {}}
-    arrays: dict = {"orders": orders}
+    record.set("orders", orders.tolist())
+    record.add_arrays({"x0": res.task.x0, "orders": orders})
     rows = []
-    for sigma in a.theory_sigmas:
-        s = Fraction(sigma).limit_denominator(10**6)
-        out = {}
-        for basis, dist in BASES:
-            exact = [float(th.entry_variance(basis, int(n), int(n), dist, s)) for n in orders]
-            mean = [float(th.gram_exact(basis, int(n), dist, s)[n][n]) for n in orders]
-            cond = [th.condition_number(th.gram_exact(basis, int(n), dist, s)) for n in orders]
-            paper = {"monomial": th.paper_monomial_variance, "hermite": th.paper_hermite_samples,
-                     "legendre": th.paper_legendre_samples}[basis]
-            paper_v = [paper(int(n), sigma) for n in orders]
-            needed = [th.samples_needed(v, m) for v, m in zip(exact, mean)]
-            # Monte Carlo: variance of G^R_NN across trials, times R, against sigma_NN^2
-            mc = []
-            for n in orders:
-                G = th.monte_carlo_gram(basis, int(n), dist, sigma, a.theory_mc_samples,
-                                        a.theory_mc_trials, rng)
-                mc.append(float(G[:, n, n].var(ddof=1) * a.theory_mc_samples))
-            out[basis] = {"distribution": dist, "var_exact": exact, "var_paper": paper_v,
-                          "var_monte_carlo": mc, "gram_NN": mean, "condition_exact": cond,
-                          "samples_for_10pct": needed}
-            arrays[f"{basis}_sigma{sigma:g}_var"] = np.array([exact, paper_v, mc])
-            for i, n in enumerate(orders):
-                rows.append((sigma, basis, int(n), exact[i], paper_v[i], mc[i], cond[i], needed[i]))
-        out["monomial"]["condition_paper"] = [th.paper_condition(int(n), sigma) for n in orders]
-        metrics["by_sigma"][f"{sigma:g}"] = out
-        folder.write_figure(f"theory_variance_sigma{sigma:g}.png", plots.theory_curves(
+    for i, sigma in enumerate(a.theory_sigmas):
+        # each scale draws from its own stream, so a resumed run gives the same numbers
+        seed = int(jax.random.randint(jax.random.fold_in(key, i), (), 0, 2**31 - 1))
+        out, _ = record.stage(f"by_sigma/{sigma:g}", lambda: _one_sigma(
+            a, sigma, orders, np.random.default_rng(seed)))
+        for basis, _ in BASES:
+            d = out[basis]
+            rows += [(sigma, basis, int(n), d["var_exact"][i], d["var_paper"][i],
+                      d["var_monte_carlo"][i], d["condition_exact"][i], d["samples_for_10pct"][i])
+                     for i, n in enumerate(orders)]
+        record.figure(f"theory_variance_sigma{sigma:g}.png", lambda: plots.theory_curves(
             orders, {f"{b} exact": out[b]["var_exact"] for b, _ in BASES}
             | {f"{b} paper": out[b]["var_paper"] for b, _ in BASES}
             | {f"{b} Monte Carlo": out[b]["var_monte_carlo"] for b, _ in BASES},
             "Var[psi_N^2] (R x variance of G^R_NN)",
             f"variance of the Gram diagonal, scale {sigma:g}"))
-        folder.write_figure(f"theory_condition_sigma{sigma:g}.png", plots.theory_curves(
+        record.figure(f"theory_condition_sigma{sigma:g}.png", lambda: plots.theory_curves(
             orders, {f"{b} exact": out[b]["condition_exact"] for b, _ in BASES}
             | {"monomial, paper G_NN/G_00": out["monomial"]["condition_paper"]},
             "cond(G)", f"Gram condition number, scale {sigma:g}"))
-    metrics["findings"] = _findings(metrics)
-    folder.write_text("theory_table.md", _table(rows))
-    return metrics, arrays
+    record.set("findings", _findings(record.metrics))
+    record.folder.write_text("theory_table.md", _table(rows))
+    return "completed"
 
 
 def _table(rows) -> str:

@@ -1,13 +1,38 @@
-"""mjx_surrogate: batched data-driven nonlinear optimal control on MuJoCo with JAX."""
+"""mjx_surrogate: batched data-driven nonlinear optimal control on MuJoCo with JAX.
 
-import contextlib as _contextlib
-import io as _io
+The public API, importable from here. Importing changes no global state; call
+:func:`configure_runtime` once before the first computation (the CLI does).
 
-from mjx_surrogate import _xla_flags  # noqa: F401  (must run before jax initialises)
+    import mjx_surrogate as ms
+    ms.configure_runtime()
+    cfg, system, task = ms.resolve(ms.Config(system=ms.SystemConfig(name="pendulum")))
+    result = ms.solve_d2c(system, task, U0, jax.random.key(0))
+"""
 
-# mujoco.mjx prints "Failed to import warp" to stdout when the optional GPU Warp backend
-# is absent; that is expected on CPU, so the import is kept quiet.
-with _contextlib.redirect_stdout(_io.StringIO()):
-    from mujoco import mjx as _mjx  # noqa: F401
+from mjx_surrogate import progress
+from mjx_surrogate.config import (AnalysisConfig, Config, DataConfig, ExperimentConfig,
+                                  MLPConfig, SindyConfig, SolverConfig, SurrogateConfig,
+                                  SystemConfig, TaskConfig)
+from mjx_surrogate.cost import Cost
+from mjx_surrogate.d2c import solve_d2c, solve_exact, solve_multistart
+from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.ilqr import ILQRParams, ILQRResult, StopReason, ilqr
+from mjx_surrogate.resolution import resolve, solver_params
+from mjx_surrogate.runtime import configure_runtime
+from mjx_surrogate.surrogates import (FitContext, Fitted, SurrogateKind, fit_all,
+                                      register_surrogate)
+from mjx_surrogate.sysid import IdentificationScheme, SysIdParams, register_scheme
+from mjx_surrogate.systems import System, from_mjcf, make_system, register_system
+from mjx_surrogate.tasks import Task, make_task
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
+
+__all__ = [
+    "AnalysisConfig", "Config", "ConfigError", "Cost", "DataConfig", "ExperimentConfig",
+    "FitContext", "Fitted", "ILQRParams", "ILQRResult", "IdentificationScheme", "MLPConfig",
+    "SindyConfig", "SolverConfig", "StopReason", "SurrogateConfig", "SurrogateKind",
+    "SysIdParams", "System", "SystemConfig", "Task", "TaskConfig", "configure_runtime",
+    "fit_all", "from_mjcf", "ilqr", "make_system", "make_task", "progress",
+    "register_scheme", "register_surrogate", "register_system", "resolve", "solve_d2c",
+    "solve_exact", "solve_multistart", "solver_params",
+]

@@ -1,6 +1,6 @@
 """Frozen dataclass configs: system, task, solver and experiment sections.
 
-A config is plain data. ``resolve`` (in :mod:`mjx_surrogate.setup`) turns it into a
+A config is plain data. ``resolve`` (in :mod:`mjx_surrogate.resolution`) turns it into a
 system, a task and a fully resolved config; every check there raises
 :class:`~mjx_surrogate.errors.ConfigError` naming the field, before any XLA compile.
 """
@@ -47,7 +47,7 @@ class SystemConfig:
 class TaskConfig:
     """Start, goal, horizon and quadratic weights (cost convention in docs/results.md).
 
-    preset: a task preset (see ``mjx_surrogate.tasks.TASK_PRESETS``) filling every
+    preset: a task preset (see ``mjx_surrogate.systems.task_presets()``) filling every
     field left as None, or "custom" (then x0, x_goal, T and weights are required).
     Q, Q_f, R: full matrices; Q_diag, Q_f_diag, R_diag: diagonal shortcuts.
     u_min, u_max: optional box limits on the controls, enforced by the solver.
@@ -71,10 +71,11 @@ class TaskConfig:
 class SolverConfig:
     """iLQR and data-driven (D2C) iLQR settings.
 
-    sysid: "central_difference" (D2C 2.0 one-step scheme), "forward_difference" (one-sided,
-    half the simulator calls, first-order accurate), "rollout" (the paper's
-    open-loop perturbed rollouts) or "closed_loop" (perturbed rollouts under the
-    current feedback gains).
+    sysid: a registered identification scheme: "central_difference" (D2C 2.0 one-step
+    scheme), "forward_difference" (one-sided, half the simulator calls, first-order
+    accurate), "rollout" (the paper's open-loop perturbed rollouts), "closed_loop"
+    (perturbed rollouts under the current feedback gains), or one registered with
+    ``mjx_surrogate.sysid.register_scheme``.
     """
 
     # Defaults come from the solver's own parameter types (one source of truth).
@@ -87,8 +88,7 @@ class SolverConfig:
     mu_factor: float = _ILQR.mu_factor
     n_alphas: int = _ILQR.n_alphas
     accept_ratio: float = _ILQR.accept_ratio
-    sysid: Literal["central_difference", "forward_difference", "rollout", "closed_loop"] = (
-        "central_difference")
+    sysid: str = "central_difference"  # a registered scheme (mjx_surrogate.sysid.SCHEMES)
     n_samples: int = _SYSID.n_samples
     sigma_x: float = _SYSID.sigma_x
     sigma_u: float = _SYSID.sigma_u
@@ -114,31 +114,50 @@ class DataConfig:
 
 
 @dataclasses.dataclass(frozen=True)
-class SurrogateConfig:
-    """Global surrogates fitted on the data sets.
+class SindyConfig:
+    """SINDy-style least squares (surrogate kind "sindy").
 
-    sindy_libraries: names "poly<d>" with optional suffixes "_nocross", "_trig", "_prod"
+    libraries: names "poly<d>" with optional suffixes "_nocross", "_trig", "_prod"
     (aliases: cubic_trig = poly3_trig, quartic = poly4, quartic_trig = poly4_trig).
     trig_coords: indices into z = [x, u] for sin/cos terms (None: the hinge angles).
     stlsq_threshold > 0 fits by STLSQ (columns normalised), else plain least squares.
-    increment: models predict x_{t+1} - x_t instead of x_{t+1}.
-    mlp_*: the paper's MLP by default (32 -> ReLU -> 64 -> ReLU, Adam 1e-4, decay 1e-6).
     """
 
-    sindy_libraries: Tuple[str, ...] = ("cubic_trig", "quartic", "quartic_trig")
+    libraries: Tuple[str, ...] = ("cubic_trig", "quartic", "quartic_trig")
     trig_coords: Optional[Tuple[int, ...]] = None
     harmonics: int = 1
     stlsq_threshold: float = 0.0
     stlsq_alpha: float = 0.05
-    sindy_method: Literal["svd", "normal"] = "svd"
+    method: Literal["svd", "normal"] = "svd"
+
+
+@dataclasses.dataclass(frozen=True)
+class MLPConfig:
+    """Flax MLPs (surrogate kind "mlp"); the paper's by default: 32 -> ReLU -> 64 -> ReLU,
+    Adam 1e-4, weight decay 1e-6, minibatches of 256. checkpoints: epochs whose
+    parameters are kept (analysis)."""
+
+    widths: Tuple[int, ...] = (32, 64)
+    learning_rate: float = 1e-4
+    weight_decay: float = 1e-6
+    batch_size: int = 256
+    epochs: int = 200
+    checkpoints: Tuple[int, ...] = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class SurrogateConfig:
+    """Global surrogates fitted on the data sets (``mjx_surrogate.surrogates``).
+
+    kinds: registered surrogate kinds to fit, in order (built in: "sindy", "mlp").
+    increment: models predict x_{t+1} - x_t instead of x_{t+1}.
+    One nested section per built-in kind.
+    """
+
+    kinds: Tuple[str, ...] = ("sindy", "mlp")
     increment: bool = False
-    mlp_widths: Tuple[int, ...] = (32, 64)
-    mlp_learning_rate: float = 1e-4
-    mlp_weight_decay: float = 1e-6
-    mlp_batch_size: int = 256
-    mlp_epochs: int = 200
-    mlp_checkpoints: Tuple[int, ...] = ()
-    mlp_seeds: int = 1
+    sindy: SindyConfig = SindyConfig()
+    mlp: MLPConfig = MLPConfig()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -213,7 +232,8 @@ class Config:
 
 
 def to_dict(cfg: Any) -> dict:
-    """Config -> JSON-ready nested dict (tuples become lists)."""
+    """Config -> nested dict (tuples become lists); written with
+    :func:`mjx_surrogate.results.jsonable`, which keeps non-finite numbers loadable."""
     return dataclasses.asdict(cfg)
 
 
@@ -245,6 +265,8 @@ def _convert(value: Any, hint: Any, field: str) -> Any:
             raise ConfigError(field, f"expected an integer, got {value!r}")
         return value
     if hint is float:
+        if isinstance(value, str) and value in ("nan", "inf", "-inf"):
+            return float(value)  # how run folders write non-finite numbers
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(field, f"expected a number, got {value!r}")
         return float(value)
@@ -321,10 +343,11 @@ def validate_static(cfg: Config) -> None:
         raise ConfigError("system.substeps", f"must be >= 1, got {cfg.system.substeps}")
     if cfg.system.timestep is not None and not (cfg.system.timestep > 0):
         raise ConfigError("system.timestep", f"must be > 0 seconds, got {cfg.system.timestep}")
-    d, m = cfg.data, cfg.surrogate
+    d, m, mp = cfg.data, cfg.surrogate.sindy, cfg.surrogate.mlp
     for field, v in {"data.n_traj": d.n_traj, "data.n_seeds": d.n_seeds,
-                     "surrogate.harmonics": m.harmonics, "surrogate.mlp_batch_size": m.mlp_batch_size,
-                     "surrogate.mlp_epochs": m.mlp_epochs, "surrogate.mlp_seeds": m.mlp_seeds}.items():
+                     "surrogate.sindy.harmonics": m.harmonics,
+                     "surrogate.mlp.batch_size": mp.batch_size,
+                     "surrogate.mlp.epochs": mp.epochs}.items():
         if v < 1:
             raise ConfigError(field, f"must be >= 1, got {v}")
     check_finite("data.levels", d.levels)
@@ -334,18 +357,20 @@ def validate_static(cfg: Config) -> None:
         raise ConfigError("data.test_fraction", f"must be in (0, 1), got {d.test_fraction}")
     if d.n_traj < 2:
         raise ConfigError("data.n_traj", f"needs >= 2 trajectories to split, got {d.n_traj}")
-    for field, v in {"data.x0_sigma": d.x0_sigma, "surrogate.stlsq_threshold": m.stlsq_threshold,
-                     "surrogate.stlsq_alpha": m.stlsq_alpha,
-                     "surrogate.mlp_weight_decay": m.mlp_weight_decay}.items():
+    for field, v in {"data.x0_sigma": d.x0_sigma,
+                     "surrogate.sindy.stlsq_threshold": m.stlsq_threshold,
+                     "surrogate.sindy.stlsq_alpha": m.stlsq_alpha,
+                     "surrogate.mlp.weight_decay": mp.weight_decay}.items():
         if not (math.isfinite(v) and v >= 0):
             raise ConfigError(field, f"must be a finite number >= 0, got {v}")
-    if not (math.isfinite(m.mlp_learning_rate) and m.mlp_learning_rate > 0):
-        raise ConfigError("surrogate.mlp_learning_rate", f"must be > 0, got {m.mlp_learning_rate}")
-    if not m.mlp_widths or any(w < 1 for w in m.mlp_widths):
-        raise ConfigError("surrogate.mlp_widths", f"needs positive layer widths, got {m.mlp_widths}")
-    bad = [e for e in m.mlp_checkpoints if not 0 <= e <= m.mlp_epochs]
+    if not (math.isfinite(mp.learning_rate) and mp.learning_rate > 0):
+        raise ConfigError("surrogate.mlp.learning_rate", f"must be > 0, got {mp.learning_rate}")
+    if not mp.widths or any(w < 1 for w in mp.widths):
+        raise ConfigError("surrogate.mlp.widths", f"needs positive layer widths, got {mp.widths}")
+    bad = [e for e in mp.checkpoints if not 0 <= e <= mp.epochs]
     if bad:
-        raise ConfigError("surrogate.mlp_checkpoints", f"{bad} outside 0..mlp_epochs={m.mlp_epochs}")
+        raise ConfigError("surrogate.mlp.checkpoints", f"{bad} outside 0..mlp.epochs={mp.epochs}")
+    _check_registered(cfg)
     a = cfg.analysis
     for field, v in {"analysis.n_datasets": a.n_datasets - 1, "analysis.gram_points": a.gram_points,
                      "analysis.theory_max_order": a.theory_max_order,
@@ -369,3 +394,15 @@ def validate_static(cfg: Config) -> None:
     check_finite("experiment.noise_levels", cfg.experiment.noise_levels)
     if any(v < 0 for v in cfg.experiment.noise_levels):
         raise ConfigError("experiment.noise_levels", "noise levels must be >= 0")
+
+
+def _check_registered(cfg: Config) -> None:
+    """Names that select a registered extension: identification scheme, surrogate kinds."""
+    from mjx_surrogate.surrogates.registry import get_surrogate
+    from mjx_surrogate.sysid import get_scheme
+
+    get_scheme(cfg.solver.sysid, "solver.sysid")
+    if not cfg.surrogate.kinds:
+        raise ConfigError("surrogate.kinds", "give one or more surrogate kinds")
+    for i, name in enumerate(cfg.surrogate.kinds):
+        get_surrogate(name, f"surrogate.kinds[{i}]")

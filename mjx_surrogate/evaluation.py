@@ -1,16 +1,74 @@
-"""Prediction error of a model against the black box on held-out trajectories."""
+"""Evaluation on the black box: replay of controls and policies, cost under process
+noise, and the prediction error of any step model on held-out trajectories.
+
+Every rollout here is :func:`mjx_surrogate.trajectory.feedback_rollout` on the system's
+own step; the cost is the task's (+inf for a trajectory that is not finite).
+"""
 
 from __future__ import annotations
+
+import functools
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import models
+from mjx_surrogate import step_models
 from mjx_surrogate.data import Dataset
+from mjx_surrogate.systems import System
+from mjx_surrogate.tasks import Task, trajectory_cost
+from mjx_surrogate.trajectory import feedback_rollout
 
 
-def prediction_errors(step_t: models.StepT, test: Dataset) -> tuple[dict, np.ndarray]:
+class Replay(NamedTuple):
+    """A policy executed on the black box: costs, trajectories and goal errors, open loop
+    (u_t = U_t) and closed loop (u_t = U_t + K_t (x_t - X_t))."""
+
+    cost_open: jax.Array
+    cost_closed: jax.Array
+    X_open: jax.Array  # [T+1, nx]
+    X_closed: jax.Array
+    final_error_open: jax.Array  # |x_T - x_goal|
+    final_error_closed: jax.Array
+
+
+def replay(system: System, task: Task, X: jax.Array, U: jax.Array, K: jax.Array) -> Replay:
+    """Execute the nominal X [T+1, nx], U [T, nu] with gains K [T, nu, nx] on the black box,
+    open and closed loop, controls clipped to the task's limits."""
+    zeros = jnp.zeros_like(U)
+    Xo, Uo = feedback_rollout(system.step, task.x0, X, U, jnp.zeros_like(K), zeros,
+                              task.u_min, task.u_max)
+    Xc, Uc = feedback_rollout(system.step, task.x0, X, U, K, zeros, task.u_min, task.u_max)
+    err = lambda Xr: jnp.linalg.norm(Xr[-1] - task.x_goal)  # noqa: E731
+    return Replay(trajectory_cost(task, Xo, Uo), trajectory_cost(task, Xc, Uc), Xo, Xc,
+                  err(Xo), err(Xc))
+
+
+@functools.partial(jax.jit, static_argnames=("system", "n_trials"))
+def evaluate_feedback(system: System, task: Task, X: jax.Array, U: jax.Array, K: jax.Array,
+                      noise_levels: jax.Array, key: jax.Array, n_trials: int):
+    """Cost of u_t = U_t + K_t (x_t - X_t) + w_t (closed loop) and U_t + w_t (open loop).
+
+    w_t ~ N(0, (level * max|U|)^2) per channel, the same draws for both policies.
+    X [T+1, nx], U [T, nu], K [T, nu, nx], noise_levels [L] -> two cost arrays [L, n_trials].
+    """
+    L = noise_levels.shape[0]
+    T, nu = U.shape
+    u_scale = jnp.max(jnp.abs(U), axis=0) + 1e-12  # [nu]
+    W = jax.random.normal(key, (L, n_trials, T, nu), U.dtype)
+    W = (W * noise_levels[:, None, None, None] * u_scale).reshape(L * n_trials, T, nu)
+
+    def run(w, gains):
+        Xr, Ur = feedback_rollout(system.step, task.x0, X, U, gains, w, task.u_min, task.u_max)
+        return trajectory_cost(task, Xr, Ur)
+
+    closed = jax.vmap(run, in_axes=(0, None))(W, K).reshape(L, n_trials)
+    opened = jax.vmap(run, in_axes=(0, None))(W, jnp.zeros_like(K)).reshape(L, n_trials)
+    return closed, opened
+
+
+def prediction_errors(step_t: step_models.StepT, test: Dataset) -> tuple[dict, np.ndarray]:
     """One-step and open-loop multi-step RMSE of ``step_t`` on test trajectories.
 
     Returns (metrics, X_pred [N, T+1, nx]). metrics: one_step_rmse and multi_step_rmse
@@ -20,20 +78,21 @@ def prediction_errors(step_t: models.StepT, test: Dataset) -> tuple[dict, np.nda
     """
     ok = np.asarray(jnp.isfinite(test.X).all((1, 2)))
     X, U = test.X[ok], test.U[ok]
-    pred = jax.jit(lambda x0, u: models.predict(step_t, x0, u))(X[:, 0], U)
-    one = jax.jit(lambda x, u: models.one_step(step_t, x, u))(X, U)
+    pred = jax.jit(lambda x0, u: step_models.predict(step_t, x0, u))(X[:, 0], U)
+    one = jax.jit(lambda x, u: step_models.one_step(step_t, x, u))(X, U)
     err_multi = np.asarray((pred - X) ** 2)
     per_traj = np.sqrt(err_multi.reshape(err_multi.shape[0], -1).mean(1))
     finite = np.isfinite(per_traj)
-
-    def num(v):
-        v = float(v)
-        return v if np.isfinite(v) else None
-
     out = {
-        "one_step_rmse": num(models.rmse(one, X[:, 1:])),
-        "multi_step_rmse": num(np.sqrt(err_multi.mean())) if finite.all() else None,
-        "multi_step_median": num(np.median(np.where(finite, per_traj, np.inf))),
+        "one_step_rmse": finite_or_none(step_models.rmse(one, X[:, 1:])),
+        "multi_step_rmse": finite_or_none(np.sqrt(err_multi.mean())) if finite.all() else None,
+        "multi_step_median": finite_or_none(np.median(np.where(finite, per_traj, np.inf))),
         "diverged": float(1.0 - finite.mean()),
     }
     return out, np.asarray(pred)
+
+
+def finite_or_none(v) -> float | None:
+    """A float for JSON, None where it is not finite."""
+    v = float(v)
+    return v if np.isfinite(v) else None

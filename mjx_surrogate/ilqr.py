@@ -25,41 +25,83 @@ indefinite and makes every later Q~_uu fail (seen on swimmer6, where B is small)
 Forward pass: u_t = clip(u_bar_t + alpha k_t + K_t (x_t - x_bar_t)), for ``n_alphas`` step
 sizes at once (vmap); a trial is accepted when its cost is finite and
 (J - J_alpha) / (-(alpha dV1 + alpha^2 dV2)) > accept_ratio; the best accepted trial wins.
+
+Stopping rules (checked in this order after every iteration; :class:`StopReason`):
+relative cost decrease <= rel_tol; max|k| <= k_tol (1 + max|U|); no trial accepted while
+the model promises |dV| <= rel_tol |J| (the noise floor of the black box); mu > mu_max
+(no descent found: stalled); max_iter; a stop requested through the progress meter.
 """
 
 from __future__ import annotations
 
+import enum
 from typing import Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
 from flax import struct
 
+from mjx_surrogate import progress as progress_lib
+from mjx_surrogate.cost import Cost, trajectory_cost
 from mjx_surrogate.linalg import spd_solve
+from mjx_surrogate.trajectory import feedback_rollout
 
 StepFn = Callable[[jax.Array, jax.Array], jax.Array]
 LinearizeFn = Callable[[jax.Array, jax.Array, jax.Array, jax.Array], tuple[jax.Array, jax.Array]]
 # (x0, X_bar, U_bar, k, K, alphas [A], lo, hi) -> (X [A, T+1, nx], U [A, T, nu])
 ClosedLoopFn = Callable[..., tuple[jax.Array, jax.Array]]
 
-STOP_REASONS = (
-    "running",
-    "relative cost change below rel_tol",
-    "max |k| below k_tol",
-    "max_iter reached",
-    "regularisation above mu_max (no descent found)",
-    "initial trajectory not finite",
-    "expected decrease below rel_tol (at the noise floor)",
-)
-CONVERGED_REASONS = (1, 2, 6)
-BLOWUP = 1e8  # |x| beyond this counts as a blown-up trial
+__all__ = ["Cost", "ILQRParams", "ILQRResult", "StopReason", "ilqr", "trajectory_cost"]
 
 
-class Cost(NamedTuple):
-    """running(x[nx], u[nu]) -> scalar; terminal(x[nx]) -> scalar."""
+class StopReason(enum.IntEnum):
+    """Why the solver stopped; ``verdict`` maps it to the status vocabulary."""
 
-    running: Callable[[jax.Array, jax.Array], jax.Array]
-    terminal: Callable[[jax.Array], jax.Array]
+    RUNNING = 0
+    COST_CHANGE = 1  # relative cost change below rel_tol
+    SMALL_STEP = 2  # max |k| below k_tol
+    MAX_ITER = 3
+    NO_DESCENT = 4  # regularisation above mu_max, no descent found
+    NOT_FINITE = 5  # initial trajectory not finite
+    NOISE_FLOOR = 6  # expected decrease below rel_tol with no trial accepted
+    INTERRUPTED = 7  # a stop was requested through the progress meter
+
+    @property
+    def description(self) -> str:
+        return _DESCRIPTIONS[self]
+
+    @property
+    def verdict(self) -> str:
+        """converged | stalled | max_iter | diverged | interrupted | running."""
+        return _VERDICTS[self]
+
+
+_DESCRIPTIONS = {
+    StopReason.RUNNING: "running",
+    StopReason.COST_CHANGE: "relative cost change below rel_tol",
+    StopReason.SMALL_STEP: "max |k| below k_tol",
+    StopReason.MAX_ITER: "max_iter reached",
+    StopReason.NO_DESCENT: "regularisation above mu_max (no descent found)",
+    StopReason.NOT_FINITE: "initial trajectory not finite",
+    StopReason.NOISE_FLOOR: "expected decrease below rel_tol (at the noise floor)",
+    StopReason.INTERRUPTED: "interrupted (stop requested)",
+}
+_VERDICTS = {
+    StopReason.RUNNING: "running", StopReason.COST_CHANGE: "converged",
+    StopReason.SMALL_STEP: "converged", StopReason.NOISE_FLOOR: "converged",
+    StopReason.MAX_ITER: "max_iter", StopReason.NO_DESCENT: "stalled",
+    StopReason.NOT_FINITE: "diverged", StopReason.INTERRUPTED: "interrupted",
+}
+CONVERGED = (StopReason.COST_CHANGE, StopReason.SMALL_STEP, StopReason.NOISE_FLOOR)
+
+
+def verdict(stop_reason, cost) -> str:
+    """The status of a finished solve: the stop reason's verdict, or ``diverged`` when the
+    final cost is not finite."""
+    cost = float(cost)
+    if not (cost == cost and abs(cost) != float("inf")):
+        return "diverged"
+    return StopReason(int(stop_reason)).verdict
 
 
 @struct.dataclass
@@ -77,12 +119,12 @@ class ILQRParams:
     max_iter: int = struct.field(pytree_node=False, default=100)
     n_alphas: int = struct.field(pytree_node=False, default=8)
     record_trajectories: bool = struct.field(pytree_node=False, default=False)
-    progress: bool = struct.field(pytree_node=False, default=False)
 
 
 class ILQRResult(NamedTuple):
     """X [T+1, nx], U [T, nu], K [T, nu, nx], k [T, nu]; cost_history [max_iter+1]
-    (NaN after the last iteration); X_history [max_iter+1, T+1, nx] if recorded."""
+    (NaN after the last iteration); X_history [max_iter+1, T+1, nx] if recorded;
+    stop_reason a :class:`StopReason` value."""
 
     X: jax.Array
     U: jax.Array
@@ -98,25 +140,12 @@ class ILQRResult(NamedTuple):
     alpha_history: jax.Array  # [max_iter] accepted step size per iteration (0: rejected)
 
 
-def trajectory_cost(cost: Cost, X: jax.Array, U: jax.Array) -> jax.Array:
-    """J of X [T+1, nx], U [T, nu]; +inf if X is not finite or blew up."""
-    J = jax.vmap(cost.running)(X[:-1], U).sum() + cost.terminal(X[-1])
-    bad = ~jnp.all(jnp.isfinite(X)) | (jnp.max(jnp.abs(X)) > BLOWUP) | ~jnp.isfinite(J)
-    return jnp.where(bad, jnp.inf, J)
-
-
 def closed_loop(step: StepFn, x0: jax.Array, X_bar: jax.Array, U_bar: jax.Array,
                 k: jax.Array, K: jax.Array, alpha: jax.Array, lo: jax.Array, hi: jax.Array
                 ) -> tuple[jax.Array, jax.Array]:
-    """Simulate u_t = clip(u_bar_t + alpha k_t + K_t (x_t - x_bar_t)); returns X, U."""
-
-    def body(x, inp):
-        xb, ub, kt, Kt = inp
-        u = jnp.clip(ub + alpha * kt + Kt @ (x - xb), lo, hi)
-        return step(x, u), (x, u)
-
-    xT, (Xs, Us) = jax.lax.scan(body, x0, (X_bar[:-1], U_bar, k, K))
-    return jnp.concatenate([Xs, xT[None]]), Us
+    """The forward pass of one step size: u_t = clip(u_bar_t + alpha k_t + K_t (x_t -
+    x_bar_t)); returns X [T+1, nx], U [T, nu]."""
+    return feedback_rollout(step, x0, X_bar, U_bar, K, alpha * k, lo, hi)
 
 
 def box_qp(Quu: jax.Array, Qu: jax.Array, lo: jax.Array, hi: jax.Array, iters: int = 6
@@ -212,19 +241,22 @@ class _State(NamedTuple):
     reason: jax.Array
     fresh: jax.Array  # nominal changed since the last linearisation
     key: jax.Array
-    history: jax.Array
+    history: jax.Array  # [max_iter+1] cost after each iteration
     X_history: jax.Array
-    alphas: jax.Array
+    alphas: jax.Array  # [max_iter] accepted step sizes
 
 
 def ilqr(step: StepFn, linearize: LinearizeFn, cost: Cost, x0: jax.Array, U0: jax.Array,
          u_min: jax.Array, u_max: jax.Array, params: ILQRParams, key: jax.Array,
-         trial_rollouts: ClosedLoopFn | None = None) -> ILQRResult:
+         trial_rollouts: ClosedLoopFn | None = None,
+         progress: progress_lib.ProgressMeter = progress_lib.NO_PROGRESS) -> ILQRResult:
     """Solve min_U J(x0, U) s.t. u_min <= u_t <= u_max. x0 [nx], U0 [T, nu].
 
     ``trial_rollouts`` replaces the default line-search forward pass (``closed_loop`` over
     ``step``, vmapped over the step sizes) with one call for all step sizes; the native
     backend uses it to make one host call per iteration instead of one per time step.
+    ``progress`` is polled once per iteration (:mod:`mjx_surrogate.progress`); a stop
+    request ends the loop with ``StopReason.INTERRUPTED`` and the best iterate so far.
 
     Pure and traceable: wrap in ``jax.jit`` (with step/linearize/cost fixed) or ``vmap``
     over x0/U0/keys for multi-start solves.
@@ -238,14 +270,13 @@ def ilqr(step: StepFn, linearize: LinearizeFn, cost: Cost, x0: jax.Array, U0: ja
                         zeros_K, jnp.zeros((), dtype), u_min, u_max)
     J0 = trajectory_cost(cost, X0, U0)
     n_hist = params.max_iter + 1
-    history = jnp.full((n_hist,), jnp.nan, dtype).at[0].set(J0)
     X_hist = (jnp.full((n_hist, T + 1, nx), jnp.nan, dtype).at[0].set(X0)
               if params.record_trajectories else jnp.zeros((0,), dtype))
     alphas = 0.5 ** jnp.arange(params.n_alphas, dtype=dtype)
     p = params
 
     def cond(s: _State):
-        return s.reason == 0
+        return s.reason == StopReason.RUNNING
 
     def body(s: _State) -> _State:
         key, sub = jax.random.split(s.key)
@@ -264,9 +295,8 @@ def ilqr(step: StepFn, linearize: LinearizeFn, cost: Cost, x0: jax.Array, U0: ja
         accept = ok & jnp.isfinite(Ja) & (Ja < s.J) & (ratio > p.accept_ratio)
         any_acc = jnp.any(accept)
         best = jnp.argmin(jnp.where(accept, Ja, jnp.inf))
-        X = jnp.where(any_acc, Xa[best], s.X)
-        U = jnp.where(any_acc, Ua[best], s.U)
         J = jnp.where(any_acc, Ja[best], s.J)
+        X = jnp.where(any_acc, Xa[best], s.X)
         mu = jnp.where(any_acc, jnp.maximum(s.mu / p.mu_factor, p.mu_min),
                        jnp.maximum(s.mu * p.mu_factor, p.mu_min))
         it = s.it + 1
@@ -276,23 +306,29 @@ def ilqr(step: StepFn, linearize: LinearizeFn, cost: Cost, x0: jax.Array, U0: ja
         # No trial accepted although the model promises almost nothing: a minimum, up to
         # the noise of the black box / the LTV estimate.
         floor = ok & ~any_acc & (jnp.abs(dV[0] + dV[1]) <= p.rel_tol * jnp.abs(s.J))
+        stop = progress_lib.poll(progress, it, J, mu)
         reason = jnp.select(
-            [small_dJ, small_k, floor, mu > p.mu_max, it >= p.max_iter],
-            [1, 2, 6, 4, 3], 0)
-        X_hist = s.X_history.at[it].set(X) if p.record_trajectories else s.X_history
-        if p.progress:
-            from mjx_surrogate.progress import report
+            [small_dJ, small_k, floor, mu > p.mu_max, it >= p.max_iter, stop],
+            [StopReason.COST_CHANGE, StopReason.SMALL_STEP, StopReason.NOISE_FLOOR,
+             StopReason.NO_DESCENT, StopReason.MAX_ITER, StopReason.INTERRUPTED],
+            StopReason.RUNNING)
+        return _State(
+            X=X, U=jnp.where(any_acc, Ua[best], s.U), K=jnp.where(any_acc, K, s.K),
+            k=jnp.where(any_acc, k, s.k), A=A, B=B, J=J, mu=mu, it=it, reason=reason,
+            fresh=any_acc, key=key, history=s.history.at[it].set(J),
+            X_history=s.X_history.at[it].set(X) if p.record_trajectories else s.X_history,
+            alphas=s.alphas.at[it - 1].set(jnp.where(any_acc, alphas[best], 0.0)))
 
-            jax.debug.callback(report, it, J, mu)
-        return _State(X, U, jnp.where(any_acc, K, s.K), jnp.where(any_acc, k, s.k), A, B, J,
-                      mu, it, reason, any_acc, key, s.history.at[it].set(J), X_hist,
-                      s.alphas.at[it - 1].set(jnp.where(any_acc, alphas[best], 0.0)))
-
-    init = _State(X0, U0, zeros_K, jnp.zeros((T, nu), dtype), jnp.zeros((T, nx, nx), dtype),
-                  jnp.zeros((T, nx, nu), dtype), J0, jnp.asarray(p.mu_init, dtype),
-                  jnp.asarray(0), jnp.where(jnp.isfinite(J0), 0, 5), jnp.array(True), key,
-                  history, X_hist, jnp.zeros((p.max_iter,), dtype))
+    init = _State(
+        X=X0, U=U0, K=zeros_K, k=jnp.zeros((T, nu), dtype), A=jnp.zeros((T, nx, nx), dtype),
+        B=jnp.zeros((T, nx, nu), dtype), J=J0, mu=jnp.asarray(p.mu_init, dtype),
+        it=jnp.asarray(0),
+        reason=jnp.where(jnp.isfinite(J0), StopReason.RUNNING, StopReason.NOT_FINITE),
+        fresh=jnp.array(True), key=key,
+        history=jnp.full((n_hist,), jnp.nan, dtype).at[0].set(J0), X_history=X_hist,
+        alphas=jnp.zeros((p.max_iter,), dtype))
     s = jax.lax.while_loop(cond, body, init)
-    return ILQRResult(s.X, s.U, s.K, s.k, s.J, s.history, s.it, s.reason,
-                      (s.reason == 1) | (s.reason == 2) | (s.reason == 6), s.mu, s.X_history,
-                      s.alphas)
+    converged = jnp.isin(s.reason, jnp.asarray([int(r) for r in CONVERGED]))
+    return ILQRResult(X=s.X, U=s.U, K=s.K, k=s.k, cost=s.J, cost_history=s.history,
+                      iterations=s.it, stop_reason=s.reason, converged=converged, mu=s.mu,
+                      X_history=s.X_history, alpha_history=s.alphas)

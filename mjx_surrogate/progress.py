@@ -1,30 +1,150 @@
-"""Progress meters fed from inside jitted loops through ``jax.debug.callback``."""
+"""Progress meters and stop requests for solvers running inside ``jax.jit``.
+
+A :class:`ProgressMeter` is a small pytree passed to a solver as an argument (diffrax's
+idea): its only leaf, ``meter_id``, is traced, so switching a meter on, off or to another
+one never recompiles. Once per iteration the solver calls :func:`poll` from inside its
+``lax.while_loop`` (one host callback, skipped by a ``lax.cond`` when the id is negative);
+the host side advances the meter's bar, if it has one, and answers whether a stop was
+requested (:func:`request_stop`, called by the CLI's SIGINT/SIGTERM handler). A solver
+that is told to stop ends after the current iteration with ``StopReason.INTERRUPTED``
+and returns its best iterate, so nothing it computed is lost.
+
+    with progress.meter("D2C", total=100) as pm:
+        result = solve_d2c(system, task, U0, key, progress=pm)
+"""
 
 from __future__ import annotations
 
 import contextlib
+import itertools
+import threading
 
-from tqdm.auto import tqdm
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
 
-_BAR: list = []
+_STOP = threading.Event()
+_BARS: dict[int, object] = {}  # meter id -> tqdm bar (or None: poll for stops only)
+_IDS = itertools.count()
+
+
+@struct.dataclass
+class ProgressMeter:
+    """meter_id >= 0: report to that meter and poll for stop requests; < 0: do nothing."""
+
+    meter_id: jax.Array
+
+
+NO_PROGRESS = ProgressMeter(np.int32(-1))
+
+
+def request_stop() -> None:
+    """Ask every polling solver to stop after its current iteration (signal-safe)."""
+    _STOP.set()
+
+
+def clear_stop() -> None:
+    _STOP.clear()
+
+
+def stop_requested() -> bool:
+    _drain_wakeup()
+    return _STOP.is_set()
 
 
 @contextlib.contextmanager
-def progress_bar(desc: str, total: int, enabled: bool = True):
-    """Open a bar that :func:`report` (called from a jitted solver) advances."""
-    bar = tqdm(total=total, desc=desc, disable=not enabled, leave=True, dynamic_ncols=True)
-    _BAR.append(bar)
+def meter(desc: str, total: int, display: bool = True):
+    """A meter for one solve: a tqdm bar when ``display``, stop polling always."""
+    i = next(_IDS)
+    bar = None
+    if display:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=total, desc=desc, leave=True, dynamic_ncols=True)
+    _BARS[i] = bar
     try:
-        yield bar
+        yield ProgressMeter(np.int32(i))
     finally:
-        _BAR.pop()
-        bar.close()
+        _BARS.pop(i, None)
+        if bar is not None:
+            bar.close()
 
 
-def report(iteration, cost, mu) -> None:
-    """Host side of the solver's per-iteration callback."""
-    if _BAR:
-        bar = _BAR[-1]
-        bar.n = int(iteration)
-        bar.set_postfix(J=f"{float(cost):.5g}", mu=f"{float(mu):.1e}", refresh=False)
+def _host_poll(meter_id, iteration, cost, mu) -> np.ndarray:
+    """Host side: advance the bar (batched calls show the best cost), answer the stop flag."""
+    ids = np.atleast_1d(np.asarray(meter_id))
+    bar = _BARS.get(int(ids.ravel()[0]))
+    if bar is not None:
+        finite = np.asarray(cost)[np.isfinite(np.asarray(cost))]
+        bar.n = int(np.max(np.asarray(iteration)))
+        bar.set_postfix(J=f"{finite.min():.5g}" if finite.size else "inf",
+                        mu=f"{float(np.min(np.asarray(mu))):.1e}", refresh=False)
         bar.refresh()
+    return np.full(np.shape(meter_id), stop_requested(), dtype=bool)
+
+
+def poll(progress: ProgressMeter, iteration: jax.Array, cost: jax.Array, mu: jax.Array
+         ) -> jax.Array:
+    """Traced: report one iteration to ``progress``; returns True if a stop was requested."""
+
+    def call():
+        out = jax.ShapeDtypeStruct((), jnp.bool_)
+        return jax.pure_callback(_host_poll, out, progress.meter_id, iteration, cost, mu,
+                                 vmap_method="expand_dims")
+
+    return jax.lax.cond(progress.meter_id >= 0, call, lambda: jnp.array(False))
+
+
+_WAKEUP: dict = {}
+
+
+def _drain_wakeup() -> None:
+    """A signal's C-level handler writes a byte to the wakeup pipe at once, even while the
+    main thread is blocked inside XLA and its Python handler cannot run yet."""
+    fd = _WAKEUP.get("read")
+    if fd is None:
+        return
+    import os
+
+    try:
+        if os.read(fd, 64):
+            _STOP.set()
+    except (BlockingIOError, OSError):
+        pass
+
+
+@contextlib.contextmanager
+def stop_on_signals(signals=None):
+    """While active, SIGINT and SIGTERM request a stop (the solver ends after its current
+    iteration, the run keeps what it finished); a second signal raises KeyboardInterrupt.
+    Main thread only; restores the previous handlers and wakeup fd on exit."""
+    import os
+    import signal
+
+    signals = signals or (signal.SIGINT, signal.SIGTERM)
+    r, w = os.pipe()
+    os.set_blocking(r, False)
+    os.set_blocking(w, False)
+    previous = {s: signal.getsignal(s) for s in signals}
+    received = []
+
+    def handler(signum, frame):
+        received.append(signum)
+        if len(received) > 1:
+            raise KeyboardInterrupt
+        _STOP.set()
+
+    old_fd = signal.set_wakeup_fd(w, warn_on_full_buffer=False)
+    _WAKEUP["read"] = r
+    for s in signals:
+        signal.signal(s, handler)
+    try:
+        yield received
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+        signal.set_wakeup_fd(old_fd)
+        _WAKEUP.pop("read", None)
+        os.close(r)
+        os.close(w)

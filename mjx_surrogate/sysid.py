@@ -9,7 +9,8 @@ scaled to unit RMS, then the normal equations (Z'Z/n) W = Z'Y/n are solved by el
 (:mod:`mjx_surrogate.linalg`: no batched LAPACK, which can deadlock jaxlib 0.10 on CPU). With random
 perturbations and n >= nx + nu the scaled Gram matrix is well conditioned.
 
-Schemes (``SysIdParams.scheme``):
+Schemes (``SysIdParams.scheme``), registered in :data:`SCHEMES` (a new scheme is one
+function plus one :func:`register_scheme` call; docs/extending.md):
 * ``rollout``: the paper's: n open-loop rollouts from x0 + dx0 under U + dU;
 * ``closed_loop``: the same under the current feedback u = U + dU + K (x - X), which
   keeps the perturbations from lining up with unstable directions;
@@ -22,16 +23,18 @@ Schemes (``SysIdParams.scheme``):
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Any, Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
 from flax import struct
 
+from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.linalg import spd_solve
+from mjx_surrogate.trajectory import feedback_rollout
 
-
-SCHEMES = ("central_difference", "forward_difference", "rollout", "closed_loop")
+# linearize(X [T+1, nx], U [T, nu], K [T, nu, nx], key) -> (A [T, nx, nx], B [T, nx, nu])
+LinearizeFn = Callable[[jax.Array, jax.Array, jax.Array, jax.Array], tuple[jax.Array, jax.Array]]
 
 
 @struct.dataclass
@@ -123,13 +126,7 @@ def closed_loop_rollouts(step: Callable, X: jax.Array, U: jax.Array, K: jax.Arra
     dU = p.sigma_u * jax.random.normal(ku, (n,) + U.shape, U.dtype)
 
     def one(dx0_i, dU_i):
-        def body(x, inp):
-            xb, ub, Kt, dut = inp
-            u = ub + dut + Kt @ (x - xb)
-            return step(x, u), (x, u)
-
-        xT, (Xs, Us) = jax.lax.scan(body, X[0] + dx0_i, (X[:-1], U, K, dU_i))
-        return jnp.concatenate([Xs, xT[None]]), Us
+        return feedback_rollout(step, X[0] + dx0_i, X, U, K, dU_i)
 
     Xp, Us = jax.vmap(one)(dx0, dU)  # [n, T+1, nx], [n, T, nu]
     return fit_from_trajectories(Xp - X[None], Us - U[None])
@@ -138,3 +135,50 @@ def closed_loop_rollouts(step: Callable, X: jax.Array, U: jax.Array, K: jax.Arra
 def exact_jacobians(step: Callable, X: jax.Array, U: jax.Array) -> tuple[jax.Array, jax.Array]:
     """A_t = df/dx, B_t = df/du at (X[t], U[t]) by ``jax.jacfwd`` (needs a differentiable step)."""
     return jax.vmap(jax.jacfwd(step, argnums=(0, 1)))(X[:-1], U)
+
+
+class IdentificationScheme(NamedTuple):
+    """A registered way of identifying the LTV model of a black box.
+
+    make_linearize(system, params) -> linearize(X, U, K, key) -> (A, B): the iLQR's
+      ``linearize`` hook; ``system`` offers ``step`` (batched under vmap) and ``rollout``.
+    simulated_steps(T, n_samples) -> control steps simulated by one identification.
+    """
+
+    make_linearize: Callable[[Any, SysIdParams], LinearizeFn]
+    simulated_steps: Callable[[int, int], int]
+    description: str = ""
+
+
+SCHEMES: dict[str, IdentificationScheme] = {}
+
+
+def register_scheme(name: str, scheme: IdentificationScheme) -> None:
+    """Add ``scheme`` under ``name`` (then valid as ``solver.sysid``)."""
+    SCHEMES[name] = scheme
+
+
+def get_scheme(name: str, field: str = "solver.sysid") -> IdentificationScheme:
+    if name not in SCHEMES:
+        raise ConfigError(field, f"unknown identification scheme {name!r}; valid: "
+                          f"{', '.join(SCHEMES)}")
+    return SCHEMES[name]
+
+
+def ltv_linearize(system, p: SysIdParams) -> LinearizeFn:
+    """The linearize hook of scheme ``p.scheme`` on ``system``'s black-box step."""
+    return get_scheme(p.scheme).make_linearize(system, p)
+
+
+register_scheme("central_difference", IdentificationScheme(
+    lambda system, p: lambda X, U, K, key: central_difference(system.step, X, U, key, p),
+    lambda T, n: 2 * n * T, "D2C 2.0: one step from (x_t +- dx, u_t +- du) at every t"))
+register_scheme("forward_difference", IdentificationScheme(
+    lambda system, p: lambda X, U, K, key: forward_difference(system.step, X, U, key, p),
+    lambda T, n: (n + 1) * T, "one step from (x_t + dx, u_t + du) and from (x_t, u_t)"))
+register_scheme("rollout", IdentificationScheme(
+    lambda system, p: lambda X, U, K, key: open_loop_rollouts(system.rollout, X, U, key, p),
+    lambda T, n: n * T, "the paper's: n open-loop perturbed rollouts"))
+register_scheme("closed_loop", IdentificationScheme(
+    lambda system, p: lambda X, U, K, key: closed_loop_rollouts(system.step, X, U, K, key, p),
+    lambda T, n: n * T, "n perturbed rollouts under the current feedback gains"))

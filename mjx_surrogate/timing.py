@@ -15,15 +15,18 @@ class Timed(NamedTuple):
 
 
 def compile_then_run(fn: Callable, static_args: tuple, dynamic_args: tuple,
-                     repeats: int = 1) -> Timed:
-    """``fn`` is a ``jax.jit`` whose leading positional parameters are static; the compiled
-    call runs ``repeats`` times on the same inputs and the median time is reported."""
+                     repeats: int = 1, static_kwargs: dict | None = None,
+                     dynamic_kwargs: dict | None = None) -> Timed:
+    """``fn`` is a ``jax.jit`` whose leading positional parameters are static (more static
+    parameters may come by keyword); the compiled call runs ``repeats`` times on the same
+    inputs and the median time is reported."""
     t0 = time.perf_counter()
-    compiled = fn.lower(*static_args, *dynamic_args).compile()
+    dyn_kw = dynamic_kwargs or {}
+    compiled = fn.lower(*static_args, *dynamic_args, **(static_kwargs or {}), **dyn_kw).compile()
     t1 = time.perf_counter()
     times = []
     for _ in range(max(1, repeats)):
         t = time.perf_counter()
-        out = jax.block_until_ready(compiled(*dynamic_args))
+        out = jax.block_until_ready(compiled(*dynamic_args, **dyn_kw))
         times.append(time.perf_counter() - t)
     return Timed(out, t1 - t0, sorted(times)[len(times) // 2])

@@ -1,19 +1,25 @@
-"""Test configuration: float64 everywhere (references are float64 NumPy / MuJoCo C).
+"""Test configuration: float64 everywhere (references are float64 NumPy / MuJoCo C), the
+runtime configured as the CLI does.
 
-Strict dtype promotion (``jax_numpy_dtype_promotion='strict'``) is not used because MJX
-itself mixes bool and float arrays internally; our tests assert output dtypes instead.
+Strict promotion does not fit this code base: MJX itself mixes bool and float arrays
+(``jax_numpy_dtype_promotion='strict'`` fails inside ``mjx.step``) and the solver
+broadcasts per-channel limits [nu] against [T, nu] by design (rank promotion). Tests
+assert output dtypes instead, and one subprocess smoke test runs the default precision
+(float32).
 """
 
 import os
+import sys
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # tests/reference_*.py
 
-import mjx_surrogate  # noqa: E402,F401  (XLA flags before jax initialises)
+from mjx_surrogate.runtime import configure_runtime  # noqa: E402
+
+configure_runtime(x64=True)
+
 import jax  # noqa: E402
 import pytest  # noqa: E402
-
-jax.config.update("jax_enable_x64", True)
-
 
 @pytest.fixture(scope="session")
 def systems():

@@ -34,13 +34,15 @@ BAD = [
     (["smoke_rollout", "--solver.sigma_x", "-1"], "solver.sigma_x"),
     (["default", "--solver.n_samples", "2"], "solver.n_samples"),
     (["smoke_rollout", "--system.name", "mjcf"], "system.mjcf_path"),
-    (["smoke_predict", "--surrogate.sindy_libraries", "poly3_banana"],
-     "surrogate.sindy_libraries[0]"),
-    (["smoke_predict", "--surrogate.trig_coords", "9"], "surrogate.trig_coords"),
+    (["smoke_predict", "--surrogate.sindy.libraries", "poly3_banana"],
+     "surrogate.sindy.libraries[0]"),
+    (["smoke_predict", "--surrogate.sindy.trig_coords", "9"], "surrogate.sindy.trig_coords"),
+    (["smoke_predict", "--surrogate.kinds", "sindy", "gpr"], "surrogate.kinds[1]"),
+    (["smoke_d2c", "--solver.sysid", "bogus"], "solver.sysid"),
     (["smoke_predict", "--data.levels", "0.1", "nan"], "data.levels"),
     (["smoke_predict", "--data.test_fraction", "1.5"], "data.test_fraction"),
-    (["smoke_predict", "--surrogate.mlp_batch_size", "100000"], "surrogate.mlp_batch_size"),
-    (["smoke_predict", "--surrogate.mlp_checkpoints", "9"], "surrogate.mlp_checkpoints"),
+    (["smoke_predict", "--surrogate.mlp.batch_size", "100000"], "surrogate.mlp.batch_size"),
+    (["smoke_predict", "--surrogate.mlp.checkpoints", "9"], "surrogate.mlp.checkpoints"),
     (["smoke_analysis", "--analysis.convergence_library", "foo"], "analysis.convergence_library"),
     (["smoke_analysis", "--analysis.variance_libraries", "poly3"], "analysis.variance_levels"),
     (["smoke_theory", "--analysis.theory_max_order", "20"], "analysis.theory_max_order"),
@@ -96,11 +98,11 @@ def test_config_built_in_python_has_its_choices_checked():
     """A notebook user's dataclass config gets the same one-line error as a config file."""
     import dataclasses
 
-    from mjx_surrogate.setup import resolve
+    from mjx_surrogate.resolution import resolve
 
     cfg = cli.load_config("smoke_d2c")
     bad = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, sysid="bogus"))
-    with pytest.raises(ConfigError, match="^solver.sysid: got 'bogus'; valid: .*forward_difference"):
+    with pytest.raises(ConfigError, match="^solver.sysid: unknown identification scheme 'bogus'; valid: .*forward_difference"):
         resolve(bad)
     bad = dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, backend="gpu"))
     with pytest.raises(ConfigError, match="^system.backend: got 'gpu'"):
@@ -144,7 +146,7 @@ def test_run_folder_schema_and_native_replay(tmp_path):
     X = np.array(X)
     assert arrays["nominal_U"].shape == (T, 1) and arrays["nominal_X"].shape == (T + 1, 2)
     np.testing.assert_allclose(X, arrays["nominal_X"], atol=1e-5)
-    assert _cost(cfg, X, arrays["nominal_U"]) == pytest.approx(metrics["nominal"]["cost"], rel=1e-5)
+    assert _cost(cfg, X, arrays["nominal_U"]) == pytest.approx(metrics["rollouts"]["nominal"]["cost"], rel=1e-5)
     # The saved config replays as a config.
     assert cli.load_config(os.path.join(path, "config.json")).task.T == T
 

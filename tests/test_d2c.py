@@ -11,11 +11,12 @@ import pytest
 
 from experiments import run as cli
 from mjx_surrogate.config import Config, SystemConfig, TaskConfig
-from mjx_surrogate.d2c import initial_controls, solve_d2c, solve_exact, solve_multistart
-from mjx_surrogate.feedback import evaluate_feedback
+from mjx_surrogate.d2c import solve_d2c, solve_exact, solve_multistart
+from mjx_surrogate.evaluation import evaluate_feedback
+from mjx_surrogate.pipeline import initial_controls
 from mjx_surrogate.ilqr import ILQRParams
 from mjx_surrogate.rollout import rollout
-from mjx_surrogate.setup import resolve
+from mjx_surrogate.resolution import resolve
 from mjx_surrogate.sysid import SysIdParams
 from mjx_surrogate.tasks import trajectory_cost
 
@@ -90,5 +91,17 @@ def test_d2c_experiment_writes_schema(tmp_path):
         assert a[f"{name}_U"].shape == (10, 1) and a[f"{name}_X"].shape == (11, 2)
     assert a["d2c_U0"].shape == (10, 1)
     assert m["ltv_relative_error"]["median"] < 1e-2
+    assert m["status"] == "converged" and m["d2c"]["status"] == "converged"
+    assert {"d2c", "exact", "ltv_relative_error", "feedback"} <= set(m["stages"])
+    assert all(st["status"] == "done" for st in m["stages"].values())
     for f in ("cost_history.png", "trajectory_evolution.png", "feedback_noise.png"):
-        assert os.path.getsize(os.path.join(path, f)) > 0
+        assert_png(os.path.join(path, f))
+
+
+def assert_png(path: str, min_pixels: int = 200) -> None:
+    """A real figure: a PNG that decodes, of a plausible size, not one flat colour."""
+    import matplotlib.image
+
+    img = matplotlib.image.imread(path)
+    assert img.ndim == 3 and min(img.shape[:2]) >= min_pixels, img.shape
+    assert float(img[..., :3].std()) > 0.01

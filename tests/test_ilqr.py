@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from mjx_surrogate.ilqr import Cost, ILQRParams, STOP_REASONS, ilqr
+from mjx_surrogate.ilqr import Cost, ILQRParams, StopReason, ilqr
 
 A = np.array([[1.0, 0.1], [0.0, 1.0]])
 B = np.array([[0.005], [0.1]])
@@ -118,7 +118,8 @@ def test_blown_up_trials_rejected_and_nonfinite_start_reported():
     f = jax.jit(lambda U0: ilqr(step, lin, cost, jnp.asarray(X0), U0, jnp.full(1, -jnp.inf),
                                 jnp.full(1, jnp.inf), ILQRParams(), jax.random.key(0)))
     res = f(jnp.full((T, 1), 1e300))
-    assert STOP_REASONS[int(res.stop_reason)] == "initial trajectory not finite"
+    assert StopReason(int(res.stop_reason)) == StopReason.NOT_FINITE
+    assert StopReason(int(res.stop_reason)).verdict == "diverged"
     assert not bool(res.converged) and int(res.iterations) == 0
     # From a finite start the same unstable system is solved, never accepting an inf trial.
     res = f(jnp.zeros((T, 1)))
@@ -133,7 +134,8 @@ def test_absurd_weights_reported_not_nan():
                                   jnp.full(1, jnp.inf), ILQRParams(max_iter=20),
                                   jax.random.key(0)))(jnp.zeros((T, 1)))
     assert not bool(res.converged)
-    assert STOP_REASONS[int(res.stop_reason)] == "initial trajectory not finite"
+    assert StopReason(int(res.stop_reason)) == StopReason.NOT_FINITE
+    assert StopReason(int(res.stop_reason)).verdict == "diverged"
     np.testing.assert_array_equal(res.U, 0.0)  # what it had is kept, finite
 
 

@@ -4,11 +4,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from benchmarks import d2c_numpy
+import reference_d2c_numpy as d2c_numpy
 from mjx_surrogate.config import Config, SystemConfig, TaskConfig
 from mjx_surrogate.d2c import solve_d2c
 from mjx_surrogate.ilqr import ILQRParams
-from mjx_surrogate.setup import resolve
+from mjx_surrogate.resolution import resolve
 from mjx_surrogate.sysid import SysIdParams
 
 

@@ -14,7 +14,7 @@ def test_smoke_predict_writes_figures_table_and_metrics(tmp_path):
     assert {"predict_10pct.png", "predict_60pct.png", "one_step_rmse_vs_level.png",
             "multi_step_median_vs_level.png", "rmse_table.md", "arrays.npz"} <= files
     m = json.loads((path / "metrics.json").read_text())
-    assert m["status"] == "ok" and m["optimum"]["converged"]
+    assert m["status"] == "converged" and m["optimum"]["converged"]
     names = {"SINDy cubic_trig", "SINDy quartic", "MLP", "LTV"}
     for level in ("0.1", "0.6"):
         assert names <= set(m["results"][level])
@@ -37,7 +37,7 @@ def test_smoke_analysis_writes_every_figure_and_table(tmp_path):
     assert {"convergence_sindy_10pct.png", "convergence_mlp_5pct.png", "gram_spectra.png",
             "variance_projections.png", "analysis_table.md"} <= files
     m = json.loads((path / "metrics.json").read_text())
-    assert m["status"] == "ok"
+    assert m["status"] == "converged"
     quartic = m["ill_conditioning"]["SINDy quartic 5%"]
     cubic = m["ill_conditioning"]["SINDy cubic_trig 5%"]
     assert quartic["precision"] == "float64" and quartic["condition"] > cubic["condition"] > 1e3
@@ -57,13 +57,16 @@ def test_smoke_theory_reports_exact_monte_carlo_and_paper(tmp_path):
 def test_smoke_control_judges_surrogate_controllers_on_the_black_box(tmp_path):
     path = _run("smoke_control", tmp_path)
     m = json.loads((path / "metrics.json").read_text())
-    assert m["status"] == "ok" and m["d2c"]["cost"] is not None
+    assert m["status"] == "converged" and m["d2c"]["cost"] is not None
     assert abs(m["d2c_vs_exact_relative_gap"]) < 0.01
-    models = {r["model"] for r in m["surrogates"]}
-    assert models == {"SINDy cubic_trig", "MLP"}
-    for r in m["surrogates"]:
-        # the true cost of any controller is at best the optimum's (D2C within 1 %)
-        if r["true_cost_over_d2c"] is not None:
-            assert r["true_cost_over_d2c"] > 0.99
+    rows = m["surrogate_rows"]
+    assert {r["model"] for r in rows} == {"SINDy cubic_trig", "MLP"}
+    # every controller was executed on the black box and its true cost measured (a
+    # diverged replay is reported as None and counted here as a measurement too)
+    assert all("true_cost_open" in r and "true_cost_closed" in r for r in rows)
+    finite = [r["true_cost_over_d2c"] for r in rows if r["true_cost_over_d2c"] is not None]
+    assert finite, "no surrogate controller produced a finite true cost"
+    # the true cost of any controller is at best the optimum's (D2C within 1 %)
+    assert min(finite) > 0.99
     assert {"ltv_trajectory_evolution.png", "surrogate_controls.png", "control_table.md"} <= set(
         os.listdir(path))

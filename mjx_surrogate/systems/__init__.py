@@ -1,8 +1,17 @@
-"""Black-box MuJoCo systems on two simulator backends (MJX and native MuJoCo)."""
+"""Black-box MuJoCo systems on two simulator backends (MJX and native MuJoCo).
 
-from mjx_surrogate.systems.registry import (SYSTEM_NAMES, default_config, from_mjcf,
-                                            make_system)
+One module per registered system (its MJCF, ``default_config()`` and task presets), the
+:class:`System` interface, the backends, and the registry. The project's own models are
+written from the physical facts of the dm_control suite and the D2C 2.0 setting
+(``shared/reference.md``). State convention everywhere: x = [qpos, qvel, act].
+"""
+
+from mjx_surrogate.systems.registry import (default_config, from_mjcf, make_system,
+                                            register_family, register_system, system_names,
+                                            task_presets)
+from mjx_surrogate.systems.spec import SystemDefaults
 from mjx_surrogate.systems.system import BACKENDS, System, build_system
 
-__all__ = ["BACKENDS", "SYSTEM_NAMES", "System", "build_system", "default_config",
-           "from_mjcf", "make_system"]
+__all__ = ["BACKENDS", "System", "SystemDefaults", "build_system", "default_config",
+           "from_mjcf", "make_system", "register_family", "register_system", "system_names",
+           "task_presets"]

@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import contextlib
 import copy
+import io
 
 import jax
 import jax.numpy as jnp
 import mujoco
-from mujoco import mjx
+
+# mujoco.mjx prints "Failed to import warp" to stdout when the optional GPU Warp backend
+# is absent; that is expected on CPU, so this one import is kept quiet.
+with contextlib.redirect_stdout(io.StringIO()):
+    from mujoco import mjx
 
 from mjx_surrogate.trajectory import simulate_batch
 

@@ -6,6 +6,8 @@ every MuJoCo feature. Whole horizons go to C in one call, multi-threaded.
 
 MuJoCo silently zeroes non-finite controls and resets a diverged state (``mj_resetData``,
 which also resets ``time``); both are mapped to NaN states here so callers can reject them.
+Host callbacks inside jitted while loops need synchronous CPU dispatch
+(:func:`mjx_surrogate.runtime.configure_runtime`).
 """
 
 from __future__ import annotations
@@ -20,25 +22,6 @@ import numpy as np
 from mujoco import rollout as mj_rollout
 
 _SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
-
-# MuJoCo prints a warning for every diverged trial (line searches provoke many); they
-# are counted here instead, and surfaced as NaN states to the caller.
-WARNINGS = {"count": 0, "last": ""}
-
-
-def _count_warning(msg: str) -> None:
-    WARNINGS["count"] += 1
-    WARNINGS["last"] = msg
-
-
-mujoco.set_mju_user_warning(_count_warning)
-
-# Host callbacks inside jitted while loops can hang the CPU runtime at 0 % CPU with
-# asynchronous dispatch on (seen here in D2C on the fish and in a benchmark process;
-# upstream: jax-ml/jax#25861). Synchronous CPU dispatch avoids it; our hot paths are
-# single jitted calls, so nothing is lost.
-jax.config.update("jax_cpu_enable_async_dispatch", False)
-
 
 class NativeSimulator:
     """Host-side batched simulator for one model; MjData are reused across calls."""

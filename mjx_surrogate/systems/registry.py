@@ -1,58 +1,79 @@
-"""Registry of the paper's systems, each with its ``default_config()``, plus user MJCF."""
+"""Registry of systems, built from one module per system, plus the user's MJCF.
+
+A system module (``pendulum.py``, ``cartpole.py``, ``fish.py``, ``swimmer.py``) holds its
+MJCF (``xml``), its ``default_config()`` and its task presets (``TASKS``). A new system is
+one such module plus one :func:`register_system` call (docs/extending.md); a family with a
+size in its name (``swimmer<N>``) is registered with a pattern.
+"""
 
 from __future__ import annotations
 
 import os
 import re
-from typing import Callable, NamedTuple
+from types import ModuleType
+from typing import Callable
 
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.systems import models
+from mjx_surrogate.systems import cartpole, fish, pendulum, swimmer
+from mjx_surrogate.systems.spec import SystemDefaults
 from mjx_surrogate.systems.system import System, build_system
+from mjx_surrogate.tasks import TaskPreset
+
+_SYSTEMS: dict[str, Callable[[], SystemDefaults]] = {}
+_FAMILIES: dict[str, tuple[re.Pattern, Callable[[int], SystemDefaults]]] = {}
+_TASKS: dict[str, TaskPreset] = {}
 
 
-class SystemDefaults(NamedTuple):
-    """Per-system defaults. ``backend`` is the faster one on a 2-core CPU, as measured
-    by ``benchmarks/rollout.py`` (see docs/performance.md)."""
-
-    xml: Callable[[], str]
-    substeps: int
-    backend: str
+def register_system(name: str, default_config: Callable[[], SystemDefaults],
+                    tasks: dict[str, TaskPreset] | None = None) -> None:
+    """Register a system ``name`` and its task presets."""
+    _SYSTEMS[name] = default_config
+    _TASKS.update(tasks or {})
 
 
-def pendulum_default() -> SystemDefaults:
-    # dt 0.1 s per control step, as in D2C 2.0.
-    return SystemDefaults(models.pendulum_xml, substeps=5, backend="mjx")
+def register_family(label: str, pattern: str, default_config: Callable[[int], SystemDefaults],
+                    tasks: dict[str, TaskPreset] | None = None) -> None:
+    """Register sized systems whose name matches ``pattern`` (one integer group, >= 2)."""
+    _FAMILIES[label] = (re.compile(pattern), default_config)
+    _TASKS.update(tasks or {})
 
 
-def cartpole_default() -> SystemDefaults:
-    # dt 0.1 s per control step (D2C 2.0), 10 RK4 steps of 0.01 s.
-    return SystemDefaults(models.cartpole_xml, substeps=10, backend="mjx")
+def _register_module(name: str, module: ModuleType) -> None:
+    register_system(name, module.default_config, module.TASKS)
 
 
-def fish_default() -> SystemDefaults:
-    # dm_control control step 0.04 s = 10 physics steps of 0.004 s.
-    return SystemDefaults(models.fish_xml, substeps=10, backend="native")
+for _name, _module in (("pendulum", pendulum), ("cartpole", cartpole), ("fish", fish)):
+    _register_module(_name, _module)
+register_family("swimmer<N> (N >= 2, e.g. swimmer6)", r"^swimmer(\d+)$", swimmer.default_config,
+                swimmer.TASKS)
 
 
-def swimmer_default(n_links: int) -> SystemDefaults:
-    # dm_control control step 0.03 s = 15 physics steps of 0.002 s.
-    return SystemDefaults(lambda: models.swimmer_xml(n_links), substeps=15, backend="native")
+def system_names() -> tuple[str, ...]:
+    return tuple(_SYSTEMS) + tuple(_FAMILIES) + ("mjcf",)
 
 
-_FIXED = {"pendulum": pendulum_default, "cartpole": cartpole_default, "fish": fish_default}
-_SWIMMER = re.compile(r"^swimmer(\d+)$")
-SYSTEM_NAMES = ("pendulum", "cartpole", "fish", "swimmer<N> (N >= 2, e.g. swimmer6)", "mjcf")
+def task_presets() -> dict[str, TaskPreset]:
+    """Every registered task preset by name."""
+    return dict(_TASKS)
+
+
+def preset_fits(preset: TaskPreset, system_name: str) -> bool:
+    """Whether a preset belongs to the system (``family*`` matches every size)."""
+    if preset.system.endswith("*"):
+        return system_name.startswith(preset.system[:-1])
+    return preset.system == system_name
 
 
 def default_config(name: str) -> SystemDefaults:
     """Defaults of a registered system; raises ConfigError for an unknown name."""
-    if name in _FIXED:
-        return _FIXED[name]()
-    match = _SWIMMER.match(name)
-    if match and int(match.group(1)) >= 2:
-        return swimmer_default(int(match.group(1)))
-    raise ConfigError("system.name", f"unknown system {name!r}; valid: {', '.join(SYSTEM_NAMES)}")
+    if name in _SYSTEMS:
+        return _SYSTEMS[name]()
+    for pattern, make in _FAMILIES.values():
+        match = pattern.match(name)
+        if match and int(match.group(1)) >= 2:
+            return make(int(match.group(1)))
+    raise ConfigError("system.name", f"unknown system {name!r}; valid: "
+                      f"{', '.join(system_names())}")
 
 
 def make_system(name: str, backend: str = "auto", substeps: int | None = None,
@@ -69,18 +90,11 @@ def make_system(name: str, backend: str = "auto", substeps: int | None = None,
 
 def from_mjcf(path: str, backend: str = "auto", substeps: int = 1,
               timestep: float | None = None, native_threads: int | None = None) -> System:
-    """Build a system from the user's MJCF file. ``auto`` picks ``native``: it runs every
-    MuJoCo feature and won on 2 cores for all but the smallest models we measured."""
+    """Build a system from the user's MJCF file (includes and meshes resolved next to it).
+    ``auto`` picks ``native``: it runs every MuJoCo feature and won on 2 cores for all but
+    the smallest models we measured."""
     if not os.path.isfile(path):
         raise ConfigError("system.mjcf_path", f"no such file {path!r}; give a path to an MJCF .xml")
-    with open(path) as f:
-        xml = f.read()
     name = os.path.splitext(os.path.basename(path))[0]
-    # MjSpec.from_string cannot resolve includes/meshes relative to the file, from_file can.
-    cwd = os.getcwd()
-    try:
-        os.chdir(os.path.dirname(os.path.abspath(path)))
-        return build_system(name, xml, substeps, "native" if backend == "auto" else backend,
-                            timestep, native_threads, field="system.mjcf_path")
-    finally:
-        os.chdir(cwd)
+    return build_system(name, None, substeps, "native" if backend == "auto" else backend,
+                        timestep, native_threads, field="system.mjcf_path", path=path)

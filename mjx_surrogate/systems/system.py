@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import os
 from typing import Callable
 
 import jax
@@ -86,14 +87,15 @@ def can_have_constraints(m: mujoco.MjModel) -> bool:
     return bool(contacts or limits or friction or m.neq > 0)
 
 
-def compile_mjcf(xml: str, field: str = "system.mjcf", timestep: float | None = None,
-                 ) -> tuple[mujoco.MjModel, str]:
-    """Compile MJCF text, disabling the constraint solver where nothing can be constrained.
+def compile_mjcf(xml: str | None, field: str = "system.mjcf", timestep: float | None = None,
+                 path: str | None = None) -> tuple[mujoco.MjModel, str]:
+    """Compile MJCF text (or the file at ``path``, its includes and assets resolved next to
+    it), disabling the constraint solver where nothing can be constrained.
 
     Returns the model and the exact MJCF that was compiled (after the option changes).
     """
     try:
-        spec = mujoco.MjSpec.from_string(xml)
+        spec = mujoco.MjSpec.from_file(path) if path is not None else mujoco.MjSpec.from_string(xml)
         if timestep is not None:
             spec.option.timestep = timestep
         model = spec.compile()
@@ -108,17 +110,16 @@ def compile_mjcf(xml: str, field: str = "system.mjcf", timestep: float | None = 
     return model, spec.to_xml()
 
 
-def build_system(name: str, xml: str, substeps: int, backend: str,
+def build_system(name: str, xml: str | None, substeps: int, backend: str,
                  timestep: float | None = None, native_threads: int | None = None,
-                 field: str = "system.mjcf") -> System:
-    """Compile ``xml`` and wrap it as a :class:`System` on ``backend`` ("mjx" | "native")."""
+                 field: str = "system.mjcf", path: str | None = None) -> System:
+    """Compile ``xml`` (or the MJCF file at ``path``) and wrap it as a :class:`System` on
+    ``backend`` ("mjx" | "native")."""
     if backend not in BACKENDS:
         raise ConfigError("system.backend", f"unknown backend {backend!r}; valid: {BACKENDS}")
     if not isinstance(substeps, int) or substeps < 1:
         raise ConfigError("system.substeps", f"must be a positive integer, got {substeps!r}")
-    model, exact_xml = compile_mjcf(xml, field, timestep)
-    import os
-
+    model, exact_xml = compile_mjcf(xml, field, timestep, path)
     threads = native_threads or os.cpu_count() or 1
     if backend == "mjx":
         step = backend_mjx.make_mjx_step(model, substeps)

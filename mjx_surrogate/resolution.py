@@ -1,4 +1,4 @@
-"""Config -> (resolved config, system, task), with every check done before any compile."""
+"""Resolution: config -> (resolved config, system, task), every check before any compile."""
 
 from __future__ import annotations
 
@@ -9,9 +9,12 @@ import numpy as np
 
 from mjx_surrogate.config import Config, SystemConfig, TaskConfig, check_finite, validate_static
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.systems import System, from_mjcf, make_system
-from mjx_surrogate.systems.system import hinge_state_indices
-from mjx_surrogate.tasks import TASK_PRESETS, Task, make_task
+from mjx_surrogate.ilqr import ILQRParams
+from mjx_surrogate.sysid import SysIdParams
+from mjx_surrogate.systems import System, from_mjcf, make_system, task_presets
+from mjx_surrogate.systems.registry import preset_fits
+from mjx_surrogate.surrogates.registry import get_surrogate, library_specs
+from mjx_surrogate.tasks import Task, make_task
 
 
 class Resolved(NamedTuple):
@@ -34,13 +37,12 @@ def build_system_from_config(sc: SystemConfig) -> System:
 def _preset_fields(tc: TaskConfig, system: System) -> dict:
     if tc.preset == "custom":
         return {}
-    if tc.preset not in TASK_PRESETS:
-        valid = ", ".join(list(TASK_PRESETS) + ["custom"])
+    presets = task_presets()
+    if tc.preset not in presets:
+        valid = ", ".join(list(presets) + ["custom"])
         raise ConfigError("task.preset", f"unknown task {tc.preset!r}; valid: {valid}")
-    preset = TASK_PRESETS[tc.preset]
-    fits = (preset.system == system.name or
-            (preset.system == "swimmer*" and system.name.startswith("swimmer")))
-    if not fits:
+    preset = presets[tc.preset]
+    if not preset_fits(preset, system.name):
         raise ConfigError("task.preset", f"{tc.preset!r} is a task for {preset.system!r}, "
                           f"not {system.name!r}; use a task of that system or 'custom'")
     return preset.build(system.nq, system.nv, system.nu)
@@ -118,16 +120,13 @@ def resolve_task(tc: TaskConfig, system: System) -> TaskConfig:
                       u_min=u_min, u_max=u_max)
 
 
-def solver_params(cfg: Config, record_trajectories: bool = False, progress: bool = False):
+def solver_params(cfg: Config, record_trajectories: bool = False):
     """SolverConfig -> (ILQRParams, SysIdParams)."""
-    from mjx_surrogate.ilqr import ILQRParams
-    from mjx_surrogate.sysid import SysIdParams
-
     s = cfg.solver
     ilqr = ILQRParams(rel_tol=s.rel_tol, k_tol=s.k_tol, mu_init=s.mu_init, mu_min=s.mu_min,
                       mu_max=s.mu_max, mu_factor=s.mu_factor, accept_ratio=s.accept_ratio,
                       max_iter=s.max_iter, n_alphas=s.n_alphas,
-                      record_trajectories=record_trajectories, progress=progress)
+                      record_trajectories=record_trajectories)
     sysid = SysIdParams(sigma_x=s.sigma_x, sigma_u=s.sigma_u, scheme=s.sysid,
                         n_samples=s.n_samples)
     return ilqr, sysid
@@ -150,35 +149,6 @@ def resolve(cfg: Config) -> Resolved:
     return Resolved(resolved, system, task)
 
 
-def hinge_angles(system: System) -> tuple[int, ...]:
-    """State indices of hinge-joint angles (the default trig coordinates)."""
-    return tuple(q for q, _ in hinge_state_indices(system.mj_model))
-
-
-def library_specs(cfg: Config, system: System, names: tuple[str, ...] | str | None = None,
-                  field: str = "surrogate.sindy_libraries") -> dict:
-    """Resolved SINDy libraries by name (default: surrogate.sindy_libraries; a single name
-    for a scalar field); a bad one raises ConfigError naming ``field[i]`` (``field`` for a
-    single name), or surrogate.trig_coords / harmonics."""
-    from mjx_surrogate.surrogates import library
-
-    sc = cfg.surrogate
-    coords = sc.trig_coords if sc.trig_coords is not None else hinge_angles(system)
-    nz = system.nx + system.nu
-    scalar = isinstance(names, str)
-    out = {}
-    for i, name in enumerate((names,) if scalar else sc.sindy_libraries if names is None else names):
-        try:
-            spec = library.parse(name, coords, sc.harmonics)
-            library.validate(spec, nz)
-        except library.SpecError as exc:
-            where = (f"surrogate.{exc.part}" if exc.part in ("trig_coords", "harmonics")
-                     else field if scalar else f"{field}[{i}]")
-            raise ConfigError(where, exc.message) from None
-        out[name] = spec
-    return out
-
-
 def analysis_library_specs(cfg: Config, system: System) -> dict:
     """The libraries the analysis section names, each checked under its own field."""
     a = cfg.analysis
@@ -187,29 +157,17 @@ def analysis_library_specs(cfg: Config, system: System) -> dict:
     return out | library_specs(cfg, system, a.variance_libraries, "analysis.variance_libraries")
 
 
-def mlp_spec(cfg: Config):
-    """SurrogateConfig -> the MLP's static spec."""
-    from mjx_surrogate.surrogates.mlp import MLPSpec
-
-    s = cfg.surrogate
-    return MLPSpec(widths=tuple(s.mlp_widths), increment=s.increment,
-                   learning_rate=s.mlp_learning_rate, weight_decay=s.mlp_weight_decay,
-                   batch_size=s.mlp_batch_size, epochs=s.mlp_epochs,
-                   checkpoints=tuple(s.mlp_checkpoints))
-
-
 def _check_surrogates(cfg: Config, system: System, T: int) -> None:
-    d, sc = cfg.data, cfg.surrogate
+    d = cfg.data
     n_test = max(1, int(round(d.test_fraction * d.n_traj)))
     n_train = d.n_traj - n_test
     if n_train < 1:
         raise ConfigError("data.test_fraction", f"leaves no training trajectory of {d.n_traj}")
-    if sc.mlp_batch_size > n_train * T:
-        raise ConfigError("surrogate.mlp_batch_size", f"{sc.mlp_batch_size} exceeds the "
-                          f"{n_train * T} training transitions (data.n_traj x task.T)")
     if n_train < system.nx + system.nu:
         raise ConfigError("data.n_traj", f"the LTV fit needs >= nx + nu = {system.nx + system.nu} "
                           f"training trajectories, got {n_train}")
-    library_specs(cfg, system)
-    if cfg.experiment.kind == "analysis":
+    for name in cfg.surrogate.kinds:
+        get_surrogate(name).validate(cfg, system, n_train * T)
+    if cfg.experiment.kind == "analysis":  # the analyses fit SINDy and MLPs whatever kinds says
         analysis_library_specs(cfg, system)
+        get_surrogate("mlp").validate(cfg, system, n_train * T)

@@ -1,4 +1,4 @@
-"""One interface for every model of the dynamics: a jittable time-indexed one-step map
+"""Step models: one interface for every model of the dynamics, a jittable time-indexed map
 
     step(t, x [nx], u [nu]) -> x_next [nx]
 
@@ -18,6 +18,7 @@ import jax.numpy as jnp
 from mjx_surrogate import sysid
 from mjx_surrogate.data import Dataset
 from mjx_surrogate.systems.system import System
+from mjx_surrogate.trajectory import simulate_t
 
 StepT = Callable[[jax.Array, jax.Array, jax.Array], jax.Array]
 
@@ -56,18 +57,7 @@ def black_box(system: System) -> StepT:
 
 def predict(step_t: StepT, x0: jax.Array, U: jax.Array) -> jax.Array:
     """Open-loop multi-step prediction: x0 [B, nx], U [B, T, nu] -> X [B, T+1, nx]."""
-
-    def one(x0_i, U_i):
-        def body(x, tu):
-            t, u = tu
-            xn = step_t(t, x, u)
-            return xn, xn
-
-        ts = jnp.arange(U_i.shape[0])
-        _, xs = jax.lax.scan(body, x0_i, (ts, U_i))
-        return jnp.concatenate([x0_i[None], xs], axis=0)
-
-    return jax.vmap(one)(x0, U)
+    return jax.vmap(simulate_t, in_axes=(None, 0, 0))(step_t, x0, U)
 
 
 def one_step(step_t: StepT, X: jax.Array, U: jax.Array) -> jax.Array:

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_surrogate import data, models
+from mjx_surrogate import data, step_models
 from mjx_surrogate.evaluation import prediction_errors
 from mjx_surrogate.rollout import rollout
 from mjx_surrogate.surrogates import sindy
@@ -18,10 +18,10 @@ def test_exact_model_reproduces_the_black_box(systems, backend):
     key = jax.random.key(0)
     x0 = jnp.zeros((5, 4)).at[:, 1].set(jnp.linspace(2.5, 3.1, 5))
     U = 0.3 * jax.random.normal(key, (5, 12, 1))
-    np.testing.assert_allclose(models.predict(models.black_box(sys_), x0, U),
+    np.testing.assert_allclose(step_models.predict(step_models.black_box(sys_), x0, U),
                                rollout(sys_, x0, U), atol=1e-12)
     X = rollout(sys_, x0, U)
-    np.testing.assert_allclose(models.one_step(models.black_box(sys_), X, U), X[:, 1:], atol=1e-12)
+    np.testing.assert_allclose(step_models.one_step(step_models.black_box(sys_), X, U), X[:, 1:], atol=1e-12)
 
 
 def test_ltv_model_from_data_recovers_a_linear_time_varying_system():
@@ -38,10 +38,10 @@ def test_ltv_model_from_data_recovers_a_linear_time_varying_system():
     X[:, 0] = rng.normal(size=(n, nx))
     for t in range(T):
         X[:, t + 1] = X[:, t] @ A[t].T + U[:, t] @ B[t].T + 0.1
-    ltv = models.fit_ltv(data.Dataset(jnp.asarray(X), jnp.asarray(U)), jnp.asarray(Xn), jnp.asarray(Un))
+    ltv = step_models.fit_ltv(data.Dataset(jnp.asarray(X), jnp.asarray(U)), jnp.asarray(Xn), jnp.asarray(Un))
     np.testing.assert_allclose(ltv.A, A, atol=1e-10)
     np.testing.assert_allclose(ltv.B, B, atol=1e-10)
-    pred = models.predict(ltv.step_t, jnp.asarray(X[:, 0]), jnp.asarray(U))
+    pred = step_models.predict(ltv.step_t, jnp.asarray(X[:, 0]), jnp.asarray(U))
     np.testing.assert_allclose(pred, X, atol=1e-9)
 
 
@@ -53,11 +53,11 @@ def test_prediction_errors_of_an_exact_surrogate_are_zero_and_divergence_is_repo
     model = sindy.SindyModel(jnp.asarray(C), spec, False)
     X0 = jnp.asarray(rng.normal(size=(8, 2)))
     U = jnp.asarray(rng.normal(size=(8, 10, 1)))
-    X = models.predict(models.time_invariant(model.step), X0, U)
-    m, _ = prediction_errors(models.time_invariant(model.step), data.Dataset(X, U))
+    X = step_models.predict(step_models.time_invariant(model.step), X0, U)
+    m, _ = prediction_errors(step_models.time_invariant(model.step), data.Dataset(X, U))
     assert m["one_step_rmse"] < 1e-14 and m["multi_step_rmse"] < 1e-14 and m["diverged"] == 0
     C2 = C.copy()
     C2[7, 1] = 50.0  # x1' gains 50 x1^2: blows up
     bad = sindy.SindyModel(jnp.asarray(C2), spec, False)
-    m2, _ = prediction_errors(models.time_invariant(bad.step), data.Dataset(X, U))
+    m2, _ = prediction_errors(step_models.time_invariant(bad.step), data.Dataset(X, U))
     assert m2["diverged"] > 0 and m2["multi_step_rmse"] is None

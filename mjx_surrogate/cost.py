@@ -1,0 +1,31 @@
+"""The solver's view of a cost: running ``l(x, u)`` and terminal ``l_f(x)`` functions.
+
+    J(X, U) = sum_{t<T} l(x_t, u_t) + l_f(x_T),    X [T+1, nx], U [T, nu]
+
+Derivatives are taken by autodiff (:func:`mjx_surrogate.ilqr.cost_derivatives`), so a cost
+term is any differentiable function; the tasks' quadratic cost is built in
+:mod:`mjx_surrogate.tasks`.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+BLOWUP = 1e8  # |x| beyond this counts as a blown-up trajectory
+
+
+class Cost(NamedTuple):
+    """running(x[nx], u[nu]) -> scalar; terminal(x[nx]) -> scalar."""
+
+    running: Callable[[jax.Array, jax.Array], jax.Array]
+    terminal: Callable[[jax.Array], jax.Array]
+
+
+def trajectory_cost(cost: Cost, X: jax.Array, U: jax.Array) -> jax.Array:
+    """J of X [T+1, nx], U [T, nu]; +inf if X is not finite or blew up (|x| > BLOWUP)."""
+    J = jax.vmap(cost.running)(X[:-1], U).sum() + cost.terminal(X[-1])
+    bad = ~jnp.all(jnp.isfinite(X)) | (jnp.max(jnp.abs(X)) > BLOWUP) | ~jnp.isfinite(J)
+    return jnp.where(bad, jnp.inf, J)

@@ -1,0 +1,109 @@
+"""Steps that experiments compose: initial controls, the D2C optimum replayed on the
+black box, its summary in the status vocabulary, and the simulation count of a solve.
+
+These sit between the solvers (which see only functions) and ``experiments/`` (which
+only compose library calls, write results and draw figures).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mjx_surrogate import data, progress
+from mjx_surrogate import sysid as sid
+from mjx_surrogate.d2c import solve_d2c
+from mjx_surrogate.evaluation import finite_or_none
+from mjx_surrogate.ilqr import ILQRParams, ILQRResult, StopReason, verdict
+from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
+from mjx_surrogate.resolution import solver_params
+from mjx_surrogate.systems import System
+from mjx_surrogate.tasks import Task, trajectory_cost
+from mjx_surrogate.trajectory import open_loop
+
+
+def initial_controls(key: jax.Array, T: int, nu: int, kind: str, scale: float,
+                     n: int | None = None, dtype=None) -> jax.Array:
+    """U0 [T, nu] (or [n, T, nu]): zeros, or N(0, scale^2) random controls."""
+    shape = (T, nu) if n is None else (n, T, nu)
+    dtype = dtype or jnp.asarray(0.0).dtype
+    if kind == "zeros":
+        return jnp.zeros(shape, dtype)
+    return scale * jax.random.normal(key, shape, dtype)
+
+
+def simulated_steps(result: ILQRResult, T: int, n_alphas: int, sysid: sid.SysIdParams) -> int:
+    """Control steps simulated by a D2C solve: the initial rollout, every forward pass and
+    one identification per accepted iteration (plus the first)."""
+    h = np.asarray(result.cost_history)
+    it = int(result.iterations)
+    accepted = int(np.sum(h[1 : it + 1] < h[:it]))
+    per_id = sid.get_scheme(sysid.scheme).simulated_steps(T, sysid.n_samples)
+    return T + it * n_alphas * T + min(accepted + 1, it) * per_id
+
+
+def black_box_trajectory(system: System, task: Task, U: jax.Array) -> tuple[jax.Array, float | None]:
+    """U [T, nu] replayed from x0 on the black box: (X [T+1, nx], its cost or None)."""
+    X, Ua = jax.jit(lambda u: open_loop(system.step, task.x0, u, task.u_min, task.u_max))(U)
+    return X, finite_or_none(trajectory_cost(task, X, Ua))
+
+
+def summary(result: ILQRResult, system: System, task: Task) -> tuple[dict, jax.Array]:
+    """Metrics of a solve in the status vocabulary, judged on the black box.
+
+    ``cost`` is the cost of the solve's controls replayed on the black box (``cost_solver``
+    the solver's own); ``status`` is the verdict of the stop reason (``diverged`` if the
+    replayed cost is not finite). Returns (metrics, the replayed X [T+1, nx]).
+    """
+    X_bb, cost = black_box_trajectory(system, task, result.U)
+    reason = StopReason(int(result.stop_reason))
+    out = {"status": verdict(reason, cost if cost is not None else np.inf),
+           "cost": cost, "cost_solver": finite_or_none(result.cost),
+           "iterations": int(result.iterations), "converged": bool(result.converged),
+           "stop_reason": reason.description,
+           "final_state_error": finite_or_none(jnp.linalg.norm(X_bb[-1] - task.x_goal))}
+    return out, X_bb
+
+
+class Optimum(NamedTuple):
+    result: ILQRResult
+    X: jax.Array  # [T+1, nx] the optimum's controls replayed on the black box
+    metrics: dict
+
+
+def d2c_optimum(system: System, task: Task, U0: jax.Array, key: jax.Array,
+                params: ILQRParams, sysid: sid.SysIdParams,
+                progress: ProgressMeter = NO_PROGRESS) -> Optimum:
+    """Solve by D2C from U0 and summarise on the black box."""
+    result = jax.block_until_ready(solve_d2c(system, task, U0, key, params, sysid, progress))
+    metrics, X = summary(result, system, task)
+    return Optimum(result, X, metrics)
+
+
+def optimum_stage(res, key: jax.Array, record_trajectories: bool = False):
+    """A run stage (``Run.stage``) computing the task's D2C optimum from the config's
+    initial controls: (metrics, {X_star, U_star, K_star, U0_star, u_max, X_history if
+    recorded})."""
+    cfg, system, task = res
+    sc = cfg.solver
+
+    def compute():
+        params, sid = solver_params(cfg, record_trajectories)
+        k_init, k_d2c = jax.random.split(key)
+        U0 = initial_controls(k_init, task.T, system.nu, sc.init, sc.init_scale, None,
+                              task.x0.dtype)
+        t0 = time.perf_counter()
+        with progress.meter("D2C optimum", sc.max_iter, cfg.experiment.progress) as pm:
+            opt = d2c_optimum(system, task, U0, k_d2c, params, sid, pm)
+        m = {**opt.metrics, "wall_s": time.perf_counter() - t0}
+        arrays = {"X_star": opt.X, "U_star": opt.result.U, "K_star": opt.result.K,
+                  "U0_star": U0, "u_max": data.u_max(opt.result.U)}
+        if record_trajectories:
+            arrays["X_history"] = opt.result.X_history[: int(opt.result.iterations) + 1]
+        return m, arrays
+
+    return compute

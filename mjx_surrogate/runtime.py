@@ -1,0 +1,57 @@
+"""Process-wide runtime settings, applied by one explicit call (never at import).
+
+The CLI, the benchmarks and the tests call :func:`configure_runtime` first; a notebook
+should too, before its first JAX computation:
+
+* ``XLA_FLAGS += --xla_cpu_use_fusion_emitters=false``: XLA's CPU fusion emitters made MJX
+  rollouts up to ~50x slower and compiles minutes long on many-body models
+  (docs/performance.md). Only effective before JAX starts its backend; skipped when the
+  user's ``XLA_FLAGS`` already names the flag or ``MJX_SURROGATE_KEEP_XLA_FLAGS=1``.
+* synchronous CPU dispatch: host callbacks inside jitted while loops (the native backend)
+  can hang the CPU runtime at 0 % CPU with asynchronous dispatch (jax-ml/jax#25861).
+* MuJoCo's warning hook: a line search provokes many diverged trials, each of which MuJoCo
+  would print; they are counted in :data:`MUJOCO_WARNINGS` (and surface as NaN states).
+"""
+
+from __future__ import annotations
+
+import os
+
+FUSION_FLAG = "--xla_cpu_use_fusion_emitters=false"
+MUJOCO_WARNINGS = {"count": 0, "last": ""}
+
+
+def _count_warning(msg: str) -> None:
+    MUJOCO_WARNINGS["count"] += 1
+    MUJOCO_WARNINGS["last"] = msg
+
+
+def backend_started() -> bool:
+    """Whether JAX has already created its backends (then XLA_FLAGS no longer apply)."""
+    from jax._src import xla_bridge
+
+    return bool(getattr(xla_bridge, "_backends", None))
+
+
+def configure_runtime(x64: bool | None = None) -> dict:
+    """Apply the settings above (idempotent); ``x64`` sets ``jax_enable_x64`` if given.
+
+    Returns what was applied, e.g. for a run's ``versions.json``.
+    """
+    applied = {}
+    flags = os.environ.get("XLA_FLAGS", "")
+    if not os.environ.get("MJX_SURROGATE_KEEP_XLA_FLAGS") and "xla_cpu_use_fusion_emitters" not in flags:
+        if not backend_started():
+            os.environ["XLA_FLAGS"] = (flags + " " + FUSION_FLAG).strip()
+            applied["XLA_FLAGS"] = os.environ["XLA_FLAGS"]
+        else:
+            applied["XLA_FLAGS"] = "not applied: the JAX backend had already started"
+    import jax
+    import mujoco
+
+    jax.config.update("jax_cpu_enable_async_dispatch", False)
+    applied["jax_cpu_enable_async_dispatch"] = False
+    mujoco.set_mju_user_warning(_count_warning)
+    if x64 is not None:
+        jax.config.update("jax_enable_x64", bool(x64))
+    return applied

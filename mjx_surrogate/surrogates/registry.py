@@ -1,0 +1,159 @@
+"""The surrogate extension point: a protocol, a registry, one ``fit_all``.
+
+A surrogate kind fits global models of the dynamics from transitions and a key; every
+fitted model is a pytree with a jittable ``step(x [nx], u [nu]) -> x_next [nx]`` (the
+:class:`Surrogate` protocol), so prediction, analysis and control use it unchanged. A new
+kind is one module plus one :func:`register_surrogate` call (docs/extending.md). Kinds
+built in: ``sindy`` (one model per library) and ``mlp``.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any, Callable, NamedTuple, Protocol
+
+import jax
+import jax.numpy as jnp
+
+from mjx_surrogate.errors import ConfigError
+
+
+class Surrogate(Protocol):
+    def step(self, x: jax.Array, u: jax.Array) -> jax.Array: ...
+
+
+class Fitted(NamedTuple):
+    """A fitted surrogate: the model, fit metrics (JSON) and arrays worth keeping."""
+
+    model: Surrogate
+    info: dict
+    arrays: dict = {}
+
+
+class FitContext(NamedTuple):
+    """What a kind may read while fitting: the resolved config and the system."""
+
+    config: Any  # mjx_surrogate.config.Config
+    system: Any  # mjx_surrogate.systems.System
+
+
+class SurrogateKind(NamedTuple):
+    """fit(ctx, train, test, key) -> {label: Fitted}; validate(config, system, n_train)
+    raises ConfigError before any compile (``n_train``: training transitions)."""
+
+    fit: Callable[..., dict[str, Fitted]]
+    validate: Callable[[Any, Any, int], None] = lambda config, system, n_train: None
+    description: str = ""
+
+
+SURROGATES: dict[str, SurrogateKind] = {}
+
+
+def register_surrogate(name: str, kind: SurrogateKind) -> None:
+    """Add ``kind`` under ``name`` (then valid in ``surrogate.kinds``)."""
+    SURROGATES[name] = kind
+
+
+def get_surrogate(name: str, field: str = "surrogate.kinds") -> SurrogateKind:
+    if name not in SURROGATES:
+        raise ConfigError(field, f"unknown surrogate kind {name!r}; valid: {', '.join(SURROGATES)}")
+    return SURROGATES[name]
+
+
+def fit_all(ctx: FitContext, train, test, key: jax.Array) -> dict[str, Fitted]:
+    """Fit every kind of ``ctx.config.surrogate.kinds`` on Transitions ``train`` (``test``
+    for held-out losses); kind i draws from ``fold_in(key, i)``. Labels stay in order."""
+    out: dict[str, Fitted] = {}
+    for i, name in enumerate(ctx.config.surrogate.kinds):
+        t0 = time.perf_counter()
+        fitted = get_surrogate(name).fit(ctx, train, test, jax.random.fold_in(key, i))
+        for label, f in fitted.items():
+            jax.block_until_ready(f.model)
+            out[label] = f._replace(info={"fit_s": (time.perf_counter() - t0) / len(fitted),
+                                          **f.info})
+    return out
+
+
+# -- built-in kinds -------------------------------------------------------------------
+
+def hinge_angles(system) -> tuple[int, ...]:
+    """State indices of hinge-joint angles (the default trig coordinates)."""
+    from mjx_surrogate.systems.system import hinge_state_indices
+
+    return tuple(q for q, _ in hinge_state_indices(system.mj_model))
+
+
+def library_specs(config, system, names: tuple[str, ...] | str | None = None,
+                  field: str = "surrogate.sindy.libraries") -> dict:
+    """Resolved SINDy libraries by name (default: surrogate.sindy.libraries; a single name
+    for a scalar field); a bad one raises ConfigError naming ``field[i]`` (``field`` for a
+    single name), or surrogate.sindy.trig_coords / harmonics."""
+    from mjx_surrogate.surrogates import library
+
+    sc = config.surrogate.sindy
+    coords = sc.trig_coords if sc.trig_coords is not None else hinge_angles(system)
+    nz = system.nx + system.nu
+    scalar = isinstance(names, str)
+    out = {}
+    for i, name in enumerate((names,) if scalar else sc.libraries if names is None else names):
+        try:
+            spec = library.parse(name, coords, sc.harmonics)
+            library.validate(spec, nz)
+        except library.SpecError as exc:
+            where = (f"surrogate.sindy.{exc.part}" if exc.part in ("trig_coords", "harmonics")
+                     else field if scalar else f"{field}[{i}]")
+            raise ConfigError(where, exc.message) from None
+        out[name] = spec
+    return out
+
+
+def _fit_sindy(ctx: FitContext, train, test, key) -> dict[str, Fitted]:
+    from mjx_surrogate.surrogates import sindy
+
+    s, inc = ctx.config.surrogate.sindy, ctx.config.surrogate.increment
+    out = {}
+    for name, spec in library_specs(ctx.config, ctx.system).items():
+        model = sindy.fit(spec, train.x, train.u, train.x_next, increment=inc,
+                          threshold=s.stlsq_threshold, alpha=s.stlsq_alpha, method=s.method)
+        out[f"SINDy {name}"] = Fitted(model, {"n_features": int(model.coef.shape[0]),
+                                              "nonzero": int(jnp.sum(model.coef != 0))})
+    return out
+
+
+def mlp_spec(config):
+    """surrogate.mlp -> the MLP's static spec."""
+    from mjx_surrogate.surrogates.mlp import MLPSpec
+
+    m = config.surrogate.mlp
+    return MLPSpec(widths=tuple(m.widths), increment=config.surrogate.increment,
+                   learning_rate=m.learning_rate, weight_decay=m.weight_decay,
+                   batch_size=m.batch_size, epochs=m.epochs, checkpoints=tuple(m.checkpoints))
+
+
+def _fit_mlp(ctx: FitContext, train, test, key) -> dict[str, Fitted]:
+    from mjx_surrogate.surrogates import mlp
+
+    spec = mlp_spec(ctx.config)
+    r = mlp.train(spec, key, jnp.concatenate([train.x, train.u], -1),
+                  mlp.targets(train.x, train.x_next, spec.increment),
+                  jnp.concatenate([test.x, test.u], -1),
+                  mlp.targets(test.x, test.x_next, spec.increment))
+    info = {"epochs": spec.epochs, "final_train_loss": float(r.train_loss[-1]),
+            "final_test_loss": float(r.test_loss[-1])}
+    return {"MLP": Fitted(r.model, info, {"train_loss": r.train_loss, "test_loss": r.test_loss})}
+
+
+def _validate_sindy(config, system, n_train: int) -> None:
+    library_specs(config, system)
+
+
+def _validate_mlp(config, system, n_train: int) -> None:
+    b = config.surrogate.mlp.batch_size
+    if b > n_train:
+        raise ConfigError("surrogate.mlp.batch_size", f"{b} exceeds the {n_train} training "
+                          "transitions (data.n_traj x task.T)")
+
+
+register_surrogate("sindy", SurrogateKind(_fit_sindy, _validate_sindy,
+                                          "SINDy-style least squares, one model per library"))
+register_surrogate("mlp", SurrogateKind(_fit_mlp, _validate_mlp, "Flax MLP, the paper's"))
