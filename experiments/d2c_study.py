@@ -42,7 +42,9 @@ def _solve_arrays(prefix: str, result, X_bb) -> dict:
 def run(res: Resolved, record: Run, key: jax.Array) -> str:
     cfg, system, task = res
     ex, sc = cfg.experiment, cfg.solver
-    params, sid_params = solver_params(cfg, record_trajectories=True)
+    # iterates are kept for the trajectory figure unless that would take > 80 MB (float64)
+    history_size = (sc.max_iter + 1) * (task.T + 1) * system.nx
+    params, sid_params = solver_params(cfg, record_trajectories=history_size <= 10_000_000)
     k_init, k_d2c, k_ltv, k_noise = jax.random.split(key, 4)
     dtype = task.x0.dtype
     record.add_arrays({"x0": task.x0})
@@ -117,7 +119,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     record.figure("cost_history.png", lambda: plots.cost_history(
         hist, f"{system.name}: {cfg.task.preset}"))
     t = np.arange(task.T + 1) * system.dt
-    Xh = a_d2c["d2c_X_history"][: m_d2c["iterations"] + 1]
+    Xh = a_d2c.get("d2c_X_history", a_d2c["d2c_X"][None])[: m_d2c["iterations"] + 1]
     record.figure("trajectory_evolution.png", lambda: plots.trajectory_evolution(
         t, Xh, np.asarray(task.x_goal), state_labels(system.mj_model),
         f"D2C on {system.name} from {cfg.solver.init} controls"))

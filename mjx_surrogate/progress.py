@@ -11,6 +11,9 @@ and returns its best iterate, so nothing it computed is lost.
 
     with progress.meter("D2C", total=100) as pm:
         result = solve_d2c(system, task, U0, key, progress=pm)
+
+Any meter passed explicitly (``NO_PROGRESS`` included) shares one compiled program; a solve
+called without the argument is compiled without the callback at all (benchmarks).
 """
 
 from __future__ import annotations

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from experiments import run as cli
+from helpers import assert_png
 from mjx_surrogate.config import Config, SystemConfig, TaskConfig
 from mjx_surrogate.d2c import solve_d2c, solve_exact, solve_multistart
 from mjx_surrogate.evaluation import evaluate_feedback
@@ -97,11 +98,3 @@ def test_d2c_experiment_writes_schema(tmp_path):
     for f in ("cost_history.png", "trajectory_evolution.png", "feedback_noise.png"):
         assert_png(os.path.join(path, f))
 
-
-def assert_png(path: str, min_pixels: int = 200) -> None:
-    """A real figure: a PNG that decodes, of a plausible size, not one flat colour."""
-    import matplotlib.image
-
-    img = matplotlib.image.imread(path)
-    assert img.ndim == 3 and min(img.shape[:2]) >= min_pixels, img.shape
-    assert float(img[..., :3].std()) > 0.01

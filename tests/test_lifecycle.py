@@ -1,0 +1,153 @@
+"""The run lifecycle: every finished stage kept, whatever ends the run."""
+
+import glob
+import json
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from experiments import run as cli
+from helpers import assert_png
+from mjx_surrogate import progress
+from mjx_surrogate.results import Run, RunFolder, load_run
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+# A D2C solve that would run for many minutes: the cost never stops changing by the rules
+# (rel_tol = k_tol = 0) and the regularisation grows by 1e-6 per rejected step.
+ENDLESS = ["smoke_d2c", "--solver.max_iter", "1000000", "--solver.rel_tol", "0",
+           "--solver.k_tol", "0", "--solver.mu_factor", "1.000001",
+           "--experiment.no-exact-oracle", "--experiment.progress"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_signal_mid_solve_ends_the_run_interrupted_and_keeps_its_results(tmp_path, sig):
+    proc = subprocess.Popen([sys.executable, "-m", "experiments.run", *ENDLESS,
+                             "--out", str(tmp_path)], cwd=ROOT, stderr=subprocess.PIPE,
+                            stdout=subprocess.PIPE)
+    seen = bytearray()
+
+    def reader():
+        while chunk := os.read(proc.stderr.fileno(), 4096):
+            seen.extend(chunk)
+
+    threading.Thread(target=reader, daemon=True).start()
+    try:
+        deadline = time.time() + 300
+        while time.time() < deadline:  # until the bar shows the solve iterating
+            done = [int(n) for n in re.findall(rb"\| *(\d+)/1000000", bytes(seen))]
+            if done and max(done) >= 50:
+                break
+            assert proc.poll() is None, seen.decode(errors="replace")
+            time.sleep(0.2)
+        t_signal = time.time()
+        proc.send_signal(sig)
+        code = proc.wait(timeout=120)
+        stop_s = time.time() - t_signal
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert code == 130, seen.decode(errors="replace")[-2000:]
+    assert stop_s < 60  # prompt: after the current iteration, then the writing
+    assert not glob.glob(str(tmp_path / ".*")), "a .partial folder was left behind"
+    (path,) = glob.glob(str(tmp_path / "*smoke_d2c"))
+    metrics, arrays = load_run(path)
+    assert metrics["status"] == "interrupted"
+    assert metrics["stages"]["d2c"]["status"] == "interrupted"
+    assert metrics["d2c"]["status"] == "interrupted" and metrics["d2c"]["iterations"] > 0
+    assert metrics["d2c"]["cost"] is not None
+    assert {"x0", "d2c_U", "d2c_X", "d2c_K", "d2c_cost_history"} <= set(arrays)
+    assert "feedback" not in metrics["stages"]  # nothing ran after the stop
+    assert b"Traceback" not in seen
+
+
+def test_failed_figure_keeps_the_solve_and_is_reported(tmp_path, monkeypatch):
+    from mjx_surrogate import plots
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("a plotting bug")
+
+    monkeypatch.setattr(plots, "cost_history", broken)
+    code = cli.main(["smoke_d2c", "--out", str(tmp_path), "--experiment.no-exact-oracle"])
+    (path,) = glob.glob(str(tmp_path / "*smoke_d2c"))
+    metrics, arrays = load_run(path)
+    assert code == 0 and metrics["status"] == "converged"
+    assert metrics["figures"]["cost_history.png"] == {"status": "failed",
+                                                      "error": "RuntimeError: a plotting bug"}
+    assert metrics["figures"]["feedback_noise.png"] == "written"
+    assert_png(os.path.join(path, "feedback_noise.png"))
+    assert not os.path.exists(os.path.join(path, "cost_history.png"))
+    assert {"d2c_U", "d2c_X", "feedback_closed_costs"} <= set(arrays)
+
+
+def test_failed_stage_keeps_the_earlier_stages(tmp_path, monkeypatch, capsys):
+    import experiments.d2c_study as study
+
+    def broken(*args, **kwargs):
+        raise FloatingPointError("feedback exploded")
+
+    monkeypatch.setattr(study, "evaluate_feedback", broken)
+    code = cli.main(["smoke_d2c", "--out", str(tmp_path), "--experiment.no-exact-oracle"])
+    (path,) = glob.glob(str(tmp_path / "*smoke_d2c"))
+    metrics, arrays = load_run(path)
+    assert code == 1 and metrics["status"] == "failed"
+    assert metrics["error"] == "FloatingPointError: feedback exploded"
+    assert metrics["stages"]["d2c"]["status"] == "done"
+    assert metrics["stages"]["feedback"]["status"] == "failed"
+    assert metrics["d2c"]["status"] == "converged" and "d2c_U" in arrays
+    assert "[failed]" in capsys.readouterr().out
+
+
+def test_folder_of_a_killed_run_is_recovered_by_the_next_run(tmp_path):
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True).stdout.strip()
+    killed = RunFolder(str(tmp_path), "killed")
+    record = Run(killed)
+    record.stage("first", lambda: ({"cost": 1.5}, {"U": np.ones(3)}))
+    alive = RunFolder(str(tmp_path), "alive")  # a live run's folder is left alone
+    killed.write_json(".owner", {"pid": int(dead), "host": socket.gethostname()})
+    nxt = RunFolder(str(tmp_path), "next")
+    assert nxt.recovered == [killed.final_path]
+    metrics, arrays = load_run(killed.final_path)
+    assert metrics["status"] == "killed" and metrics["first"] == {"cost": 1.5}
+    np.testing.assert_array_equal(arrays["U"], np.ones(3))
+    assert os.path.isdir(alive.path) and alive.path.endswith(".partial")
+
+
+def test_resume_reuses_finished_stages_only(tmp_path):
+    first = Run(RunFolder(str(tmp_path), "a"))
+    first.stage("done", lambda: ({"x": 1}, {"a": np.arange(3)}))
+    with pytest.raises(ZeroDivisionError):
+        first.stage("broken", lambda: 1 / 0)
+    path = first.finish("failed", ZeroDivisionError("x"))
+
+    calls = []
+    again = Run(RunFolder(str(tmp_path), "b"), resume_from=path)
+    m, a = again.stage("done", lambda: calls.append("done") or ({"x": 2}, {"a": np.zeros(3)}))
+    assert m == {"x": 1} and np.array_equal(a["a"], np.arange(3)) and calls == []
+    m, _ = again.stage("broken", lambda: calls.append("broken") or ({"y": 3}, {}))
+    assert m == {"y": 3} and calls == ["broken"]
+    assert again.metrics["stages"]["done"]["resumed"] is True
+
+
+def test_stop_request_ends_a_stage_run_with_interrupted(tmp_path):
+    record = Run(RunFolder(str(tmp_path), "s"))
+    progress.clear_stop()
+    try:
+        from mjx_surrogate.results import Interrupted
+
+        with pytest.raises(Interrupted):
+            record.stage("long", lambda: progress.request_stop() or ({"it": 3}, {"U": np.ones(2)}))
+    finally:
+        progress.clear_stop()
+    assert record.metrics["stages"]["long"]["status"] == "interrupted"
+    assert json.load(open(os.path.join(record.folder.path, "metrics.json")))["long"] == {"it": 3}

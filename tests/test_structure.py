@@ -1,0 +1,97 @@
+"""Structure the code base promises: one-way imports, no import-time global state, the
+default precision end to end, no recompilation to switch the progress meter."""
+
+import ast
+import glob
+import json
+import os
+import subprocess
+import sys
+
+import jax
+import jax.numpy as jnp
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _imports(path: str) -> set[str]:
+    tree = ast.parse(open(path).read())
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            out.add(node.module)
+            out |= {f"{node.module}.{a.name}" for a in node.names}
+    return out
+
+
+def test_the_library_never_imports_experiments_or_matplotlib_in_its_core():
+    for path in glob.glob(os.path.join(ROOT, "mjx_surrogate", "**", "*.py"), recursive=True):
+        mods = _imports(path)
+        assert not any(m.split(".")[0] in ("experiments", "benchmarks", "configs") for m in mods), path
+        if not path.endswith(("plots.py", "results.py")):
+            assert not any(m.startswith("matplotlib") for m in mods), path
+
+
+def test_experiment_kinds_never_import_each_other():
+    for path in glob.glob(os.path.join(ROOT, "experiments", "*_study.py")):
+        mods = _imports(path)
+        assert not any(m.startswith("experiments") for m in mods), (path, mods)
+
+
+def test_importing_the_package_changes_no_global_state():
+    code = """
+import os, json, mujoco
+env, cwd = dict(os.environ), os.getcwd()
+import jax
+async_before = jax.config.read("jax_cpu_enable_async_dispatch")
+import mjx_surrogate, mjx_surrogate.pipeline, mjx_surrogate.evaluation, mjx_surrogate.results
+import mjx_surrogate.systems.backend_native, mjx_surrogate.systems.backend_mjx
+from jax._src import xla_bridge
+print(json.dumps({"env": dict(os.environ) == env, "cwd": os.getcwd() == cwd,
+                  "async": jax.config.read("jax_cpu_enable_async_dispatch") == async_before,
+                  "backend": bool(xla_bridge._backends)}))
+"""
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                         timeout=120)
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == {
+        "env": True, "cwd": True, "async": True, "backend": False}, out.stderr
+
+
+def test_default_precision_float32_run_end_to_end(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "experiments.run", "smoke_d2c", "--out",
+                          str(tmp_path)], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    (path,) = glob.glob(str(tmp_path / "*smoke_d2c"))
+    import numpy as np
+
+    cfg = json.load(open(os.path.join(path, "config.json")))
+    metrics = json.load(open(os.path.join(path, "metrics.json")))
+    arrays = np.load(os.path.join(path, "arrays.npz"))
+    assert cfg["experiment"]["x64"] is False and arrays["d2c_U"].dtype == np.float32
+    assert metrics["status"] == "converged"
+    assert abs(metrics["d2c_vs_exact_relative_gap"]) < 1e-3
+    assert "[converged]" in out.stdout and "d2c cost" in out.stdout
+
+
+def test_switching_the_progress_meter_does_not_recompile(systems):
+    from mjx_surrogate import progress
+    from mjx_surrogate.d2c import solve_d2c
+    from mjx_surrogate.resolution import resolve
+    from mjx_surrogate.config import Config, SystemConfig, TaskConfig
+    from mjx_surrogate.ilqr import ILQRParams
+    from mjx_surrogate.sysid import SysIdParams
+
+    _, system, task = resolve(Config(system=SystemConfig(name="pendulum"),
+                                     task=TaskConfig(preset="pendulum_d2c", T=8)))
+    U0 = jnp.zeros((task.T, 1))
+    p, sid = ILQRParams(max_iter=20), SysIdParams(n_samples=6)
+    # a meter passed explicitly (NO_PROGRESS or a live one) shares one program; leaving the
+    # argument out compiles one without the callback at all
+    quiet = solve_d2c(system, task, U0, jax.random.key(0), p, sid, progress.NO_PROGRESS)
+    n = solve_d2c._cache_size()
+    with progress.meter("test", 20, display=True) as meter:
+        shown = solve_d2c(system, task, U0, jax.random.key(0), p, sid, meter)
+    assert solve_d2c._cache_size() == n
+    assert float(shown.cost) == float(quiet.cost)
