@@ -7,14 +7,13 @@ import json
 import os
 import shutil
 
-from mjx_surrogate.results import versions
+from mjx_surrogate.results import read_json, versions
 
 
 def _load(folder: str | None) -> dict:
     if not folder:
         return {}
-    with open(os.path.join(folder, "metrics.json")) as f:
-        return json.load(f)
+    return read_json(os.path.join(folder, "metrics.json"))
 
 
 def _read(folder: str | None, name: str) -> str:
@@ -23,6 +22,8 @@ def _read(folder: str | None, name: str) -> str:
 
 
 def _f(v, p=3) -> str:
+    if isinstance(v, str):  # a non-finite number as written to JSON ("inf", "nan")
+        return v
     return "diverged" if v is None else f"{v:.{p}g}"
 
 

@@ -3,8 +3,10 @@
     python -m experiments.reproduce [--quick] [--out DIR] [--report PATH]
 
 Runs the presets below in the paper's order, each into its own run folder under DIR
-(default ``runs/reproduce`` or ``runs/reproduce-quick``). Resumable: an experiment whose
-finished run folder (status ok or diverged) is already in DIR is not run again. Then
+(default ``runs/reproduce`` or ``runs/reproduce-quick``). Resumable at the stage level: an
+experiment whose finished run folder (a success status or ``diverged``) is already in DIR
+is not run again; one whose newest folder ended ``failed``, ``interrupted`` or ``killed``
+is run again reusing every stage that folder finished. Then
 writes the report (default: ``docs/reproduction.md`` for the full size, DIR/reproduction.md
 for --quick) with every figure in order, the paper's caption, what was measured and
 whether the paper's claim held. ``--quick`` shrinks data sets, epochs and orders to a
@@ -22,9 +24,9 @@ import shutil
 import sys
 import time
 
-import mjx_surrogate  # noqa: F401  (XLA flags first)
 from experiments import report
 from experiments.run import load_config, run
+from mjx_surrogate.results import SUCCESS
 
 EXPERIMENTS = ("pendulum_predict", "cartpole_predict", "fish_predict", "cartpole_analysis",
                "theory", "cartpole_control")
@@ -51,15 +53,30 @@ def quick(cfg, name: str):
     return cfg
 
 
+DONE = SUCCESS + ("diverged",)
+
+
+def _status(path: str) -> str | None:
+    try:
+        with open(os.path.join(path, "metrics.json")) as f:
+            return json.load(f).get("status")
+    except (OSError, ValueError):
+        return None
+
+
 def finished(out: str, name: str) -> str | None:
     """The newest finished run folder of ``name`` in ``out``, if any."""
     for path in sorted(glob.glob(os.path.join(out, f"*_{name}")), reverse=True):
-        try:
-            with open(os.path.join(path, "metrics.json")) as f:
-                if json.load(f).get("status") in ("ok", "diverged"):
-                    return path
-        except (OSError, ValueError):
-            continue
+        if _status(path) in DONE:
+            return path
+    return None
+
+
+def unfinished(out: str, name: str) -> str | None:
+    """The newest folder of ``name`` if it ended early (its stages can be resumed)."""
+    paths = sorted(glob.glob(os.path.join(out, f"*_{name}")), reverse=True)
+    if paths and _status(paths[0]) in ("failed", "interrupted", "killed"):
+        return paths[0]
     return None
 
 
@@ -82,12 +99,17 @@ def main(argv: list[str] | None = None) -> int:
         if done:
             print(f"[{i}/{len(names)}] {name}: done already ({done})", flush=True)
             continue
-        print(f"[{i}/{len(names)}] {name}: running", flush=True)
+        resume = unfinished(out, name)
+        print(f"[{i}/{len(names)}] {name}: " + (f"resuming the stages of {resume}" if resume
+                                                else "running"), flush=True)
         cfg = load_config(name)
         cfg = quick(cfg, name) if a.quick else cfg
         cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(cfg.experiment, out_dir=out))
         t0 = time.perf_counter()
-        run(cfg, name)
+        path = run(cfg, name, resume_from=resume)
+        if _status(path) == "interrupted":
+            print("interrupted: run the same command again to resume", flush=True)
+            return 130
         times[name] = time.perf_counter() - t0
         with open(timing_file + ".tmp", "w") as f:
             json.dump(times, f, indent=1)

@@ -81,6 +81,26 @@ def jsonable(obj: Any) -> Any:
     return obj
 
 
+_NONFINITE = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
+
+
+def restore_nonfinite(obj: Any) -> Any:
+    """Inverse of :func:`jsonable` for numbers: "nan"/"inf"/"-inf" strings become floats."""
+    if isinstance(obj, dict):
+        return {k: restore_nonfinite(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [restore_nonfinite(v) for v in obj]
+    if isinstance(obj, str) and obj in _NONFINITE:
+        return _NONFINITE[obj]
+    return obj
+
+
+def read_json(path: str) -> Any:
+    """A JSON file written by :class:`RunFolder`, non-finite numbers restored."""
+    with open(path) as f:
+        return restore_nonfinite(json.load(f))
+
+
 def _alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -188,8 +208,7 @@ class RunFolder:
 
 def load_run(path: str) -> tuple[dict, dict]:
     """(metrics, arrays) of a run folder (arrays as NumPy)."""
-    with open(os.path.join(path, "metrics.json")) as f:
-        metrics = json.load(f)
+    metrics = read_json(os.path.join(path, "metrics.json"))
     arrays = {}
     npz = os.path.join(path, "arrays.npz")
     if os.path.exists(npz):

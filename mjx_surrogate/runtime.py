@@ -11,6 +11,10 @@ should too, before its first JAX computation:
   can hang the CPU runtime at 0 % CPU with asynchronous dispatch (jax-ml/jax#25861).
 * MuJoCo's warning hook: a line search provokes many diverged trials, each of which MuJoCo
   would print; they are counted in :data:`MUJOCO_WARNINGS` (and surface as NaN states).
+* JAX's persistent compilation cache in ``$MJX_SURROGATE_CACHE`` (default
+  ``~/.cache/mjx_surrogate/jax``): a program compiled once (by any process) is loaded, not
+  recompiled. ``MJX_SURROGATE_CACHE=off`` (or ``compile_cache=False``) switches it off.
+  Programs with host callbacks (the native backend) are not cached by JAX.
 """
 
 from __future__ import annotations
@@ -33,8 +37,16 @@ def backend_started() -> bool:
     return bool(getattr(xla_bridge, "_backends", None))
 
 
-def configure_runtime(x64: bool | None = None) -> dict:
-    """Apply the settings above (idempotent); ``x64`` sets ``jax_enable_x64`` if given.
+def default_cache_dir() -> str | None:
+    env = os.environ.get("MJX_SURROGATE_CACHE")
+    if env is not None:
+        return None if env.lower() in ("", "0", "off", "false", "no") else env
+    return os.path.join(os.path.expanduser("~"), ".cache", "mjx_surrogate", "jax")
+
+
+def configure_runtime(x64: bool | None = None, compile_cache: str | bool | None = None) -> dict:
+    """Apply the settings above (idempotent); ``x64`` sets ``jax_enable_x64`` if given;
+    ``compile_cache``: a folder, False (off), or None (the default folder).
 
     Returns what was applied, e.g. for a run's ``versions.json``.
     """
@@ -54,4 +66,15 @@ def configure_runtime(x64: bool | None = None) -> dict:
     mujoco.set_mju_user_warning(_count_warning)
     if x64 is not None:
         jax.config.update("jax_enable_x64", bool(x64))
+    cache = default_cache_dir() if compile_cache in (None, True) else compile_cache or None
+    if cache:
+        try:
+            os.makedirs(cache, exist_ok=True)
+            jax.config.update("jax_compilation_cache_dir", cache)
+            jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+            applied["compilation_cache"] = cache
+        except OSError as exc:  # a read-only home: run without the cache
+            applied["compilation_cache"] = f"off ({exc})"
+    else:
+        applied["compilation_cache"] = "off"
     return applied

@@ -8,6 +8,7 @@ size in its name (``swimmer<N>``) is registered with a pattern.
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 from types import ModuleType
@@ -80,12 +81,23 @@ def make_system(name: str, backend: str = "auto", substeps: int | None = None,
                 timestep: float | None = None, native_threads: int | None = None) -> System:
     """Build a registered system (``pendulum``, ``cartpole``, ``fish``, ``swimmerN``).
 
-    ``backend="auto"`` takes the measured faster backend for this system on the CPU.
+    ``backend="auto"`` takes the measured faster backend for this system on the CPU. The
+    same arguments (and precision) give the same :class:`System` object, so programs
+    jitted on it are reused rather than compiled again (a System is immutable).
     """
+    import jax
+
     d = default_config(name)
-    return build_system(name, d.xml(), substeps if substeps is not None else d.substeps,
-                        d.backend if backend == "auto" else backend, timestep, native_threads,
-                        field="system.name")
+    return _built(name, d.backend if backend == "auto" else backend,
+                  substeps if substeps is not None else d.substeps, timestep, native_threads,
+                  bool(jax.config.jax_enable_x64))
+
+
+@functools.lru_cache(maxsize=32)
+def _built(name: str, backend: str, substeps: int, timestep: float | None,
+           native_threads: int | None, x64: bool) -> System:
+    return build_system(name, default_config(name).xml(), substeps, backend, timestep,
+                        native_threads, field="system.name")
 
 
 def from_mjcf(path: str, backend: str = "auto", substeps: int = 1,
