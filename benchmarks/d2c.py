@@ -33,46 +33,75 @@ import time
 import numpy as np
 
 PUBLISHED = {  # D2C 2.0: (LLS-CD time s, LLS-CD cost, FD time s, FD cost)
-    "pendulum": (0.23, 0.626, 0.17, 0.626), "cartpole": (None, 9942, 1.1, 9943),
-    "fish": (53.5, 401.7, 750, 373.2), "swimmer6": (132, 1332, 1913, 1179),
+    "pendulum": (0.23, 0.626, 0.17, 0.626),
+    "cartpole": (None, 9942, 1.1, 9943),
+    "fish": (53.5, 401.7, 750, 373.2),
+    "swimmer6": (132, 1332, 1913, 1179),
 }
 
 
-def bench(name: str, backend: str, max_iter: int | None, exact: bool, numpy_ref: bool,
-          sysid: str | None = None, n_samples: int | None = None, sigma: float | None = None,
-          rel_tol: float | None = None, repeats: int = 1, polish: bool = False) -> dict:
-    import jax
+def bench(
+    name: str,
+    backend: str,
+    max_iter: int | None,
+    exact: bool,
+    numpy_ref: bool,
+    sysid: str | None = None,
+    n_samples: int | None = None,
+    sigma: float | None = None,
+    rel_tol: float | None = None,
+    repeats: int = 1,
+    polish: bool = False,
+) -> dict:
+    import dataclasses
 
+    import jax
     import reference_d2c_numpy as d2c_numpy  # the test oracle, tests/reference_d2c_numpy.py
+
     from configs import load as load_config
     from mjx_surrogate.d2c import solve_d2c, solve_exact
     from mjx_surrogate.pipeline import initial_controls
     from mjx_surrogate.resolution import resolve, solver_params
     from mjx_surrogate.timing import compile_then_run
-    import dataclasses
 
     cfg = load_config(f"{name}_d2c")
     jax.config.update("jax_enable_x64", cfg.experiment.x64)  # the preset's precision
     cfg = dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, backend=backend))
-    over = {k: v for k, v in dict(max_iter=max_iter, rel_tol=rel_tol, sysid=sysid,
-                                  n_samples=n_samples,
-                                  sigma_x=sigma, sigma_u=sigma).items() if v}
+    over = {
+        k: v
+        for k, v in dict(
+            max_iter=max_iter, rel_tol=rel_tol, sysid=sysid, n_samples=n_samples, sigma_x=sigma, sigma_u=sigma
+        ).items()
+        if v
+    }
     cfg = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, **over))
     _, system, task = resolve(cfg)
     params, sid = solver_params(cfg)
-    U0 = initial_controls(jax.random.key(0), task.T, system.nu, cfg.solver.init,
-                          cfg.solver.init_scale)
-    row = {"system": name, "backend": system.backend, "T": task.T, "n_samples": sid.n_samples,
-           "scheme": f"{sid.scheme} n={sid.n_samples} sigma={float(sid.sigma_x):g}",
-           "precision": "f64" if cfg.experiment.x64 else "f32"}
-    t = compile_then_run(solve_d2c, (system,), (task, U0, jax.random.key(1), params, sid),
-                         repeats)
-    row.update(d2c_cost=float(t.out.cost), d2c_iters=int(t.out.iterations),
-               d2c_compile=t.compile_s, d2c_run=t.run_s, d2c_conv=bool(t.out.converged))
+    U0 = initial_controls(jax.random.key(0), task.T, system.nu, cfg.solver.init, cfg.solver.init_scale)
+    row = {
+        "system": name,
+        "backend": system.backend,
+        "T": task.T,
+        "n_samples": sid.n_samples,
+        "scheme": f"{sid.scheme} n={sid.n_samples} sigma={float(sid.sigma_x):g}",
+        "precision": "f64" if cfg.experiment.x64 else "f32",
+    }
+    t = compile_then_run(solve_d2c, (system,), (task, U0, jax.random.key(1), params, sid), repeats)
+    row.update(
+        d2c_cost=float(t.out.cost),
+        d2c_iters=int(t.out.iterations),
+        d2c_compile=t.compile_s,
+        d2c_run=t.run_s,
+        d2c_conv=bool(t.out.converged),
+    )
     if exact:
         e = compile_then_run(solve_exact, (system,), (task, U0, params))
-        row.update(exact_cost=float(e.out.cost), exact_iters=int(e.out.iterations),
-                   exact_compile=e.compile_s, exact_run=e.run_s)
+        row.update(
+            exact_cost=float(e.out.cost),
+            exact_iters=int(e.out.iterations),
+            exact_compile=e.compile_s,
+            exact_run=e.run_s,
+        )
     if polish:
         p = compile_then_run(solve_exact, (system,), (task, t.out.U, params))
         row.update(polish_cost=float(p.out.cost), polish_iters=int(p.out.iterations))
@@ -82,12 +111,19 @@ def bench(name: str, backend: str, max_iter: int | None, exact: bool, numpy_ref:
         times = []
         for _ in range(max(1, repeats)):
             t0 = time.perf_counter()
-            ref = d2c_numpy.solve(step, a[0], np.asarray(U0, np.float64), *a[1:], seed=1,
-                                  n_samples=sid.n_samples, sigma=float(sid.sigma_x),
-                                  max_iter=params.max_iter, rel_tol=float(params.rel_tol),
-                                  n_alphas=params.n_alphas,
-                                  scheme="forward_difference"
-                                  if sid.scheme == "forward_difference" else "central_difference")
+            ref = d2c_numpy.solve(
+                step,
+                a[0],
+                np.asarray(U0, np.float64),
+                *a[1:],
+                seed=1,
+                n_samples=sid.n_samples,
+                sigma=float(sid.sigma_x),
+                max_iter=params.max_iter,
+                rel_tol=float(params.rel_tol),
+                n_alphas=params.n_alphas,
+                scheme="forward_difference" if sid.scheme == "forward_difference" else "central_difference",
+            )
             times.append(time.perf_counter() - t0)
         row.update(np_run=sorted(times)[len(times) // 2], np_cost=ref["cost"], np_iters=ref["iterations"])
     return row
@@ -112,27 +148,45 @@ def main() -> None:
     configure_runtime()
 
     f = lambda v, p=3: "-" if v is None else (f"{v:.{p}g}" if isinstance(v, float) else str(v))  # noqa
-    print("| system | backend | precision | identification | T | D2C cost | iters | D2C run s | D2C compile s "
-          "| exact cost | exact iters | gap % | NumPy+native run s | NumPy cost | speed-up vs NumPy | published LLS-CD s / cost "
-          "| published FD s / cost |")
+    print(
+        "| system | backend | precision | identification | T | D2C cost | iters | D2C run s | D2C compile s "
+        "| exact cost | exact iters | gap % | NumPy+native run s | NumPy cost | speed-up vs NumPy "
+        "| published LLS-CD s / cost | published FD s / cost |"
+    )
     print("|" + "---|" * 17)
     for name in a.systems:
-        r = bench(name, a.backend, a.max_iter, not a.no_exact, not a.no_numpy, a.sysid,
-                  a.n_samples, a.sigma, a.rel_tol, a.repeats, a.polish)
-        gap = (100 * (r["d2c_cost"] - r["exact_cost"]) / abs(r["exact_cost"])
-               if "exact_cost" in r else None)
+        r = bench(
+            name,
+            a.backend,
+            a.max_iter,
+            not a.no_exact,
+            not a.no_numpy,
+            a.sysid,
+            a.n_samples,
+            a.sigma,
+            a.rel_tol,
+            a.repeats,
+            a.polish,
+        )
+        gap = 100 * (r["d2c_cost"] - r["exact_cost"]) / abs(r["exact_cost"]) if "exact_cost" in r else None
         sp = r["np_run"] / r["d2c_run"] if "np_run" in r else None
         p = PUBLISHED.get(name, (None,) * 4)
-        print(f"| {name} | {r['backend']} | {r['precision']} | {r['scheme']} | {r['T']} | {f(r['d2c_cost'], 5)} | "
-              f"{r['d2c_iters']} | {f(r['d2c_run'])} | {f(r['d2c_compile'])} | "
-              f"{f(r.get('exact_cost'), 5)} | {r.get('exact_iters', '-')} | "
-              f"{f(gap, 2)} | {f(r.get('np_run'))} | {f(r.get('np_cost'), 5)} | {f(sp)} | "
-              f"{f(p[0])} / {f(p[1], 4)} | {f(p[2])} / {f(p[3], 4)} |", flush=True)
+        print(
+            f"| {name} | {r['backend']} | {r['precision']} | {r['scheme']} | {r['T']} | "
+            f"{f(r['d2c_cost'], 5)} | "
+            f"{r['d2c_iters']} | {f(r['d2c_run'])} | {f(r['d2c_compile'])} | "
+            f"{f(r.get('exact_cost'), 5)} | {r.get('exact_iters', '-')} | "
+            f"{f(gap, 2)} | {f(r.get('np_run'))} | {f(r.get('np_cost'), 5)} | {f(sp)} | "
+            f"{f(p[0])} / {f(p[1], 4)} | {f(p[2])} / {f(p[3], 4)} |",
+            flush=True,
+        )
         if "polish_cost" in r:
-            print(f"  {name}: the exact oracle started from D2C's solution ({r['d2c_cost']:.6g}) "
-                  f"ends at {r['polish_cost']:.6g} after {r['polish_iters']} iterations "
-                  f"({100 * (r['polish_cost'] - r['d2c_cost']) / abs(r['d2c_cost']):+.3g} %)",
-                  flush=True)
+            print(
+                f"  {name}: the exact oracle started from D2C's solution ({r['d2c_cost']:.6g}) "
+                f"ends at {r['polish_cost']:.6g} after {r['polish_iters']} iterations "
+                f"({100 * (r['polish_cost'] - r['d2c_cost']) / abs(r['d2c_cost']):+.3g} %)",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -28,16 +28,17 @@ import time
 import numpy as np
 
 
-def measure(name: str, batch: int, T: int, repeats: int, constraint_off: bool = True,
-            mjx_max_batch: int | None = None) -> dict:
+def measure(
+    name: str, batch: int, T: int, repeats: int, constraint_off: bool = True, mjx_max_batch: int | None = None
+) -> dict:
     import jax
     import jax.numpy as jnp
     import mujoco
     from mujoco import rollout as mj_rollout
 
     from mjx_surrogate.systems import make_system
-    from mjx_surrogate.systems.system import build_system
     from mjx_surrogate.systems.registry import default_config
+    from mjx_surrogate.systems.system import build_system
 
     out = {"system": name, "batch": batch, "T": T}
     if constraint_off:
@@ -47,6 +48,7 @@ def measure(name: str, batch: int, T: int, repeats: int, constraint_off: bool = 
         mjx_sys = build_system(name, d.xml(), d.substeps, "mjx")
         mjx_sys.mj_model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
         from mjx_surrogate.systems import backend_mjx
+
         step = backend_mjx.make_mjx_step(mjx_sys.mj_model, mjx_sys.substeps)
         object.__setattr__(mjx_sys, "rollout", backend_mjx.make_mjx_rollout(step))
     nat_sys = make_system(name, backend="native", native_threads=2)
@@ -97,8 +99,13 @@ def measure(name: str, batch: int, T: int, repeats: int, constraint_off: bool = 
 def run_subprocess(args: list[str], env_extra: dict, timeout: float = 900) -> list[dict]:
     env = dict(os.environ, **env_extra)
     try:
-        res = subprocess.run([sys.executable, __file__, "--json"] + args, env=env,
-                             capture_output=True, text=True, timeout=timeout)
+        res = subprocess.run(
+            [sys.executable, __file__, "--json"] + args,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
     except subprocess.TimeoutExpired:
         return [{"error": f"{' '.join(args)}: no result within {timeout:.0f} s"}]
     if res.returncode != 0:
@@ -108,14 +115,14 @@ def run_subprocess(args: list[str], env_extra: dict, timeout: float = 900) -> li
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--systems", nargs="+",
-                    default=["pendulum", "cartpole", "fish", "swimmer6", "swimmer15"])
+    ap.add_argument("--systems", nargs="+", default=["pendulum", "cartpole", "fish", "swimmer6", "swimmer15"])
     ap.add_argument("--batches", nargs="+", type=int, default=[256, 4096])
     ap.add_argument("--T", type=int, default=30)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--variants", action="store_true")
-    ap.add_argument("--mjx-max-batch", type=int, default=None,
-                    help="skip MJX above this batch for systems in --slow-mjx")
+    ap.add_argument(
+        "--mjx-max-batch", type=int, default=None, help="skip MJX above this batch for systems in --slow-mjx"
+    )
     ap.add_argument("--slow-mjx", nargs="*", default=["swimmer6", "swimmer15"])
     ap.add_argument("--constraint-on", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
@@ -127,8 +134,9 @@ def main() -> None:
     common = ["--batches", *map(str, a.batches), "--T", str(a.T), "--repeats", str(a.repeats)]
     if a.json:
         cap = lambda s: a.mjx_max_batch if s in a.slow_mjx else None  # noqa: E731
-        rows = [measure(s, b, a.T, a.repeats, not a.constraint_on, cap(s))
-                for s in a.systems for b in a.batches]
+        rows = [
+            measure(s, b, a.T, a.repeats, not a.constraint_on, cap(s)) for s in a.systems for b in a.batches
+        ]
         print(json.dumps(rows))
         return
     # One process per system: keeps XLA and MuJoCo thread pools of one system from
@@ -138,8 +146,10 @@ def main() -> None:
         extra = ["--mjx-max-batch", str(a.mjx_max_batch)] if a.mjx_max_batch else []
         rows += run_subprocess(["--systems", s] + common + extra, {})
     print(f"XLA_FLAGS={os.environ.get('XLA_FLAGS', '')!r}, T={a.T}, float32, steps/s = control steps/s\n")
-    print("| system | batch | MJX | native backend (callback) | mujoco.rollout 1t | "
-          "mujoco.rollout 2t | MJX / 2t | native backend / 2t | MJX compile s |")
+    print(
+        "| system | batch | MJX | native backend (callback) | mujoco.rollout 1t | "
+        "mujoco.rollout 2t | MJX / 2t | native backend / 2t | MJX compile s |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         if "error" in r:
@@ -148,24 +158,40 @@ def main() -> None:
         mjx = f"{r['mjx']:,.0f}" if "mjx" in r else "skipped"
         ratio = f"{r['mjx'] / r['native_2t']:.2f}" if "mjx" in r else "-"
         comp = f"{r['mjx_compile_s']:.1f}" if "mjx" in r else "-"
-        print(f"| {r['system']} | {r['batch']} | {mjx} | {r['native_backend']:,.0f} | "
-              f"{r['native_1t']:,.0f} | {r['native_2t']:,.0f} | {ratio} | "
-              f"{r['native_backend'] / r['native_2t']:.2f} | {comp} |", flush=True)
+        print(
+            f"| {r['system']} | {r['batch']} | {mjx} | {r['native_backend']:,.0f} | "
+            f"{r['native_1t']:,.0f} | {r['native_2t']:,.0f} | {ratio} | "
+            f"{r['native_backend'] / r['native_2t']:.2f} | {comp} |",
+            flush=True,
+        )
     if a.variants:
-        base = ["--systems", *a.systems, "--batches", *map(str, a.batches), "--T", str(a.T),
-                "--repeats", str(a.repeats)]
+        base = [
+            "--systems",
+            *a.systems,
+            "--batches",
+            *map(str, a.batches),
+            "--T",
+            str(a.T),
+            "--repeats",
+            str(a.repeats),
+        ]
         default_xla, no_disable = [], []
         for s in a.systems:
-            b = ["--systems", s] + base[base.index("--batches"):]
+            b = ["--systems", s] + base[base.index("--batches") :]
             default_xla += run_subprocess(b, {"MJX_SURROGATE_KEEP_XLA_FLAGS": "1", "XLA_FLAGS": ""})
             no_disable += run_subprocess(b + ["--constraint-on"], {})
         print("\nMJX variants (control steps/s; compile s in brackets):\n")
-        print("| system | batch | project settings | XLA default flags (fusion emitters on) | "
-              "constraint solver left on |")
+        print(
+            "| system | batch | project settings | XLA default flags (fusion emitters on) | "
+            "constraint solver left on |"
+        )
         print("|---|---|---|---|---|")
         for r, d, c in zip(rows, default_xla, no_disable):
-            fmt = lambda x: (f"{x['mjx']:,.0f} ({x['mjx_compile_s']:.1f})" if "mjx" in x  # noqa
-                             else str(x.get("error")))
+            fmt = lambda x: (
+                f"{x['mjx']:,.0f} ({x['mjx_compile_s']:.1f})"
+                if "mjx" in x  # noqa
+                else str(x.get("error"))
+            )
             print(f"| {r['system']} | {r['batch']} | {fmt(r)} | {fmt(d)} | {fmt(c)} |")
 
 

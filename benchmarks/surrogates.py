@@ -36,8 +36,8 @@ def main() -> None:
     from mjx_surrogate import data
     from mjx_surrogate.d2c import solve_d2c
     from mjx_surrogate.pipeline import initial_controls
-    from mjx_surrogate.rollout import rollout
     from mjx_surrogate.resolution import library_specs, resolve, solver_params
+    from mjx_surrogate.rollout import rollout
     from mjx_surrogate.surrogates import mlp, sindy
 
     jax.config.update("jax_enable_x64", True)
@@ -58,39 +58,64 @@ def main() -> None:
         rows.append((label, t1 - t0, time.perf_counter() - t1))
         return out
 
-    ds = timed(f"data set ({a.n_traj} x {task.T} transitions, {system.backend})",
-               lambda k: data.sample(system, X, opt.U, k, a.n_traj, 0.10), jax.random.key(2))
+    ds = timed(
+        f"data set ({a.n_traj} x {task.T} transitions, {system.backend})",
+        lambda k: data.sample(system, X, opt.U, k, a.n_traj, 0.10),
+        jax.random.key(2),
+    )
     tr = data.transitions(ds)
     specs = library_specs(cfg, system)
     for name, spec in specs.items():
         theta = sindy.design(spec, tr.x, tr.u)
-        timed(f"SINDy {name} least squares (SVD, P={theta.shape[1]})",
-              lambda th, y: sindy.lstsq(th, y, "svd"), theta, tr.x_next)
-        timed(f"SINDy {name} least squares (normal equations)",
-              lambda th, y: sindy.lstsq(th, y, "normal"), theta, tr.x_next)
-        timed(f"SINDy {name} STLSQ (threshold 1e-3)",
-              lambda th, y: sindy.stlsq(th, y, 1e-3, 0.05, 20, True), theta, tr.x_next)
+        timed(
+            f"SINDy {name} least squares (SVD, P={theta.shape[1]})",
+            lambda th, y: sindy.lstsq(th, y, "svd"),
+            theta,
+            tr.x_next,
+        )
+        timed(
+            f"SINDy {name} least squares (normal equations)",
+            lambda th, y: sindy.lstsq(th, y, "normal"),
+            theta,
+            tr.x_next,
+        )
+        timed(
+            f"SINDy {name} STLSQ (threshold 1e-3)",
+            lambda th, y: sindy.stlsq(th, y, 1e-3, 0.05, 20, True),
+            theta,
+            tr.x_next,
+        )
     z = jnp.concatenate([tr.x, tr.u], -1)
     spec = mlp.MLPSpec(epochs=a.epochs)
-    timed(f"MLP 32-64, {a.epochs} epochs, batch 256",
-          lambda k, zz, yy: mlp.train(spec, k, zz, yy, zz[:1000], yy[:1000]).train_loss,
-          jax.random.key(3), z, tr.x_next)
+    timed(
+        f"MLP 32-64, {a.epochs} epochs, batch 256",
+        lambda k, zz, yy: mlp.train(spec, k, zz, yy, zz[:1000], yy[:1000]).train_loss,
+        jax.random.key(3),
+        z,
+        tr.x_next,
+    )
     try:
         import pysindy as ps
 
         xs = np.asarray(ds.X)
         us = np.asarray(ds.U)
         lib = ps.PolynomialLibrary(degree=3) + ps.FourierLibrary(n_frequencies=1)
-        for label, opt_ in (("pysindy STLSQ threshold 0 (least squares)", ps.STLSQ(threshold=0.0, alpha=0.0)),
-                            ("pysindy STLSQ threshold 1e-3", ps.STLSQ(threshold=1e-3, alpha=0.05,
-                                                                      normalize_columns=True))):
+        for label, opt_ in (
+            ("pysindy STLSQ threshold 0 (least squares)", ps.STLSQ(threshold=0.0, alpha=0.0)),
+            ("pysindy STLSQ threshold 1e-3", ps.STLSQ(threshold=1e-3, alpha=0.05, normalize_columns=True)),
+        ):
             model = ps.DiscreteSINDy(optimizer=opt_, feature_library=lib)
             t0 = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 model.fit([x[:-1] for x in xs], 1.0, x_next=[x[1:] for x in xs], u=list(us))
-            rows.append((label + f" (poly3 + Fourier on all of z, P={len(model.get_feature_names())})",
-                         0.0, time.perf_counter() - t0))
+            rows.append(
+                (
+                    label + f" (poly3 + Fourier on all of z, P={len(model.get_feature_names())})",
+                    0.0,
+                    time.perf_counter() - t0,
+                )
+            )
     except ImportError:
         rows.append(("pysindy not installed", 0.0, float("nan")))
     print("| step | compile s | run s |\n|---|---|---|")

@@ -41,9 +41,8 @@ def main() -> None:
     from mjx_surrogate.d2c import exact_linearize, solve_d2c, solve_exact
     from mjx_surrogate.ilqr import StopReason
     from mjx_surrogate.pipeline import initial_controls
-    from mjx_surrogate.sysid import ltv_linearize
     from mjx_surrogate.resolution import resolve, solver_params
-    from mjx_surrogate.sysid import SCHEMES
+    from mjx_surrogate.sysid import SCHEMES, ltv_linearize
 
     print(f"n_samples={a.n_samples}, sigma={a.sigma}, float32, backend={a.backend}\n")
     print("| system | scheme | LTV rel. error median | max | D2C cost | exact cost | gap % | iters | stop |")
@@ -53,22 +52,25 @@ def main() -> None:
         cfg = dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, backend=a.backend))
         _, system, task = resolve(cfg)
         params, _ = solver_params(cfg)
-        U0 = initial_controls(jax.random.key(0), task.T, system.nu, cfg.solver.init,
-                              cfg.solver.init_scale)
+        U0 = initial_controls(jax.random.key(0), task.T, system.nu, cfg.solver.init, cfg.solver.init_scale)
         ex = solve_exact(system, task, U0, params)
         Ae, Be = jax.jit(exact_linearize(system))(ex.X, ex.U, ex.K, jax.random.key(0))
         ref = np.concatenate([np.asarray(Ae), np.asarray(Be)], -1)
         for scheme in SCHEMES:
-            sid = dataclasses.replace(solver_params(cfg)[1], scheme=scheme,
-                                      n_samples=a.n_samples, sigma_x=a.sigma, sigma_u=a.sigma)
+            sid = dataclasses.replace(
+                solver_params(cfg)[1], scheme=scheme, n_samples=a.n_samples, sigma_x=a.sigma, sigma_u=a.sigma
+            )
             A, B = jax.jit(ltv_linearize(system, sid))(ex.X, ex.U, ex.K, jax.random.key(1))
             est = np.concatenate([np.asarray(A), np.asarray(B)], -1)
             rel = np.linalg.norm(est - ref, axis=(1, 2)) / np.linalg.norm(ref, axis=(1, 2))
             r = solve_d2c(system, task, U0, jax.random.key(2), params, sid)
             gap = 100 * (float(r.cost) - float(ex.cost)) / abs(float(ex.cost))
-            print(f"| {name} | {scheme} | {np.median(rel):.2e} | {np.max(rel):.2e} | "
-                  f"{float(r.cost):.5g} | {float(ex.cost):.5g} | {gap:.2f} | {int(r.iterations)} | "
-                  f"{StopReason(int(r.stop_reason)).description} |", flush=True)
+            print(
+                f"| {name} | {scheme} | {np.median(rel):.2e} | {np.max(rel):.2e} | "
+                f"{float(r.cost):.5g} | {float(ex.cost):.5g} | {gap:.2f} | {int(r.iterations)} | "
+                f"{StopReason(int(r.stop_reason)).description} |",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

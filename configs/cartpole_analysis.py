@@ -3,8 +3,19 @@ cartpole swing-up: 5 data sets per level from one sampling distribution (2000 tr
 each), SINDy at 10 % / 100 %, MLP at 5 % / 25 %; Gram spectra at 5 % (SINDy) and 5 % / 15 %
 (MLP); error projections for cubic at 5 % and quartic + trig at 15 %. MLPs train for 100
 epochs here (the paper's 5000 are out of reach on 2 CPU cores)."""
-from mjx_surrogate.config import (AnalysisConfig, Config, DataConfig, ExperimentConfig,
-                                  SolverConfig, MLPConfig, SindyConfig, SurrogateConfig, SystemConfig, TaskConfig)
+
+from mjx_surrogate.config import (
+    AnalysisConfig,
+    Config,
+    DataConfig,
+    ExperimentConfig,
+    MLPConfig,
+    SindyConfig,
+    SolverConfig,
+    SurrogateConfig,
+    SystemConfig,
+    TaskConfig,
+)
 
 CONFIG = Config(
     system=SystemConfig(name="cartpole"),
@@ -12,6 +23,8 @@ CONFIG = Config(
     solver=SolverConfig(n_samples=25, max_iter=300, rel_tol=1e-6, init="zeros"),
     experiment=ExperimentConfig(kind="analysis", x64=True),
     data=DataConfig(n_traj=2000),
-    surrogate=SurrogateConfig(sindy=SindyConfig(libraries=("cubic_trig", "quartic")), mlp=MLPConfig(epochs=100)),
+    surrogate=SurrogateConfig(
+        sindy=SindyConfig(libraries=("cubic_trig", "quartic")), mlp=MLPConfig(epochs=100)
+    ),
     analysis=AnalysisConfig(n_datasets=5, gram_points=1000),
 )

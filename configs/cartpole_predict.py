@@ -1,7 +1,17 @@
 """Paper, Fig. LTV_Cartpole: cartpole swing-up (pole 180 -> 60 deg in 30 steps); 2000
 perturbed trajectories per level, split 9 : 1; SINDy, MLP and LTV predictions."""
-from mjx_surrogate.config import (Config, DataConfig, ExperimentConfig, SolverConfig,
-                                  MLPConfig, SindyConfig, SurrogateConfig, SystemConfig, TaskConfig)
+
+from mjx_surrogate.config import (
+    Config,
+    DataConfig,
+    ExperimentConfig,
+    MLPConfig,
+    SindyConfig,
+    SolverConfig,
+    SurrogateConfig,
+    SystemConfig,
+    TaskConfig,
+)
 
 CONFIG = Config(
     system=SystemConfig(name="cartpole"),
@@ -9,5 +19,7 @@ CONFIG = Config(
     solver=SolverConfig(n_samples=25, max_iter=300, rel_tol=1e-6, init="zeros"),
     experiment=ExperimentConfig(kind="predict", x64=True),
     data=DataConfig(n_traj=2000, levels=(0.05, 0.10, 0.15, 0.25, 0.30, 0.60, 1.00)),
-    surrogate=SurrogateConfig(sindy=SindyConfig(libraries=("cubic_trig", "quartic", "quartic_trig")), mlp=MLPConfig(epochs=200)),
+    surrogate=SurrogateConfig(
+        sindy=SindyConfig(libraries=("cubic_trig", "quartic", "quartic_trig")), mlp=MLPConfig(epochs=200)
+    ),
 )

@@ -1,13 +1,22 @@
 """D2C 2.0 fish: rest -> (0, 0.4, 0.2), T 600, 40 samples per identification.
 The model runs at D2C 2.0's time step (timestep=0.005, substeps=5), so that times and costs compare.
 """
+
 from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(
     system=SystemConfig(name="fish", timestep=0.005, substeps=5),
     task=TaskConfig(preset="fish_d2c"),
-    solver=SolverConfig(sysid="forward_difference", n_samples=40, init="random", init_scale=0.1,
-                        max_iter=100, rel_tol=1e-5, sigma_x=1e-7, sigma_u=1e-7),
+    solver=SolverConfig(
+        sysid="forward_difference",
+        n_samples=40,
+        init="random",
+        init_scale=0.1,
+        max_iter=100,
+        rel_tol=1e-5,
+        sigma_x=1e-7,
+        sigma_u=1e-7,
+    ),
     # The fish is strongly curved at the 1e-3 scale: central differences with sigma 1e-3
     # are 1-17 % off the exact Jacobians and the solve stalls. In float64, forward
     # differences at 1e-7 are 5e-6 off (central at 1e-5: 1.4e-5) for half the simulations.

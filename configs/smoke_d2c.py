@@ -1,4 +1,5 @@
 """CI smoke: D2C on the pendulum over 10 steps against the exact oracle."""
+
 from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(

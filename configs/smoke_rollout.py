@@ -1,4 +1,5 @@
 """CI smoke: 32 perturbed pendulum rollouts over 10 steps."""
+
 from mjx_surrogate.config import Config, ExperimentConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(

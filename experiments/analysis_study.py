@@ -64,69 +64,106 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         conv, arrays = {}, {}
         for kind, levels in (("SINDy", a.convergence_sindy_levels), ("MLP", a.convergence_mlp_levels)):
             for j, level in enumerate(levels):
-                sets = _datasets(system, X_star, U_star,
-                                 jax.random.fold_in(keys["conv"], 100 * j + len(kind)), cfg, level)
+                sets = _datasets(
+                    system, X_star, U_star, jax.random.fold_in(keys["conv"], 100 * j + len(kind)), cfg, level
+                )
                 if kind == "SINDy":
                     spec = specs[a.convergence_library]
-                    fits = [sindy.fit(spec, tr.x, tr.u, tr.x_next, increment=cfg.surrogate.increment,
-                                      method=cfg.surrogate.sindy.method) for tr, _ in sets]
+                    fits = [
+                        sindy.fit(
+                            spec,
+                            tr.x,
+                            tr.u,
+                            tr.x_next,
+                            increment=cfg.surrogate.increment,
+                            method=cfg.surrogate.sindy.method,
+                        )
+                        for tr, _ in sets
+                    ]
                     steps = [m.step for m in fits]
                     C = np.stack([np.asarray(m.coef) for m in fits])
-                    extra = {"coef_rel_std": float(np.mean(C.std(0)) / max(np.mean(np.abs(C.mean(0))), 1e-300))}
+                    extra = {
+                        "coef_rel_std": float(np.mean(C.std(0)) / max(np.mean(np.abs(C.mean(0))), 1e-300))
+                    }
                 else:
                     z, xn = _common([tr for tr, _ in sets])
                     zt, xnt = _common([te for _, te in sets])
-                    y, yt = (mlp.targets(z[..., :system.nx], xn, spec_mlp.increment),
-                             mlp.targets(zt[..., :system.nx], xnt, spec_mlp.increment))
+                    y, yt = (
+                        mlp.targets(z[..., : system.nx], xn, spec_mlp.increment),
+                        mlp.targets(zt[..., : system.nx], xnt, spec_mlp.increment),
+                    )
                     kk = jax.random.split(jax.random.fold_in(keys["conv"], 7 + j), a.n_datasets)
                     trained = mlp.train_seeds(spec_mlp, kk, z, y, zt, yt)
                     steps = [mlp.unstack(trained, i).model.step for i in range(a.n_datasets)]
                     extra = {"final_test_loss": np.asarray(trained.test_loss[:, -1]).tolist()}
-                P = np.stack([np.asarray(step_models.predict(step_models.time_invariant(s), x0, U1))[0]
-                              for s in steps])
-                conv[f"{kind} {100 * level:g}%"] = {"prediction_spread": _spread(P), **extra,
-                                                     "final_state_spread": np.nanstd(P[:, -1], axis=0).tolist()}
+                P = np.stack(
+                    [np.asarray(step_models.predict(step_models.time_invariant(s), x0, U1))[0] for s in steps]
+                )
+                conv[f"{kind} {100 * level:g}%"] = {
+                    "prediction_spread": _spread(P),
+                    **extra,
+                    "final_state_spread": np.nanstd(P[:, -1], axis=0).tolist(),
+                }
                 arrays[f"convergence_{kind}_{level:g}"] = P
         return conv, arrays
 
     conv, a_conv = record.stage("convergence", convergence)
     for kind, levels in (("SINDy", a.convergence_sindy_levels), ("MLP", a.convergence_mlp_levels)):
         for level in levels:
-            record.figure(f"convergence_{kind.lower()}_{100 * level:g}pct.png", lambda: plots.seed_overlay(
-                t, np.asarray(X_star), a_conv[f"convergence_{kind}_{level:g}"], coords, labels,
-                f"{kind} trained on {a.n_datasets} data sets, {100 * level:g}% U_max: optimal controls"))
+            record.figure(
+                f"convergence_{kind.lower()}_{100 * level:g}pct.png",
+                lambda: plots.seed_overlay(
+                    t,
+                    np.asarray(X_star),
+                    a_conv[f"convergence_{kind}_{level:g}"],
+                    coords,
+                    labels,
+                    f"{kind} trained on {a.n_datasets} data sets, {100 * level:g}% U_max: optimal controls",
+                ),
+            )
 
     def ill_conditioning():  # 2. Gram spectra
         gram, arrays = {}, {}
-        (tr, _), = _datasets(system, X_star, U_star, keys["gram"], _one(cfg), a.gram_sindy_level)
+        ((tr, _),) = _datasets(system, X_star, U_star, keys["gram"], _one(cfg), a.gram_sindy_level)
         for name in a.gram_libraries:
             theta = sindy.design(specs[name], tr.x, tr.u)
             eig = spectra.eigenvalues(sindy.gram(theta))
             gram[f"SINDy {name} {100 * a.gram_sindy_level:g}%"] = {
-                "condition": spectra.condition(eig), "n_features": int(theta.shape[1]),
-                "precision": str(theta.dtype)}
+                "condition": spectra.condition(eig),
+                "n_features": int(theta.shape[1]),
+                "precision": str(theta.dtype),
+            }
             arrays[f"sindy_gram_eigs_{name}"] = eig
         for j, level in enumerate(a.gram_mlp_levels):
-            (tr, te), = _datasets(system, X_star, U_star, jax.random.fold_in(keys["gram"], j + 1),
-                                  _one(cfg), level)
+            ((tr, te),) = _datasets(
+                system, X_star, U_star, jax.random.fold_in(keys["gram"], j + 1), _one(cfg), level
+            )
             z = jnp.concatenate([tr.x, tr.u], -1)
             zt = jnp.concatenate([te.x, te.u], -1)
-            r = mlp.train(spec_mlp, jax.random.fold_in(keys["gram"], 50 + j), z,
-                          mlp.targets(tr.x, tr.x_next, spec_mlp.increment), zt,
-                          mlp.targets(te.x, te.x_next, spec_mlp.increment))
+            r = mlp.train(
+                spec_mlp,
+                jax.random.fold_in(keys["gram"], 50 + j),
+                z,
+                mlp.targets(tr.x, tr.x_next, spec_mlp.increment),
+                zt,
+                mlp.targets(te.x, te.x_next, spec_mlp.increment),
+            )
             zs, _ = spectra.standardise(r.model, z[: a.gram_points], z[: a.gram_points, : system.nx])
             eig = spectra.eigenvalues(spectra.mlp_gram(r.model, zs))
             gram[f"MLP {100 * level:g}%"] = {
-                "condition": spectra.condition(eig), "n_params": int(eig.size),
+                "condition": spectra.condition(eig),
+                "n_params": int(eig.size),
                 "eigenvalues_below_1e-12_of_max": int(np.sum(eig < 1e-12 * eig[0])),
-                "precision": "float64 Gram of float32 Jacobians"}
+                "precision": "float64 Gram of float32 Jacobians",
+            }
             arrays[f"mlp_gram_eigs_{level:g}"] = eig
         return gram, arrays
 
     _, a_gram = record.stage("ill_conditioning", ill_conditioning)
     spectra_plot = {f"SINDy {n}": np.sqrt(a_gram[f"sindy_gram_eigs_{n}"]) for n in a.gram_libraries}
-    spectra_plot |= {f"MLP {100 * lv:g}%": np.sqrt(a_gram[f"mlp_gram_eigs_{lv:g}"])
-                     for lv in a.gram_mlp_levels}  # singular values of Theta / sqrt(R)
+    spectra_plot |= {
+        f"MLP {100 * lv:g}%": np.sqrt(a_gram[f"mlp_gram_eigs_{lv:g}"]) for lv in a.gram_mlp_levels
+    }  # singular values of Theta / sqrt(R)
     record.figure("gram_spectra.png", lambda: plots.spectra(spectra_plot, "Gram matrix spectra"))
 
     def variance():  # 3. Variance of the projections across data sets
@@ -142,7 +179,8 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             var[f"SINDy {name} {100 * level:g}%"] = {
                 "projection_std_mean": float(D.std(0).mean()),
                 "relative_to_rhs": float(D.std(0).mean() / np.abs(rhs.mean(0)).mean()),
-                "n_features": int(D.shape[1])}
+                "n_features": int(D.shape[1]),
+            }
             arrays[f"variance_projections_{name}_{level:g}"] = D
         var.update(_mlp_directions(cfg, system, X_star, U_star, keys["var"], spec_mlp, arrays))
         return var, arrays
@@ -152,12 +190,17 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     dirs = {}
     for epoch in (0, spec_mlp.epochs):
         G = a_var[f"mlp_descent_directions_epoch{epoch}"]
-        dirs[f"MLP {100 * level:g}%, epoch {epoch}: (1/R) H' Delta"] = (
-            G[:, :200] / np.linalg.norm(G, axis=1, keepdims=True))
-    record.figure("mlp_descent_directions.png", lambda: plots.projections(
-        dirs, "parameter index (first 200)", "unit descent direction"))
-    proj_plot = {f"SINDy {n} {100 * lv:g}%": a_var[f"variance_projections_{n}_{lv:g}"][..., 1 % system.nx]
-                 for n, lv in zip(a.variance_libraries, a.variance_levels)}  # a velocity-like equation
+        dirs[f"MLP {100 * level:g}%, epoch {epoch}: (1/R) H' Delta"] = G[:, :200] / np.linalg.norm(
+            G, axis=1, keepdims=True
+        )
+    record.figure(
+        "mlp_descent_directions.png",
+        lambda: plots.projections(dirs, "parameter index (first 200)", "unit descent direction"),
+    )
+    proj_plot = {
+        f"SINDy {n} {100 * lv:g}%": a_var[f"variance_projections_{n}_{lv:g}"][..., 1 % system.nx]
+        for n, lv in zip(a.variance_libraries, a.variance_levels)
+    }  # a velocity-like equation
     record.figure("variance_projections.png", lambda: plots.projections(proj_plot))
     record.folder.write_text("analysis_table.md", _table(record.metrics))
     return m_opt["status"]
@@ -169,7 +212,7 @@ def _mlp_directions(cfg, system, X_star, U_star, key, spec_mlp, arrays) -> dict:
     level = a.gram_mlp_levels[0]
     sets = _datasets(system, X_star, U_star, jax.random.fold_in(key, 99), cfg, level)
     z, xn = _common([tr for tr, _ in sets])
-    y = mlp.targets(z[..., :system.nx], xn, spec_mlp.increment)
+    y = mlp.targets(z[..., : system.nx], xn, spec_mlp.increment)
     spec = spec_mlp._replace(checkpoints=(0, spec_mlp.epochs))
     same = jnp.stack([jax.random.fold_in(key, 5)] * a.n_datasets)  # same init and batches
     trained = mlp.train_seeds(spec, same, z, y, z[:, :256], y[:, :256])
@@ -184,8 +227,10 @@ def _mlp_directions(cfg, system, X_star, U_star, key, spec_mlp, arrays) -> dict:
         G = np.stack(G)
         cos = spectra.cosine_matrix(G)
         off = cos[~np.eye(len(G), dtype=bool)]
-        out[f"MLP {100 * level:g}% epoch {epoch}"] = {"mean_pairwise_cosine": float(off.mean()),
-                                                      "min_pairwise_cosine": float(off.min())}
+        out[f"MLP {100 * level:g}% epoch {epoch}"] = {
+            "mean_pairwise_cosine": float(off.mean()),
+            "min_pairwise_cosine": float(off.min()),
+        }
         arrays[f"mlp_descent_directions_epoch{epoch}"] = G
     return out
 
@@ -197,8 +242,11 @@ def _one(cfg):
 
 
 def _table(m: dict) -> str:
-    lines = ["## Model convergence across data sets (optimal controls from the optimal start)\n",
-             "| model | prediction spread (mean std across seeds) |", "|---|---|"]
+    lines = [
+        "## Model convergence across data sets (optimal controls from the optimal start)\n",
+        "| model | prediction spread (mean std across seeds) |",
+        "|---|---|",
+    ]
     lines += [f"| {k} | {v['prediction_spread']:.3g} |" for k, v in m["convergence"].items()]
     lines += ["\n## Gram-matrix conditioning\n", "| model | condition number | precision |", "|---|---|---|"]
     lines += [f"| {k} | {v['condition']:.3g} | {v['precision']} |" for k, v in m["ill_conditioning"].items()]
@@ -206,4 +254,3 @@ def _table(m: dict) -> str:
     for k, v in m["variance"].items():
         lines += [f"| {k}: {q} | {x:.3g} |" for q, x in v.items()]
     return "\n".join(lines) + "\n"
-

@@ -32,23 +32,32 @@ def _surrogate_stage(res, X_d2c, U_d2c, U0, J_d2c, level, seed, key, params):
     def compute():
         ds = data.sample(system, X_d2c, U_d2c, key, dc.n_traj, level, dc.x0_sigma)
         train, test = data.split(ds, jax.random.fold_in(key, 1), dc.test_fraction)
-        fitted = fit_all(FitContext(cfg, system), data.transitions(train),
-                         data.transitions(test), jax.random.fold_in(key, 2))
+        fitted = fit_all(
+            FitContext(cfg, system),
+            data.transitions(train),
+            data.transitions(test),
+            jax.random.fold_in(key, 2),
+        )
         rows, arrays = [], {}
         for name, f in fitted.items():
             sol = solve_on_model(f.model, task, U0, params)
             out = replay(system, task, sol.X, sol.U, sol.K)
-            row = {"model": name, "level": level, "seed": seed,
-                   "model_cost": finite_or_none(sol.cost), "iterations": int(sol.iterations),
-                   "true_cost_open": finite_or_none(out.cost_open),
-                   "true_cost_closed": finite_or_none(out.cost_closed),
-                   "final_error_open": finite_or_none(out.final_error_open),
-                   "final_error_closed": finite_or_none(out.final_error_closed)}
-            best = min(v for v in (row["true_cost_open"], row["true_cost_closed"], np.inf)
-                       if v is not None)
+            row = {
+                "model": name,
+                "level": level,
+                "seed": seed,
+                "model_cost": finite_or_none(sol.cost),
+                "iterations": int(sol.iterations),
+                "true_cost_open": finite_or_none(out.cost_open),
+                "true_cost_closed": finite_or_none(out.cost_closed),
+                "final_error_open": finite_or_none(out.final_error_open),
+                "final_error_closed": finite_or_none(out.final_error_closed),
+            }
+            best = min(v for v in (row["true_cost_open"], row["true_cost_closed"], np.inf) if v is not None)
             row["true_cost_over_d2c"] = best / J_d2c if np.isfinite(best) else None
-            err = min(v for v in (row["final_error_open"], row["final_error_closed"], np.inf)
-                      if v is not None)
+            err = min(
+                v for v in (row["final_error_open"], row["final_error_closed"], np.inf) if v is not None
+            )
             row["reached_goal"] = bool(err < 0.1 * scale)
             rows.append(row)
             tag = f"{name.replace(' ', '_')}_{level:g}"
@@ -63,12 +72,12 @@ def _surrogate_stage(res, X_d2c, U_d2c, U0, J_d2c, level, seed, key, params):
 def run(res: Resolved, record: Run, key: jax.Array) -> str:
     cfg, system, task = res
     ex, sc, dc = cfg.experiment, cfg.solver, cfg.data
-    params, _ = solver_params(cfg, record_trajectories=True)
+    params, _ = solver_params(cfg)
     k_opt, k_data = jax.random.split(key)
     record.add_arrays({"x0": task.x0})
     record.set("goal_rule", GOAL_RULE)
 
-    m_d2c, a_d2c = record.stage("d2c", pipeline.optimum_stage(res, k_opt, True))
+    m_d2c, a_d2c = record.stage("d2c", pipeline.optimum_stage(res, k_opt))
     if m_d2c["cost"] is None:
         return "diverged"
     X_d2c, U_d2c = jnp.asarray(a_d2c["X_star"]), jnp.asarray(a_d2c["U_star"])
@@ -79,6 +88,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     record.set("d2c", m_d2c)
 
     if ex.exact_oracle:
+
         def exact_stage():
             with progress.meter("exact-Jacobian iLQR (oracle)", sc.max_iter, ex.progress) as pm:
                 exact = jax.block_until_ready(solve_exact(system, task, U0, params, pm))
@@ -93,8 +103,10 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     for i, level in enumerate(dc.levels):
         for s in range(dc.n_seeds):
             k = jax.random.fold_in(jax.random.fold_in(k_data, i), s)
-            out, arrays = record.stage(f"surrogates/{level:g}_{s}", _surrogate_stage(
-                res, X_d2c, U_d2c, U0, J_d2c, level, s, k, params))
+            out, arrays = record.stage(
+                f"surrogates/{level:g}_{s}",
+                _surrogate_stage(res, X_d2c, U_d2c, U0, J_d2c, level, s, k, params),
+            )
             rows += out["rows"]
             if s == 0:
                 for r in out["rows"]:
@@ -103,25 +115,45 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     record.set("surrogate_rows", rows)
     t = np.arange(task.T + 1) * system.dt
     labels = state_labels(system.mj_model)
-    record.figure("ltv_trajectory_evolution.png", lambda: plots.trajectory_evolution(
-        t, a_d2c["X_history"], np.asarray(task.x_goal), labels,
-        f"LTV approach (D2C) on {system.name} from {sc.init} controls"))
-    record.figure("surrogate_controls.png", lambda: plots.predictions(
-        t, np.asarray(X_d2c), trajectories, list(range(min(system.nq, 2))), labels,
-        (hinge_state_indices(system.mj_model) or [None])[0],
-        f"{system.name}: surrogate-based controllers on the black box vs the D2C optimum"))
+    record.figure(
+        "ltv_trajectory_evolution.png",
+        lambda: plots.trajectory_evolution(
+            t,
+            a_d2c.get("X_history", a_d2c["X_star"][None]),
+            np.asarray(task.x_goal),
+            labels,
+            f"LTV approach (D2C) on {system.name} from {sc.init} controls",
+        ),
+    )
+    record.figure(
+        "surrogate_controls.png",
+        lambda: plots.predictions(
+            t,
+            np.asarray(X_d2c),
+            trajectories,
+            list(range(min(system.nq, 2))),
+            labels,
+            (hinge_state_indices(system.mj_model) or [None])[0],
+            f"{system.name}: surrogate-based controllers on the black box vs the D2C optimum",
+        ),
+    )
     record.folder.write_text("control_table.md", _table(record.metrics))
     return m_d2c["status"]
 
 
 def _table(m: dict) -> str:
     f = lambda v: "diverged" if v is None else f"{v:.4g}"  # noqa: E731
-    lines = [f"D2C (local LTV) true cost: {f(m['d2c']['cost'])}; exact oracle: "
-             f"{f(m.get('exact', {}).get('cost'))}\n",
-             "| model | level (% U_max) | seed | cost on model | true cost open loop | "
-             "true cost closed loop | true / D2C | reached goal |", "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"D2C (local LTV) true cost: {f(m['d2c']['cost'])}; exact oracle: "
+        f"{f(m.get('exact', {}).get('cost'))}\n",
+        "| model | level (% U_max) | seed | cost on model | true cost open loop | "
+        "true cost closed loop | true / D2C | reached goal |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for r in m["surrogate_rows"]:
-        lines.append(f"| {r['model']} | {100 * r['level']:g} | {r['seed']} | {f(r['model_cost'])} | "
-                     f"{f(r['true_cost_open'])} | {f(r['true_cost_closed'])} | "
-                     f"{f(r['true_cost_over_d2c'])} | {r['reached_goal']} |")
+        lines.append(
+            f"| {r['model']} | {100 * r['level']:g} | {r['seed']} | {f(r['model_cost'])} | "
+            f"{f(r['true_cost_open'])} | {f(r['true_cost_closed'])} | "
+            f"{f(r['true_cost_over_d2c'])} | {r['reached_goal']} |"
+        )
     return "\n".join(lines) + "\n"

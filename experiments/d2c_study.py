@@ -31,8 +31,12 @@ def ltv_error(system, X, U, K, key, sid_params) -> dict:
 
 
 def _solve_arrays(prefix: str, result, X_bb) -> dict:
-    out = {f"{prefix}_U": result.U, f"{prefix}_X": X_bb, f"{prefix}_K": result.K,
-           f"{prefix}_cost_history": result.cost_history}
+    out = {
+        f"{prefix}_U": result.U,
+        f"{prefix}_X": X_bb,
+        f"{prefix}_K": result.K,
+        f"{prefix}_cost_history": result.cost_history,
+    }
     if result.X_history.ndim == 3:
         out[f"{prefix}_X_history"] = result.X_history
         out[f"{prefix}_alpha_history"] = result.alpha_history
@@ -43,8 +47,9 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     cfg, system, task = res
     ex, sc = cfg.experiment, cfg.solver
     # iterates are kept for the trajectory figure unless that would take > 80 MB (float64)
-    history_size = (sc.max_iter + 1) * (task.T + 1) * system.nx
-    params, sid_params = solver_params(cfg, record_trajectories=history_size <= 10_000_000)
+    params, sid_params = solver_params(
+        cfg, record_trajectories=pipeline.record_history(sc.max_iter, task.T, system.nx)
+    )
     k_init, k_d2c, k_ltv, k_noise = jax.random.split(key, 4)
     dtype = task.x0.dtype
     record.add_arrays({"x0": task.x0})
@@ -52,25 +57,31 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     def d2c_stage():
         arrays = {}
         if sc.n_starts > 1:
-            U0s = pipeline.initial_controls(k_init, task.T, system.nu, sc.init, sc.init_scale,
-                                            sc.n_starts, dtype)
+            U0s = pipeline.initial_controls(
+                k_init, task.T, system.nu, sc.init, sc.init_scale, sc.n_starts, dtype
+            )
             with progress.meter(f"D2C multi-start x{sc.n_starts}", sc.max_iter, ex.progress) as pm:
-                timed = compile_then_run(solve_multistart, (system,),
-                                         (task, U0s, k_d2c, params, sid_params),
-                                         static_kwargs={"method": "d2c"},
-                                         dynamic_kwargs={"progress": pm})
+                timed = compile_then_run(
+                    solve_multistart,
+                    (system,),
+                    (task, U0s, k_d2c, params, sid_params),
+                    static_kwargs={"method": "d2c"},
+                    dynamic_kwargs={"progress": pm},
+                )
             result, U0 = timed.out.best, U0s[int(timed.out.best_index)]
             extra = {"multistart_costs": np.asarray(timed.out.costs).tolist()}
         else:
-            U0 = pipeline.initial_controls(k_init, task.T, system.nu, sc.init, sc.init_scale,
-                                           None, dtype)
+            U0 = pipeline.initial_controls(k_init, task.T, system.nu, sc.init, sc.init_scale, None, dtype)
             with progress.meter("D2C (LTV identification + iLQR)", sc.max_iter, ex.progress) as pm:
-                timed = compile_then_run(solve_d2c, (system,),
-                                         (task, U0, k_d2c, params, sid_params, pm))
+                timed = compile_then_run(solve_d2c, (system,), (task, U0, k_d2c, params, sid_params, pm))
             result, extra = timed.out, {}
         m, X_bb = pipeline.summary(result, system, task)
-        m.update(extra, compile_s=timed.compile_s, run_s=timed.run_s,
-                 simulated_steps=pipeline.simulated_steps(result, task.T, sc.n_alphas, sid_params))
+        m.update(
+            extra,
+            compile_s=timed.compile_s,
+            run_s=timed.run_s,
+            simulated_steps=pipeline.simulated_steps(result, task.T, sc.n_alphas, sid_params),
+        )
         arrays = {"d2c_U0": U0, **_solve_arrays("d2c", result, X_bb)}
         return m, arrays
 
@@ -82,6 +93,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     if not ex.exact_oracle:
         record.set("exact", {"skipped": "experiment.exact_oracle is false"})
     else:
+
         def exact_stage():
             with progress.meter("exact-Jacobian iLQR (oracle)", sc.max_iter, ex.progress) as pm:
                 timed = compile_then_run(solve_exact, (system,), (task, U0, params, pm))
@@ -98,17 +110,23 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             c_d, c_e = m_d2c["cost"], m_ex["cost"]
             if c_d is not None and c_e is not None:
                 record.set("d2c_vs_exact_relative_gap", (c_d - c_e) / abs(c_e))
-            record.stage("ltv_relative_error", lambda: (
-                ltv_error(system, jnp.asarray(a_d2c["d2c_X"]), U_d2c, K_d2c, k_ltv, sid_params), {}))
+            record.stage(
+                "ltv_relative_error",
+                lambda: (ltv_error(system, jnp.asarray(a_d2c["d2c_X"]), U_d2c, K_d2c, k_ltv, sid_params), {}),
+            )
 
     def feedback_stage():
         levels = jnp.asarray(ex.noise_levels, dtype)
-        closed, opened = evaluate_feedback(system, task, X_d2c, U_d2c, K_d2c, levels, k_noise,
-                                           ex.n_noise_trials)
+        closed, opened = evaluate_feedback(
+            system, task, X_d2c, U_d2c, K_d2c, levels, k_noise, ex.n_noise_trials
+        )
         closed, opened = np.asarray(closed), np.asarray(opened)
-        m = {"noise_levels": list(ex.noise_levels), "noise": "std = level * max|u*| per channel",
-             "closed_loop_median": np.median(closed, axis=1).tolist(),
-             "open_loop_median": np.median(opened, axis=1).tolist()}
+        m = {
+            "noise_levels": list(ex.noise_levels),
+            "noise": "std = level * max|u*| per channel",
+            "closed_loop_median": np.median(closed, axis=1).tolist(),
+            "open_loop_median": np.median(opened, axis=1).tolist(),
+        }
         return m, {"feedback_closed_costs": closed, "feedback_open_costs": opened}
 
     _, a_fb = record.stage("feedback", feedback_stage)
@@ -116,15 +134,28 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     hist = {"D2C (LTV)": a_d2c["d2c_cost_history"][: m_d2c["iterations"] + 1]}
     if exact_hist is not None:
         hist["exact Jacobians"] = exact_hist
-    record.figure("cost_history.png", lambda: plots.cost_history(
-        hist, f"{system.name}: {cfg.task.preset}"))
+    record.figure("cost_history.png", lambda: plots.cost_history(hist, f"{system.name}: {cfg.task.preset}"))
     t = np.arange(task.T + 1) * system.dt
     Xh = a_d2c.get("d2c_X_history", a_d2c["d2c_X"][None])[: m_d2c["iterations"] + 1]
-    record.figure("trajectory_evolution.png", lambda: plots.trajectory_evolution(
-        t, Xh, np.asarray(task.x_goal), state_labels(system.mj_model),
-        f"D2C on {system.name} from {cfg.solver.init} controls"))
-    record.figure("feedback_noise.png", lambda: plots.cost_vs_noise(
-        np.asarray(ex.noise_levels), {"closed loop (u* + K dx)": a_fb["feedback_closed_costs"],
-                                      "open loop (u*)": a_fb["feedback_open_costs"]},
-        f"{system.name}: cost under control noise"))
+    record.figure(
+        "trajectory_evolution.png",
+        lambda: plots.trajectory_evolution(
+            t,
+            Xh,
+            np.asarray(task.x_goal),
+            state_labels(system.mj_model),
+            f"D2C on {system.name} from {cfg.solver.init} controls",
+        ),
+    )
+    record.figure(
+        "feedback_noise.png",
+        lambda: plots.cost_vs_noise(
+            np.asarray(ex.noise_levels),
+            {
+                "closed loop (u* + K dx)": a_fb["feedback_closed_costs"],
+                "open loop (u*)": a_fb["feedback_open_costs"],
+            },
+            f"{system.name}: cost under control noise",
+        ),
+    )
     return m_d2c["status"]

@@ -31,12 +31,10 @@ def level_stage(res: Resolved, X_star, U_star, level: float, i: int, key: jax.Ar
     def compute():
         k_data, k_split, k_fit = jax.random.split(key, 3)
         t0 = time.perf_counter()
-        ds = jax.block_until_ready(data.sample(system, X_star, U_star, k_data, dc.n_traj, level,
-                                               dc.x0_sigma))
+        ds = jax.block_until_ready(data.sample(system, X_star, U_star, k_data, dc.n_traj, level, dc.x0_sigma))
         t_data = time.perf_counter() - t0
         train, test = data.split(ds, k_split, dc.test_fraction)
-        fitted = fit_all(FitContext(cfg, system), data.transitions(train),
-                         data.transitions(test), k_fit)
+        fitted = fit_all(FitContext(cfg, system), data.transitions(train), data.transitions(test), k_fit)
         steps = {name: step_models.time_invariant(f.model.step) for name, f in fitted.items()}
         info = {name: f.info for name, f in fitted.items()}
         t0 = time.perf_counter()
@@ -52,8 +50,11 @@ def level_stage(res: Resolved, X_star, U_star, level: float, i: int, key: jax.Ar
         for name, f in fitted.items():
             for k, v in f.arrays.items():
                 arrays[f"{name.replace(' ', '_').lower()}_{k}_{level:g}"] = v
-        per_model["_data"] = {"sample_s": t_data, "n_train": int(train.X.shape[0]),
-                              "n_test": int(test.X.shape[0])}
+        per_model["_data"] = {
+            "sample_s": t_data,
+            "n_train": int(train.X.shape[0]),
+            "n_test": int(test.X.shape[0]),
+        }
         return per_model, arrays
 
     return compute
@@ -86,27 +87,50 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     phase = (hinge_state_indices(system.mj_model) or [None])[0]
     results = {}
     for i, (level, k) in enumerate(zip(dc.levels, jax.random.split(k_levels, len(dc.levels)))):
-        per_model, arrays = record.stage(f"results/{level:g}",
-                                         level_stage(res, X_star, U_star, level, i, k))
+        per_model, arrays = record.stage(f"results/{level:g}", level_stage(res, X_star, U_star, level, i, k))
         results[f"{level:g}"] = per_model
-        preds = {n: arrays[f"level{i}_pred_{n.replace(' ', '_')}"] for n in per_model
-                 if not n.startswith("_")}
-        record.figure(f"predict_{100 * level:g}pct.png", lambda: plots.predictions(
-            t, arrays[f"level{i}_test_X"], preds, coords, labels, phase,
-            f"{system.name}: open-loop predictions, {100 * level:g}% U_max perturbations"))
+        preds = {
+            n: arrays[f"level{i}_pred_{n.replace(' ', '_')}"] for n in per_model if not n.startswith("_")
+        }
+        record.figure(
+            f"predict_{100 * level:g}pct.png",
+            lambda: plots.predictions(
+                t,
+                arrays[f"level{i}_test_X"],
+                preds,
+                coords,
+                labels,
+                phase,
+                f"{system.name}: open-loop predictions, {100 * level:g}% U_max perturbations",
+            ),
+        )
     record.set("levels", list(dc.levels))
     clean = {lv: {n: v for n, v in r.items() if not n.startswith("_")} for lv, r in results.items()}
     names = list(next(iter(clean.values())).keys())
-    for key_, label in (("one_step_rmse", "one-step RMSE"),
-                        ("multi_step_median", "multi-step RMSE (median)")):
-        errs = {n: [clean[f"{lv:g}"][n][key_] if clean[f"{lv:g}"][n][key_] is not None else np.nan
-                    for lv in dc.levels] for n in names}
-        record.figure(f"{key_}_vs_level.png", lambda: plots.error_vs_level(
-            np.asarray(dc.levels), errs, label, f"{system.name}: test {label}"))
-    record.folder.write_text("rmse_table.md", (
-        "**One-step test RMSE**\n\n" + _rmse_table(dc.levels, clean, "one_step_rmse")
-        + "\n**Open-loop multi-step test RMSE (median over test trajectories)**\n\n"
-        + _rmse_table(dc.levels, clean, "multi_step_median")))
+    for key_, label in (
+        ("one_step_rmse", "one-step RMSE"),
+        ("multi_step_median", "multi-step RMSE (median)"),
+    ):
+        errs = {
+            n: [
+                clean[f"{lv:g}"][n][key_] if clean[f"{lv:g}"][n][key_] is not None else np.nan
+                for lv in dc.levels
+            ]
+            for n in names
+        }
+        record.figure(
+            f"{key_}_vs_level.png",
+            lambda: plots.error_vs_level(np.asarray(dc.levels), errs, label, f"{system.name}: test {label}"),
+        )
+    record.folder.write_text(
+        "rmse_table.md",
+        (
+            "**One-step test RMSE**\n\n"
+            + _rmse_table(dc.levels, clean, "one_step_rmse")
+            + "\n**Open-loop multi-step test RMSE (median over test trajectories)**\n\n"
+            + _rmse_table(dc.levels, clean, "multi_step_median")
+        ),
+    )
     record.set("finding", _finding(dc.levels, clean))
     return m_opt["status"]
 
@@ -117,6 +141,9 @@ def _finding(levels, clean: dict) -> dict:
     lo, hi = f"{min(levels):g}", f"{max(levels):g}"
     for name in clean[lo]:
         a, b = clean[lo][name]["multi_step_median"], clean[hi][name]["multi_step_median"]
-        out[name] = {"multi_step_median_lowest_level": a, "multi_step_median_highest_level": b,
-                     "grows": (a is not None and b is not None and b > a) or (a is not None and b is None)}
+        out[name] = {
+            "multi_step_median_lowest_level": a,
+            "multi_step_median_highest_level": b,
+            "grows": (a is not None and b is not None and b > a) or (a is not None and b is None),
+        }
     return out

@@ -25,32 +25,55 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     def rollouts():
         t0 = time.perf_counter()
         X_nom = rollout(system, task.x0[None], U[None])[0].block_until_ready()
-        out = jax.block_until_ready(perturbed_rollouts(
-            system, key, task.x0, U, ex.n_rollouts, ex.rollout_sigma_x, ex.rollout_sigma_u))
+        out = jax.block_until_ready(
+            perturbed_rollouts(system, key, task.x0, U, ex.n_rollouts, ex.rollout_sigma_x, ex.rollout_sigma_u)
+        )
         first = time.perf_counter() - t0
         t0 = time.perf_counter()
-        jax.block_until_ready(perturbed_rollouts(system, key, task.x0, U, ex.n_rollouts,
-                                                 ex.rollout_sigma_x, ex.rollout_sigma_u))
+        jax.block_until_ready(
+            perturbed_rollouts(system, key, task.x0, U, ex.n_rollouts, ex.rollout_sigma_x, ex.rollout_sigma_u)
+        )
         run_s = time.perf_counter() - t0
         cost = jax.jit(jax.vmap(trajectory_cost, in_axes=(None, 0, 0)))
         costs = np.asarray(cost(task, out.X, U[None] + out.dU))
         # Independent check: replay every perturbed control sequence on native MuJoCo.
         X_native = system.native(np.asarray(task.x0[None] + out.dx0), np.asarray(U[None] + out.dU))
         finite = np.isfinite(costs)
-        m = {"nominal": {"cost": float(trajectory_cost(task, X_nom, U))},
-             "perturbed": {"cost_mean": float(np.mean(costs[finite])) if finite.any() else None,
-                           "cost_std": float(np.std(costs[finite])) if finite.any() else None,
-                           "n_rollouts": ex.n_rollouts, "n_diverged": int((~finite).sum())},
-             "timing": {"compile_and_first_run_s": first, "run_s": run_s,
-                        "control_steps_per_s": ex.n_rollouts * task.T / run_s},
-             "native_replay_max_abs_diff": float(np.nanmax(np.abs(X_native - np.asarray(out.X))))}
-        arrays = {"x0": task.x0, "nominal_U": U, "nominal_X": X_nom,
-                  "perturbed_dx0": out.dx0, "perturbed_dU": out.dU, "perturbed_X": out.X}
+        m = {
+            "nominal": {"cost": float(trajectory_cost(task, X_nom, U))},
+            "perturbed": {
+                "cost_mean": float(np.mean(costs[finite])) if finite.any() else None,
+                "cost_std": float(np.std(costs[finite])) if finite.any() else None,
+                "n_rollouts": ex.n_rollouts,
+                "n_diverged": int((~finite).sum()),
+            },
+            "timing": {
+                "compile_and_first_run_s": first,
+                "run_s": run_s,
+                "control_steps_per_s": ex.n_rollouts * task.T / run_s,
+            },
+            "native_replay_max_abs_diff": float(np.nanmax(np.abs(X_native - np.asarray(out.X)))),
+        }
+        arrays = {
+            "x0": task.x0,
+            "nominal_U": U,
+            "nominal_X": X_nom,
+            "perturbed_dx0": out.dx0,
+            "perturbed_dU": out.dU,
+            "perturbed_X": out.X,
+        }
         return m, arrays
 
     _, arrays = record.stage("rollouts", rollouts)
     t = np.arange(task.T + 1) * system.dt
-    record.figure("rollouts.png", lambda: plots.state_fan(
-        t, arrays["perturbed_X"], arrays["nominal_X"], state_labels(system.mj_model),
-        title=f"{system.name}: {ex.n_rollouts} perturbed rollouts"))
+    record.figure(
+        "rollouts.png",
+        lambda: plots.state_fan(
+            t,
+            arrays["perturbed_X"],
+            arrays["nominal_X"],
+            state_labels(system.mj_model),
+            title=f"{system.name}: {ex.n_rollouts} perturbed rollouts",
+        ),
+    )
     return "completed"

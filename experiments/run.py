@@ -51,8 +51,10 @@ def load_config(spec: str) -> Config:
         mod_spec.loader.exec_module(module)
     else:
         if spec not in preset_names():
-            raise ConfigError("CONFIG", f"unknown preset {spec!r}; valid: {', '.join(preset_names())}"
-                              " (or a .py / config.json path)")
+            raise ConfigError(
+                "CONFIG",
+                f"unknown preset {spec!r}; valid: {', '.join(preset_names())} (or a .py / config.json path)",
+            )
         module = importlib.import_module(f"configs.{spec}")
     cfg = getattr(module, "CONFIG", None)
     if not isinstance(cfg, Config):
@@ -78,13 +80,23 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
     base = load_config(spec)
     description = (__doc__ or "") + "\nPresets: " + ", ".join(preset_names())
     if any(a in ("-h", "--help") for a in argv):
-        tyro.cli(Config, default=base, args=argv, description=description,
-                 prog="python -m experiments.run [CONFIG]")
+        tyro.cli(
+            Config,
+            default=base,
+            args=argv,
+            description=description,
+            prog="python -m experiments.run [CONFIG]",
+        )
     err = io.StringIO()
     try:
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(err):
-            cfg = tyro.cli(Config, default=base, args=argv, description=description,
-                           prog="python -m experiments.run [CONFIG]")
+            cfg = tyro.cli(
+                Config,
+                default=base,
+                args=argv,
+                description=description,
+                prog="python -m experiments.run [CONFIG]",
+            )
     except SystemExit:
         raise _one_line_tyro_error(err.getvalue()) from None
     if out is not None:
@@ -96,8 +108,7 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
 def _one_line_tyro_error(text: str) -> ConfigError:
     """Condense tyro's boxed message to one line naming the field."""
     lines = [re.sub(r"^[\s│╭╰─]+|[\s│╮╯─]+$", "", ln) for ln in text.splitlines()]
-    lines = [ln for ln in lines if ln and "helptext" not in ln.lower()
-             and not re.fullmatch(r"[-─\s]+", ln)]
+    lines = [ln for ln in lines if ln and "helptext" not in ln.lower() and not re.fullmatch(r"[-─\s]+", ln)]
     lines = [re.sub(r"\s*-{3,}\s*", "", ln) for ln in lines]
     body = " ".join(lines[1:4] if len(lines) > 1 else lines)
     fields = re.findall(r"--[\w.]+", body)
@@ -108,12 +119,23 @@ def _one_line_tyro_error(text: str) -> ConfigError:
 
 
 def kinds():
-    from experiments import (analysis_study, control_study, d2c_study, predict_study,
-                             rollout_study, theory_study)
+    from experiments import (
+        analysis_study,
+        control_study,
+        d2c_study,
+        predict_study,
+        rollout_study,
+        theory_study,
+    )
 
-    return {"rollout": rollout_study.run, "d2c": d2c_study.run, "predict": predict_study.run,
-            "analysis": analysis_study.run, "theory": theory_study.run,
-            "control": control_study.run}
+    return {
+        "rollout": rollout_study.run,
+        "d2c": d2c_study.run,
+        "predict": predict_study.run,
+        "analysis": analysis_study.run,
+        "theory": theory_study.run,
+        "control": control_study.run,
+    }
 
 
 def run(cfg: Config, name: str = "run", resume_from: str | None = None) -> str:
@@ -129,22 +151,25 @@ def run(cfg: Config, name: str = "run", resume_from: str | None = None) -> str:
 
     configure_runtime(x64=cfg.experiment.x64 or None)
     # Record the precision actually used (a session may already run in x64).
-    cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(
-        cfg.experiment, x64=bool(jax.config.jax_enable_x64)))
+    cfg = dataclasses.replace(
+        cfg, experiment=dataclasses.replace(cfg.experiment, x64=bool(jax.config.jax_enable_x64))
+    )
     res = resolve(cfg)
     ex = res.config.experiment
     folder = RunFolder(ex.out_dir, ex.name or name)
     for path in folder.recovered:
-        print(f"note: recovered a run folder left unfinished by a killed process: {path}",
-              file=sys.stderr)
+        print(f"note: recovered a run folder left unfinished by a killed process: {path}", file=sys.stderr)
     folder.write_json("config.json", to_dict(res.config))
     folder.write_text("model.xml", res.system.xml)
     folder.write_json("versions.json", versions())
     record = Run(folder, resume_from)
     key = jax.random.key(ex.seed)
     status, error = "failed", None
-    guard = (progress.stop_on_signals() if threading.current_thread() is threading.main_thread()
-             else contextlib.nullcontext())
+    guard = (
+        progress.stop_on_signals()
+        if threading.current_thread() is threading.main_thread()
+        else contextlib.nullcontext()
+    )
     progress.clear_stop()
     try:
         with guard:

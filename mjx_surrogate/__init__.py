@@ -10,17 +10,25 @@ The public API, importable from here. Importing changes no global state; call
 """
 
 from mjx_surrogate import progress
-from mjx_surrogate.config import (AnalysisConfig, Config, DataConfig, ExperimentConfig,
-                                  MLPConfig, SindyConfig, SolverConfig, SurrogateConfig,
-                                  SystemConfig, TaskConfig)
+from mjx_surrogate.config import (
+    AnalysisConfig,
+    Config,
+    DataConfig,
+    ExperimentConfig,
+    MLPConfig,
+    SindyConfig,
+    SolverConfig,
+    SurrogateConfig,
+    SystemConfig,
+    TaskConfig,
+)
 from mjx_surrogate.cost import Cost
 from mjx_surrogate.d2c import solve_d2c, solve_exact, solve_multistart
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.ilqr import ILQRParams, ILQRResult, StopReason, ilqr
 from mjx_surrogate.resolution import resolve, solver_params
 from mjx_surrogate.runtime import configure_runtime
-from mjx_surrogate.surrogates import (FitContext, Fitted, SurrogateKind, fit_all,
-                                      register_surrogate)
+from mjx_surrogate.surrogates import FitContext, Fitted, SurrogateKind, fit_all, register_surrogate
 from mjx_surrogate.sysid import IdentificationScheme, SysIdParams, register_scheme
 from mjx_surrogate.systems import System, from_mjcf, make_system, register_system
 from mjx_surrogate.tasks import Task, make_task
@@ -28,11 +36,41 @@ from mjx_surrogate.tasks import Task, make_task
 __version__ = "0.2.0"
 
 __all__ = [
-    "AnalysisConfig", "Config", "ConfigError", "Cost", "DataConfig", "ExperimentConfig",
-    "FitContext", "Fitted", "ILQRParams", "ILQRResult", "IdentificationScheme", "MLPConfig",
-    "SindyConfig", "SolverConfig", "StopReason", "SurrogateConfig", "SurrogateKind",
-    "SysIdParams", "System", "SystemConfig", "Task", "TaskConfig", "configure_runtime",
-    "fit_all", "from_mjcf", "ilqr", "make_system", "make_task", "progress",
-    "register_scheme", "register_surrogate", "register_system", "resolve", "solve_d2c",
-    "solve_exact", "solve_multistart", "solver_params",
+    "AnalysisConfig",
+    "Config",
+    "ConfigError",
+    "Cost",
+    "DataConfig",
+    "ExperimentConfig",
+    "FitContext",
+    "Fitted",
+    "ILQRParams",
+    "ILQRResult",
+    "IdentificationScheme",
+    "MLPConfig",
+    "SindyConfig",
+    "SolverConfig",
+    "StopReason",
+    "SurrogateConfig",
+    "SurrogateKind",
+    "SysIdParams",
+    "System",
+    "SystemConfig",
+    "Task",
+    "TaskConfig",
+    "configure_runtime",
+    "fit_all",
+    "from_mjcf",
+    "ilqr",
+    "make_system",
+    "make_task",
+    "progress",
+    "register_scheme",
+    "register_surrogate",
+    "register_system",
+    "resolve",
+    "solve_d2c",
+    "solve_exact",
+    "solve_multistart",
+    "solver_params",
 ]

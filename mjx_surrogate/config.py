@@ -295,8 +295,11 @@ def from_dict(cls: type, data: Any, prefix: str = "") -> Any:
 
 def check_finite(field: str, values: Any) -> None:
     """Raise if a (nested) sequence of numbers holds NaN or inf."""
-    flat = values if not values or not isinstance(values[0], (list, tuple)) else [
-        v for row in values for v in row]
+    flat = (
+        values
+        if not values or not isinstance(values[0], (list, tuple))
+        else [v for row in values for v in row]
+    )
     for v in flat:
         if not math.isfinite(v):
             raise ConfigError(field, f"holds a non-finite value ({v}); all entries must be finite")
@@ -318,23 +321,35 @@ def validate_static(cfg: Config) -> None:
     """Checks that need no model: choices, signs, ranges, finiteness of the solver settings."""
     _check_choices(cfg, "")
     s = cfg.solver
-    positive_int = {"solver.max_iter": s.max_iter, "solver.n_samples": s.n_samples,
-                    "solver.n_alphas": s.n_alphas, "solver.n_starts": s.n_starts,
-                    "experiment.n_rollouts": cfg.experiment.n_rollouts,
-                    "experiment.n_noise_trials": cfg.experiment.n_noise_trials}
+    positive_int = {
+        "solver.max_iter": s.max_iter,
+        "solver.n_samples": s.n_samples,
+        "solver.n_alphas": s.n_alphas,
+        "solver.n_starts": s.n_starts,
+        "experiment.n_rollouts": cfg.experiment.n_rollouts,
+        "experiment.n_noise_trials": cfg.experiment.n_noise_trials,
+    }
     for field, v in positive_int.items():
         if v < 1:
             raise ConfigError(field, f"must be >= 1, got {v}")
-    positive = {"solver.sigma_x": s.sigma_x, "solver.sigma_u": s.sigma_u,
-                "solver.mu_max": s.mu_max, "solver.mu_factor": s.mu_factor - 1.0}
+    positive = {
+        "solver.sigma_x": s.sigma_x,
+        "solver.sigma_u": s.sigma_u,
+        "solver.mu_max": s.mu_max,
+        "solver.mu_factor": s.mu_factor - 1.0,
+    }
     for field, v in positive.items():
         if not (math.isfinite(v) and v > 0):
             raise ConfigError(field, f"must be a finite positive number, got {v}")
-    for field, v in {"experiment.rollout_sigma_x": cfg.experiment.rollout_sigma_x,
-                     "experiment.rollout_sigma_u": cfg.experiment.rollout_sigma_u,
-                     "solver.rel_tol": s.rel_tol, "solver.k_tol": s.k_tol,
-                     "solver.init_scale": s.init_scale, "solver.mu_init": s.mu_init,
-                     "solver.mu_min": s.mu_min}.items():
+    for field, v in {
+        "experiment.rollout_sigma_x": cfg.experiment.rollout_sigma_x,
+        "experiment.rollout_sigma_u": cfg.experiment.rollout_sigma_u,
+        "solver.rel_tol": s.rel_tol,
+        "solver.k_tol": s.k_tol,
+        "solver.init_scale": s.init_scale,
+        "solver.mu_init": s.mu_init,
+        "solver.mu_min": s.mu_min,
+    }.items():
         if not (math.isfinite(v) and v >= 0):
             raise ConfigError(field, f"must be a finite number >= 0, got {v}")
     if cfg.task.T is not None and cfg.task.T < 1:
@@ -344,10 +359,13 @@ def validate_static(cfg: Config) -> None:
     if cfg.system.timestep is not None and not (cfg.system.timestep > 0):
         raise ConfigError("system.timestep", f"must be > 0 seconds, got {cfg.system.timestep}")
     d, m, mp = cfg.data, cfg.surrogate.sindy, cfg.surrogate.mlp
-    for field, v in {"data.n_traj": d.n_traj, "data.n_seeds": d.n_seeds,
-                     "surrogate.sindy.harmonics": m.harmonics,
-                     "surrogate.mlp.batch_size": mp.batch_size,
-                     "surrogate.mlp.epochs": mp.epochs}.items():
+    for field, v in {
+        "data.n_traj": d.n_traj,
+        "data.n_seeds": d.n_seeds,
+        "surrogate.sindy.harmonics": m.harmonics,
+        "surrogate.mlp.batch_size": mp.batch_size,
+        "surrogate.mlp.epochs": mp.epochs,
+    }.items():
         if v < 1:
             raise ConfigError(field, f"must be >= 1, got {v}")
     check_finite("data.levels", d.levels)
@@ -357,10 +375,12 @@ def validate_static(cfg: Config) -> None:
         raise ConfigError("data.test_fraction", f"must be in (0, 1), got {d.test_fraction}")
     if d.n_traj < 2:
         raise ConfigError("data.n_traj", f"needs >= 2 trajectories to split, got {d.n_traj}")
-    for field, v in {"data.x0_sigma": d.x0_sigma,
-                     "surrogate.sindy.stlsq_threshold": m.stlsq_threshold,
-                     "surrogate.sindy.stlsq_alpha": m.stlsq_alpha,
-                     "surrogate.mlp.weight_decay": mp.weight_decay}.items():
+    for field, v in {
+        "data.x0_sigma": d.x0_sigma,
+        "surrogate.sindy.stlsq_threshold": m.stlsq_threshold,
+        "surrogate.sindy.stlsq_alpha": m.stlsq_alpha,
+        "surrogate.mlp.weight_decay": mp.weight_decay,
+    }.items():
         if not (math.isfinite(v) and v >= 0):
             raise ConfigError(field, f"must be a finite number >= 0, got {v}")
     if not (math.isfinite(mp.learning_rate) and mp.learning_rate > 0):
@@ -372,20 +392,25 @@ def validate_static(cfg: Config) -> None:
         raise ConfigError("surrogate.mlp.checkpoints", f"{bad} outside 0..mlp.epochs={mp.epochs}")
     _check_registered(cfg)
     a = cfg.analysis
-    for field, v in {"analysis.n_datasets": a.n_datasets - 1, "analysis.gram_points": a.gram_points,
-                     "analysis.theory_max_order": a.theory_max_order,
-                     "analysis.theory_mc_samples": a.theory_mc_samples - 1,
-                     "analysis.theory_mc_trials": a.theory_mc_trials - 1}.items():
+    for field, v in {
+        "analysis.n_datasets": a.n_datasets - 1,
+        "analysis.gram_points": a.gram_points,
+        "analysis.theory_max_order": a.theory_max_order,
+        "analysis.theory_mc_samples": a.theory_mc_samples - 1,
+        "analysis.theory_mc_trials": a.theory_mc_trials - 1,
+    }.items():
         if v < 1:
             raise ConfigError(field, "too small (n_datasets, theory_mc_* >= 2; others >= 1)")
     if len(a.variance_libraries) != len(a.variance_levels):
         raise ConfigError("analysis.variance_levels", "needs one level per variance library")
-    for field, vals in {"analysis.convergence_sindy_levels": a.convergence_sindy_levels,
-                        "analysis.convergence_mlp_levels": a.convergence_mlp_levels,
-                        "analysis.gram_mlp_levels": a.gram_mlp_levels,
-                        "analysis.variance_levels": a.variance_levels,
-                        "analysis.theory_sigmas": a.theory_sigmas,
-                        "analysis.gram_sindy_level": (a.gram_sindy_level,)}.items():
+    for field, vals in {
+        "analysis.convergence_sindy_levels": a.convergence_sindy_levels,
+        "analysis.convergence_mlp_levels": a.convergence_mlp_levels,
+        "analysis.gram_mlp_levels": a.gram_mlp_levels,
+        "analysis.variance_levels": a.variance_levels,
+        "analysis.theory_sigmas": a.theory_sigmas,
+        "analysis.gram_sindy_level": (a.gram_sindy_level,),
+    }.items():
         check_finite(field, vals)
         if any(v <= 0 for v in vals):
             raise ConfigError(field, "levels and scales must be > 0")

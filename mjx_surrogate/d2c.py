@@ -28,33 +28,71 @@ def exact_linearize(system: System) -> sid.LinearizeFn:
     return lambda X, U, K, key: sid.exact_jacobians(system.mjx_step, X, U)
 
 
-def _solve(system: System, task: Task, U0: jax.Array, key: jax.Array, params: ILQRParams,
-           sysid: sid.SysIdParams, method: str, progress: ProgressMeter) -> ILQRResult:
+def _solve(
+    system: System,
+    task: Task,
+    U0: jax.Array,
+    key: jax.Array,
+    params: ILQRParams,
+    sysid: sid.SysIdParams,
+    method: str,
+    progress: ProgressMeter,
+) -> ILQRResult:
     """One iLQR solve: "d2c" on the black box (LTV models, the backend's own line-search
     rollouts) or "exact" on the MJX step with ``jax.jacfwd`` Jacobians."""
     if method == "d2c":
-        return ilqr(system.step, sid.ltv_linearize(system, sysid), task_cost(task), task.x0,
-                    U0, task.u_min, task.u_max, params, key, system.closed_loop, progress)
-    return ilqr(system.mjx_step, exact_linearize(system), task_cost(task), task.x0, U0,
-                task.u_min, task.u_max, params, key, None, progress)
+        return ilqr(
+            system.step,
+            sid.ltv_linearize(system, sysid),
+            task_cost(task),
+            task.x0,
+            U0,
+            task.u_min,
+            task.u_max,
+            params,
+            key,
+            system.closed_loop,
+            progress,
+        )
+    return ilqr(
+        system.mjx_step,
+        exact_linearize(system),
+        task_cost(task),
+        task.x0,
+        U0,
+        task.u_min,
+        task.u_max,
+        params,
+        key,
+        None,
+        progress,
+    )
 
 
 @functools.partial(jax.jit, static_argnames=("system",))
-def solve_d2c(system: System, task: Task, U0: jax.Array, key: jax.Array,
-              params: ILQRParams = ILQRParams(),
-              sysid: sid.SysIdParams = sid.SysIdParams(),
-              progress: ProgressMeter = NO_PROGRESS) -> ILQRResult:
+def solve_d2c(
+    system: System,
+    task: Task,
+    U0: jax.Array,
+    key: jax.Array,
+    params: ILQRParams = ILQRParams(),
+    sysid: sid.SysIdParams = sid.SysIdParams(),
+    progress: ProgressMeter = NO_PROGRESS,
+) -> ILQRResult:
     """D2C from U0 [T, nu]: LTV identification + iLQR until a stopping rule holds."""
     return _solve(system, task, U0, key, params, sysid, "d2c", progress)
 
 
 @functools.partial(jax.jit, static_argnames=("system",))
-def solve_exact(system: System, task: Task, U0: jax.Array,
-                params: ILQRParams = ILQRParams(),
-                progress: ProgressMeter = NO_PROGRESS) -> ILQRResult:
+def solve_exact(
+    system: System,
+    task: Task,
+    U0: jax.Array,
+    params: ILQRParams = ILQRParams(),
+    progress: ProgressMeter = NO_PROGRESS,
+) -> ILQRResult:
     """Model-based iLQR from U0 [T, nu] with exact MJX Jacobians (the oracle)."""
-    return _solve(system, task, U0, jax.random.key(0), params, sid.SysIdParams(), "exact",
-                  progress)
+    return _solve(system, task, U0, jax.random.key(0), params, sid.SysIdParams(), "exact", progress)
 
 
 class MultiStart(NamedTuple):
@@ -64,14 +102,19 @@ class MultiStart(NamedTuple):
 
 
 @functools.partial(jax.jit, static_argnames=("system", "method"))
-def solve_multistart(system: System, task: Task, U0s: jax.Array, key: jax.Array,
-                     params: ILQRParams = ILQRParams(),
-                     sysid: sid.SysIdParams = sid.SysIdParams(),
-                     method: str = "d2c", progress: ProgressMeter = NO_PROGRESS) -> MultiStart:
+def solve_multistart(
+    system: System,
+    task: Task,
+    U0s: jax.Array,
+    key: jax.Array,
+    params: ILQRParams = ILQRParams(),
+    sysid: sid.SysIdParams = sid.SysIdParams(),
+    method: str = "d2c",
+    progress: ProgressMeter = NO_PROGRESS,
+) -> MultiStart:
     """vmap of the solve over S initial control sequences U0s [S, T, nu]; keeps the best."""
     keys = jax.random.split(key, U0s.shape[0])
-    results = jax.vmap(lambda U0, k: _solve(system, task, U0, k, params, sysid, method,
-                                            progress))(U0s, keys)
+    results = jax.vmap(lambda U0, k: _solve(system, task, U0, k, params, sysid, method, progress))(U0s, keys)
     costs = jnp.where(jnp.isfinite(results.cost), results.cost, jnp.inf)
     i = jnp.argmin(costs)
     return MultiStart(jax.tree.map(lambda a: a[i], results), results.cost, i)

@@ -48,8 +48,15 @@ def u_max(U_star: jax.Array) -> jax.Array:
 
 
 @partial(jax.jit, static_argnames=("system", "n_traj"))
-def sample(system: System, X_star: jax.Array, U_star: jax.Array, key: jax.Array,
-           n_traj: int, level: float, x0_sigma: float = 0.0) -> Dataset:
+def sample(
+    system: System,
+    X_star: jax.Array,
+    U_star: jax.Array,
+    key: jax.Array,
+    n_traj: int,
+    level: float,
+    x0_sigma: float = 0.0,
+) -> Dataset:
     """N perturbed trajectories of the black box around (X*, U*) in one batched rollout.
 
     X_star [T+1, nx], U_star [T, nu], level: control noise as a fraction of U_max.
@@ -62,8 +69,15 @@ def sample(system: System, X_star: jax.Array, U_star: jax.Array, key: jax.Array,
     return Dataset(rollout(system, x0, U), U)
 
 
-def sample_seeds(system: System, X_star: jax.Array, U_star: jax.Array, keys: jax.Array,
-                 n_traj: int, level: float, x0_sigma: float = 0.0) -> Dataset:
+def sample_seeds(
+    system: System,
+    X_star: jax.Array,
+    U_star: jax.Array,
+    keys: jax.Array,
+    n_traj: int,
+    level: float,
+    x0_sigma: float = 0.0,
+) -> Dataset:
     """Data sets from one sampling distribution, one per key: X [S, N, T+1, nx]."""
     return jax.vmap(lambda k: sample(system, X_star, U_star, k, n_traj, level, x0_sigma))(keys)
 

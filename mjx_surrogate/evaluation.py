@@ -37,17 +37,23 @@ def replay(system: System, task: Task, X: jax.Array, U: jax.Array, K: jax.Array)
     """Execute the nominal X [T+1, nx], U [T, nu] with gains K [T, nu, nx] on the black box,
     open and closed loop, controls clipped to the task's limits."""
     zeros = jnp.zeros_like(U)
-    Xo, Uo = feedback_rollout(system.step, task.x0, X, U, jnp.zeros_like(K), zeros,
-                              task.u_min, task.u_max)
+    Xo, Uo = feedback_rollout(system.step, task.x0, X, U, jnp.zeros_like(K), zeros, task.u_min, task.u_max)
     Xc, Uc = feedback_rollout(system.step, task.x0, X, U, K, zeros, task.u_min, task.u_max)
     err = lambda Xr: jnp.linalg.norm(Xr[-1] - task.x_goal)  # noqa: E731
-    return Replay(trajectory_cost(task, Xo, Uo), trajectory_cost(task, Xc, Uc), Xo, Xc,
-                  err(Xo), err(Xc))
+    return Replay(trajectory_cost(task, Xo, Uo), trajectory_cost(task, Xc, Uc), Xo, Xc, err(Xo), err(Xc))
 
 
 @functools.partial(jax.jit, static_argnames=("system", "n_trials"))
-def evaluate_feedback(system: System, task: Task, X: jax.Array, U: jax.Array, K: jax.Array,
-                      noise_levels: jax.Array, key: jax.Array, n_trials: int):
+def evaluate_feedback(
+    system: System,
+    task: Task,
+    X: jax.Array,
+    U: jax.Array,
+    K: jax.Array,
+    noise_levels: jax.Array,
+    key: jax.Array,
+    n_trials: int,
+):
     """Cost of u_t = U_t + K_t (x_t - X_t) + w_t (closed loop) and U_t + w_t (open loop).
 
     w_t ~ N(0, (level * max|U|)^2) per channel, the same draws for both policies.

@@ -87,10 +87,14 @@ _DESCRIPTIONS = {
     StopReason.INTERRUPTED: "interrupted (stop requested)",
 }
 _VERDICTS = {
-    StopReason.RUNNING: "running", StopReason.COST_CHANGE: "converged",
-    StopReason.SMALL_STEP: "converged", StopReason.NOISE_FLOOR: "converged",
-    StopReason.MAX_ITER: "max_iter", StopReason.NO_DESCENT: "stalled",
-    StopReason.NOT_FINITE: "diverged", StopReason.INTERRUPTED: "interrupted",
+    StopReason.RUNNING: "running",
+    StopReason.COST_CHANGE: "converged",
+    StopReason.SMALL_STEP: "converged",
+    StopReason.NOISE_FLOOR: "converged",
+    StopReason.MAX_ITER: "max_iter",
+    StopReason.NO_DESCENT: "stalled",
+    StopReason.NOT_FINITE: "diverged",
+    StopReason.INTERRUPTED: "interrupted",
 }
 CONVERGED = (StopReason.COST_CHANGE, StopReason.SMALL_STEP, StopReason.NOISE_FLOOR)
 
@@ -140,16 +144,25 @@ class ILQRResult(NamedTuple):
     alpha_history: jax.Array  # [max_iter] accepted step size per iteration (0: rejected)
 
 
-def closed_loop(step: StepFn, x0: jax.Array, X_bar: jax.Array, U_bar: jax.Array,
-                k: jax.Array, K: jax.Array, alpha: jax.Array, lo: jax.Array, hi: jax.Array
-                ) -> tuple[jax.Array, jax.Array]:
+def closed_loop(
+    step: StepFn,
+    x0: jax.Array,
+    X_bar: jax.Array,
+    U_bar: jax.Array,
+    k: jax.Array,
+    K: jax.Array,
+    alpha: jax.Array,
+    lo: jax.Array,
+    hi: jax.Array,
+) -> tuple[jax.Array, jax.Array]:
     """The forward pass of one step size: u_t = clip(u_bar_t + alpha k_t + K_t (x_t -
     x_bar_t)); returns X [T+1, nx], U [T, nu]."""
     return feedback_rollout(step, x0, X_bar, U_bar, K, alpha * k, lo, hi)
 
 
-def box_qp(Quu: jax.Array, Qu: jax.Array, lo: jax.Array, hi: jax.Array, iters: int = 6
-           ) -> tuple[jax.Array, jax.Array, jax.Array]:
+def box_qp(
+    Quu: jax.Array, Qu: jax.Array, lo: jax.Array, hi: jax.Array, iters: int = 6
+) -> tuple[jax.Array, jax.Array, jax.Array]:
     """min 1/2 k'Quu k + Qu'k s.t. lo <= k <= hi by projected Newton; returns (k, free mask,
     ok), ok = Quu positive definite (from the unconstrained solve that starts the search)."""
     n = Qu.shape[0]
@@ -197,8 +210,7 @@ def backward_pass(A, B, lx, lu, lxx, luu, lux, VxT, VxxT, U, lo, hi, mu):
 
         def boxed():
             kt, free, ok = box_qp(Quu_r, Qu, lo - ut, hi - ut)
-            Hf = jnp.where(free[:, None] & free[None, :], Quu_r,
-                           jnp.eye(Qu.shape[0], dtype=Qu.dtype))
+            Hf = jnp.where(free[:, None] & free[None, :], Quu_r, jnp.eye(Qu.shape[0], dtype=Qu.dtype))
             return kt, -spd_solve(Hf, jnp.where(free[:, None], Qux_r, 0.0))[0], ok
 
         def unbounded():  # no finite limit: one solve gives k, K and the definiteness test
@@ -214,7 +226,8 @@ def backward_pass(A, B, lx, lu, lxx, luu, lux, VxT, VxxT, U, lo, hi, mu):
         return (Vx_new, Vxx_new, ok & ok_t), (kt, Kt, dv)
 
     (_, _, ok), (k, K, dv) = jax.lax.scan(
-        body, (VxT, VxxT, jnp.array(True)), (A, B, lx, lu, lxx, luu, lux, U), reverse=True)
+        body, (VxT, VxxT, jnp.array(True)), (A, B, lx, lu, lxx, luu, lux, U), reverse=True
+    )
     return k, K, dv.sum(0), ok
 
 
@@ -246,10 +259,19 @@ class _State(NamedTuple):
     alphas: jax.Array  # [max_iter] accepted step sizes
 
 
-def ilqr(step: StepFn, linearize: LinearizeFn, cost: Cost, x0: jax.Array, U0: jax.Array,
-         u_min: jax.Array, u_max: jax.Array, params: ILQRParams, key: jax.Array,
-         trial_rollouts: ClosedLoopFn | None = None,
-         progress: progress_lib.ProgressMeter = progress_lib.NO_PROGRESS) -> ILQRResult:
+def ilqr(
+    step: StepFn,
+    linearize: LinearizeFn,
+    cost: Cost,
+    x0: jax.Array,
+    U0: jax.Array,
+    u_min: jax.Array,
+    u_max: jax.Array,
+    params: ILQRParams,
+    key: jax.Array,
+    trial_rollouts: ClosedLoopFn | None = None,
+    progress: progress_lib.ProgressMeter = progress_lib.NO_PROGRESS,
+) -> ILQRResult:
     """Solve min_U J(x0, U) s.t. u_min <= u_t <= u_max. x0 [nx], U0 [T, nu].
 
     ``trial_rollouts`` replaces the default line-search forward pass (``closed_loop`` over
@@ -266,12 +288,24 @@ def ilqr(step: StepFn, linearize: LinearizeFn, cost: Cost, x0: jax.Array, U0: ja
     dtype = x0.dtype
     U0 = jnp.clip(U0.astype(dtype), u_min, u_max)
     zeros_K = jnp.zeros((T, nu, nx), dtype)
-    X0, _ = closed_loop(step, x0, jnp.zeros((T + 1, nx), dtype), U0, jnp.zeros((T, nu), dtype),
-                        zeros_K, jnp.zeros((), dtype), u_min, u_max)
+    X0, _ = closed_loop(
+        step,
+        x0,
+        jnp.zeros((T + 1, nx), dtype),
+        U0,
+        jnp.zeros((T, nu), dtype),
+        zeros_K,
+        jnp.zeros((), dtype),
+        u_min,
+        u_max,
+    )
     J0 = trajectory_cost(cost, X0, U0)
     n_hist = params.max_iter + 1
-    X_hist = (jnp.full((n_hist, T + 1, nx), jnp.nan, dtype).at[0].set(X0)
-              if params.record_trajectories else jnp.zeros((0,), dtype))
+    X_hist = (
+        jnp.full((n_hist, T + 1, nx), jnp.nan, dtype).at[0].set(X0)
+        if params.record_trajectories
+        else jnp.zeros((0,), dtype)
+    )
     alphas = 0.5 ** jnp.arange(params.n_alphas, dtype=dtype)
     p = params
 
@@ -280,8 +314,7 @@ def ilqr(step: StepFn, linearize: LinearizeFn, cost: Cost, x0: jax.Array, U0: ja
 
     def body(s: _State) -> _State:
         key, sub = jax.random.split(s.key)
-        A, B = jax.lax.cond(s.fresh, lambda: linearize(s.X, s.U, s.K, sub),
-                            lambda: (s.A, s.B))
+        A, B = jax.lax.cond(s.fresh, lambda: linearize(s.X, s.U, s.K, sub), lambda: (s.A, s.B))
         derivs = cost_derivatives(cost, s.X, s.U)
         k, K, dV, ok = backward_pass(A, B, *derivs, s.U, u_min, u_max, s.mu)
         if trial_rollouts is None:
@@ -297,8 +330,9 @@ def ilqr(step: StepFn, linearize: LinearizeFn, cost: Cost, x0: jax.Array, U0: ja
         best = jnp.argmin(jnp.where(accept, Ja, jnp.inf))
         J = jnp.where(any_acc, Ja[best], s.J)
         X = jnp.where(any_acc, Xa[best], s.X)
-        mu = jnp.where(any_acc, jnp.maximum(s.mu / p.mu_factor, p.mu_min),
-                       jnp.maximum(s.mu * p.mu_factor, p.mu_min))
+        mu = jnp.where(
+            any_acc, jnp.maximum(s.mu / p.mu_factor, p.mu_min), jnp.maximum(s.mu * p.mu_factor, p.mu_min)
+        )
         it = s.it + 1
         scale_u = 1.0 + jnp.max(jnp.abs(s.U))
         small_k = ok & (jnp.max(jnp.abs(k)) < p.k_tol * scale_u)
@@ -309,26 +343,64 @@ def ilqr(step: StepFn, linearize: LinearizeFn, cost: Cost, x0: jax.Array, U0: ja
         stop = progress_lib.poll(progress, it, J, mu)
         reason = jnp.select(
             [small_dJ, small_k, floor, mu > p.mu_max, it >= p.max_iter, stop],
-            [StopReason.COST_CHANGE, StopReason.SMALL_STEP, StopReason.NOISE_FLOOR,
-             StopReason.NO_DESCENT, StopReason.MAX_ITER, StopReason.INTERRUPTED],
-            StopReason.RUNNING)
+            [
+                StopReason.COST_CHANGE,
+                StopReason.SMALL_STEP,
+                StopReason.NOISE_FLOOR,
+                StopReason.NO_DESCENT,
+                StopReason.MAX_ITER,
+                StopReason.INTERRUPTED,
+            ],
+            StopReason.RUNNING,
+        )
         return _State(
-            X=X, U=jnp.where(any_acc, Ua[best], s.U), K=jnp.where(any_acc, K, s.K),
-            k=jnp.where(any_acc, k, s.k), A=A, B=B, J=J, mu=mu, it=it, reason=reason,
-            fresh=any_acc, key=key, history=s.history.at[it].set(J),
+            X=X,
+            U=jnp.where(any_acc, Ua[best], s.U),
+            K=jnp.where(any_acc, K, s.K),
+            k=jnp.where(any_acc, k, s.k),
+            A=A,
+            B=B,
+            J=J,
+            mu=mu,
+            it=it,
+            reason=reason,
+            fresh=any_acc,
+            key=key,
+            history=s.history.at[it].set(J),
             X_history=s.X_history.at[it].set(X) if p.record_trajectories else s.X_history,
-            alphas=s.alphas.at[it - 1].set(jnp.where(any_acc, alphas[best], 0.0)))
+            alphas=s.alphas.at[it - 1].set(jnp.where(any_acc, alphas[best], 0.0)),
+        )
 
     init = _State(
-        X=X0, U=U0, K=zeros_K, k=jnp.zeros((T, nu), dtype), A=jnp.zeros((T, nx, nx), dtype),
-        B=jnp.zeros((T, nx, nu), dtype), J=J0, mu=jnp.asarray(p.mu_init, dtype),
+        X=X0,
+        U=U0,
+        K=zeros_K,
+        k=jnp.zeros((T, nu), dtype),
+        A=jnp.zeros((T, nx, nx), dtype),
+        B=jnp.zeros((T, nx, nu), dtype),
+        J=J0,
+        mu=jnp.asarray(p.mu_init, dtype),
         it=jnp.asarray(0),
         reason=jnp.where(jnp.isfinite(J0), StopReason.RUNNING, StopReason.NOT_FINITE),
-        fresh=jnp.array(True), key=key,
-        history=jnp.full((n_hist,), jnp.nan, dtype).at[0].set(J0), X_history=X_hist,
-        alphas=jnp.zeros((p.max_iter,), dtype))
+        fresh=jnp.array(True),
+        key=key,
+        history=jnp.full((n_hist,), jnp.nan, dtype).at[0].set(J0),
+        X_history=X_hist,
+        alphas=jnp.zeros((p.max_iter,), dtype),
+    )
     s = jax.lax.while_loop(cond, body, init)
     converged = jnp.isin(s.reason, jnp.asarray([int(r) for r in CONVERGED]))
-    return ILQRResult(X=s.X, U=s.U, K=s.K, k=s.k, cost=s.J, cost_history=s.history,
-                      iterations=s.it, stop_reason=s.reason, converged=converged, mu=s.mu,
-                      X_history=s.X_history, alpha_history=s.alphas)
+    return ILQRResult(
+        X=s.X,
+        U=s.U,
+        K=s.K,
+        k=s.k,
+        cost=s.J,
+        cost_history=s.history,
+        iterations=s.it,
+        stop_reason=s.reason,
+        converged=converged,
+        mu=s.mu,
+        X_history=s.X_history,
+        alpha_history=s.alphas,
+    )

@@ -26,8 +26,9 @@ from mjx_surrogate.tasks import Task, trajectory_cost
 from mjx_surrogate.trajectory import open_loop
 
 
-def initial_controls(key: jax.Array, T: int, nu: int, kind: str, scale: float,
-                     n: int | None = None, dtype=None) -> jax.Array:
+def initial_controls(
+    key: jax.Array, T: int, nu: int, kind: str, scale: float, n: int | None = None, dtype=None
+) -> jax.Array:
     """U0 [T, nu] (or [n, T, nu]): zeros, or N(0, scale^2) random controls."""
     shape = (T, nu) if n is None else (n, T, nu)
     dtype = dtype or jnp.asarray(0.0).dtype
@@ -61,11 +62,15 @@ def summary(result: ILQRResult, system: System, task: Task) -> tuple[dict, jax.A
     """
     X_bb, cost = black_box_trajectory(system, task, result.U)
     reason = StopReason(int(result.stop_reason))
-    out = {"status": verdict(reason, cost if cost is not None else np.inf),
-           "cost": cost, "cost_solver": finite_or_none(result.cost),
-           "iterations": int(result.iterations), "converged": bool(result.converged),
-           "stop_reason": reason.description,
-           "final_state_error": finite_or_none(jnp.linalg.norm(X_bb[-1] - task.x_goal))}
+    out = {
+        "status": verdict(reason, cost if cost is not None else np.inf),
+        "cost": cost,
+        "cost_solver": finite_or_none(result.cost),
+        "iterations": int(result.iterations),
+        "converged": bool(result.converged),
+        "stop_reason": reason.description,
+        "final_state_error": finite_or_none(jnp.linalg.norm(X_bb[-1] - task.x_goal)),
+    }
     return out, X_bb
 
 
@@ -75,33 +80,49 @@ class Optimum(NamedTuple):
     metrics: dict
 
 
-def d2c_optimum(system: System, task: Task, U0: jax.Array, key: jax.Array,
-                params: ILQRParams, sysid: sid.SysIdParams,
-                progress: ProgressMeter = NO_PROGRESS) -> Optimum:
+def d2c_optimum(
+    system: System,
+    task: Task,
+    U0: jax.Array,
+    key: jax.Array,
+    params: ILQRParams,
+    sysid: sid.SysIdParams,
+    progress: ProgressMeter = NO_PROGRESS,
+) -> Optimum:
     """Solve by D2C from U0 and summarise on the black box."""
     result = jax.block_until_ready(solve_d2c(system, task, U0, key, params, sysid, progress))
     metrics, X = summary(result, system, task)
     return Optimum(result, X, metrics)
 
 
-def optimum_stage(res, key: jax.Array, record_trajectories: bool = False):
+def record_history(max_iter: int, T: int, nx: int) -> bool:
+    """Whether a solve keeps its iterates X_history: unless that exceeds 10^7 numbers."""
+    return (max_iter + 1) * (T + 1) * nx <= 10_000_000
+
+
+def optimum_stage(res, key: jax.Array):
     """A run stage (``Run.stage``) computing the task's D2C optimum from the config's
     initial controls: (metrics, {X_star, U_star, K_star, U0_star, u_max, X_history if
-    recorded})."""
+    kept (:func:`record_history`)})."""
     cfg, system, task = res
     sc = cfg.solver
+    record_trajectories = record_history(sc.max_iter, task.T, system.nx)
 
     def compute():
         params, sid = solver_params(cfg, record_trajectories)
         k_init, k_d2c = jax.random.split(key)
-        U0 = initial_controls(k_init, task.T, system.nu, sc.init, sc.init_scale, None,
-                              task.x0.dtype)
+        U0 = initial_controls(k_init, task.T, system.nu, sc.init, sc.init_scale, None, task.x0.dtype)
         t0 = time.perf_counter()
         with progress.meter("D2C optimum", sc.max_iter, cfg.experiment.progress) as pm:
             opt = d2c_optimum(system, task, U0, k_d2c, params, sid, pm)
         m = {**opt.metrics, "wall_s": time.perf_counter() - t0}
-        arrays = {"X_star": opt.X, "U_star": opt.result.U, "K_star": opt.result.K,
-                  "U0_star": U0, "u_max": data.u_max(opt.result.U)}
+        arrays = {
+            "X_star": opt.X,
+            "U_star": opt.result.U,
+            "K_star": opt.result.K,
+            "U0_star": U0,
+            "u_max": data.u_max(opt.result.U),
+        }
         if record_trajectories:
             arrays["X_history"] = opt.result.X_history[: int(opt.result.iterations) + 1]
         return m, arrays

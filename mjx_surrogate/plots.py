@@ -9,8 +9,14 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
-def state_fan(t: np.ndarray, X: np.ndarray, X_nominal: np.ndarray, labels: list[str],
-              max_lines: int = 64, title: str = ""):
+def state_fan(
+    t: np.ndarray,
+    X: np.ndarray,
+    X_nominal: np.ndarray,
+    labels: list[str],
+    max_lines: int = 64,
+    title: str = "",
+):
     """Perturbed trajectories X [R, T+1, nx] around a nominal [T+1, nx], one panel per
     state coordinate (at most 6)."""
     n = min(X.shape[-1], 6)
@@ -41,8 +47,9 @@ def cost_history(histories: dict[str, np.ndarray], title: str = ""):
     return fig
 
 
-def trajectory_evolution(t: np.ndarray, X_iters: np.ndarray, x_goal: np.ndarray,
-                         labels: list[str], title: str = ""):
+def trajectory_evolution(
+    t: np.ndarray, X_iters: np.ndarray, x_goal: np.ndarray, labels: list[str], title: str = ""
+):
     """Nominal trajectories X_iters [K, T+1, nx] over iterations, light to dark."""
     n = min(X_iters.shape[-1], 4)
     fig, axes = plt.subplots(1, n, figsize=(3.3 * n, 2.9), squeeze=False)
@@ -78,8 +85,15 @@ def cost_vs_noise(noise: np.ndarray, costs: dict[str, np.ndarray], title: str = 
     return fig
 
 
-def predictions(t: np.ndarray, true: np.ndarray, preds: dict[str, np.ndarray], coords: list[int],
-                labels: list[str], phase: tuple[int, int] | None = None, title: str = ""):
+def predictions(
+    t: np.ndarray,
+    true: np.ndarray,
+    preds: dict[str, np.ndarray],
+    coords: list[int],
+    labels: list[str],
+    phase: tuple[int, int] | None = None,
+    title: str = "",
+):
     """Open-loop predictions against the black box along one trajectory.
 
     true [T+1, nx]; preds name -> [T+1, nx]; one panel per state coordinate in coords,
@@ -160,11 +174,11 @@ def theory_curves(orders: np.ndarray, curves: dict[str, list[float]], ylabel: st
     return fig
 
 
-def seed_overlay(t: np.ndarray, X_true: np.ndarray, P: np.ndarray, coords: list[int],
-                 labels: list[str], title: str = ""):
+def seed_overlay(
+    t: np.ndarray, X_true: np.ndarray, P: np.ndarray, coords: list[int], labels: list[str], title: str = ""
+):
     """Predictions of K models P [K, T+1, nx] (one per data set) over the true trajectory."""
-    return predictions(t, X_true, {f"seed {k}": P[k] for k in range(P.shape[0])}, coords,
-                       labels, None, title)
+    return predictions(t, X_true, {f"seed {k}": P[k] for k in range(P.shape[0])}, coords, labels, None, title)
 
 
 def spectra(svals: dict[str, np.ndarray], title: str = ""):
@@ -183,8 +197,11 @@ def spectra(svals: dict[str, np.ndarray], title: str = ""):
     return fig
 
 
-def projections(proj: dict[str, np.ndarray], xlabel: str = "basis function index",
-                ylabel: str = "(1/R) Theta' (y - Theta C)"):
+def projections(
+    proj: dict[str, np.ndarray],
+    xlabel: str = "basis function index",
+    ylabel: str = "(1/R) Theta' (y - Theta C)",
+):
     """Vectors per data set, one line each: name -> [S, P] (error projections on the basis,
     or the MLP's descent directions)."""
     fig, axes = plt.subplots(1, len(proj), figsize=(4.6 * len(proj), 3.2), squeeze=False)

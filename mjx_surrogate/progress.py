@@ -81,20 +81,23 @@ def _host_poll(meter_id, iteration, cost, mu) -> np.ndarray:
     if bar is not None:
         finite = np.asarray(cost)[np.isfinite(np.asarray(cost))]
         bar.n = int(np.max(np.asarray(iteration)))
-        bar.set_postfix(J=f"{finite.min():.5g}" if finite.size else "inf",
-                        mu=f"{float(np.min(np.asarray(mu))):.1e}", refresh=False)
+        bar.set_postfix(
+            J=f"{finite.min():.5g}" if finite.size else "inf",
+            mu=f"{float(np.min(np.asarray(mu))):.1e}",
+            refresh=False,
+        )
         bar.refresh()
     return np.full(np.shape(meter_id), stop_requested(), dtype=bool)
 
 
-def poll(progress: ProgressMeter, iteration: jax.Array, cost: jax.Array, mu: jax.Array
-         ) -> jax.Array:
+def poll(progress: ProgressMeter, iteration: jax.Array, cost: jax.Array, mu: jax.Array) -> jax.Array:
     """Traced: report one iteration to ``progress``; returns True if a stop was requested."""
 
     def call():
         out = jax.ShapeDtypeStruct((), jnp.bool_)
-        return jax.pure_callback(_host_poll, out, progress.meter_id, iteration, cost, mu,
-                                 vmap_method="expand_dims")
+        return jax.pure_callback(
+            _host_poll, out, progress.meter_id, iteration, cost, mu, vmap_method="expand_dims"
+        )
 
     return jax.lax.cond(progress.meter_id >= 0, call, lambda: jnp.array(False))
 

@@ -10,10 +10,10 @@ import numpy as np
 from mjx_surrogate.config import Config, SystemConfig, TaskConfig, check_finite, validate_static
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.ilqr import ILQRParams
+from mjx_surrogate.surrogates.registry import get_surrogate, library_specs
 from mjx_surrogate.sysid import SysIdParams
 from mjx_surrogate.systems import System, from_mjcf, make_system, task_presets
 from mjx_surrogate.systems.registry import preset_fits
-from mjx_surrogate.surrogates.registry import get_surrogate, library_specs
 from mjx_surrogate.tasks import Task, make_task
 
 
@@ -27,8 +27,7 @@ def build_system_from_config(sc: SystemConfig) -> System:
     if sc.name == "mjcf":
         if not sc.mjcf_path:
             raise ConfigError("system.mjcf_path", "required when system.name is 'mjcf'")
-        return from_mjcf(sc.mjcf_path, sc.backend, sc.substeps or 1, sc.timestep,
-                         sc.native_threads)
+        return from_mjcf(sc.mjcf_path, sc.backend, sc.substeps or 1, sc.timestep, sc.native_threads)
     if sc.mjcf_path:
         raise ConfigError("system.mjcf_path", f"only valid with system.name='mjcf', not {sc.name!r}")
     return make_system(sc.name, sc.backend, sc.substeps, sc.timestep, sc.native_threads)
@@ -43,8 +42,11 @@ def _preset_fields(tc: TaskConfig, system: System) -> dict:
         raise ConfigError("task.preset", f"unknown task {tc.preset!r}; valid: {valid}")
     preset = presets[tc.preset]
     if not preset_fits(preset, system.name):
-        raise ConfigError("task.preset", f"{tc.preset!r} is a task for {preset.system!r}, "
-                          f"not {system.name!r}; use a task of that system or 'custom'")
+        raise ConfigError(
+            "task.preset",
+            f"{tc.preset!r} is a task for {preset.system!r}, "
+            f"not {system.name!r}; use a task of that system or 'custom'",
+        )
     return preset.build(system.nq, system.nv, system.nu)
 
 
@@ -103,8 +105,7 @@ def resolve_task(tc: TaskConfig, system: System) -> TaskConfig:
     nx, nu = system.nx, system.nu
     x0 = _vector(tc, base, "x0", nx)
     x_goal = _vector(tc, base, "x_goal", nx)
-    Q, Q_f, R = (_matrix(tc, base, "Q", nx), _matrix(tc, base, "Q_f", nx),
-                 _matrix(tc, base, "R", nu))
+    Q, Q_f, R = (_matrix(tc, base, "Q", nx), _matrix(tc, base, "Q_f", nx), _matrix(tc, base, "R", nu))
     u_min = tc.u_min if tc.u_min is not None else None
     u_max = tc.u_max if tc.u_max is not None else None
     for name, b in (("u_min", u_min), ("u_max", u_max)):
@@ -115,20 +116,35 @@ def resolve_task(tc: TaskConfig, system: System) -> TaskConfig:
     if u_min is not None and u_max is not None and np.any(np.asarray(u_min) > np.asarray(u_max)):
         raise ConfigError("task.u_min", "must be <= task.u_max in every channel")
     tolist = lambda a: tuple(map(tuple, a.tolist()))  # noqa: E731
-    return TaskConfig(preset=tc.preset, T=int(T), x0=tuple(x0.tolist()),
-                      x_goal=tuple(x_goal.tolist()), Q=tolist(Q), Q_f=tolist(Q_f), R=tolist(R),
-                      u_min=u_min, u_max=u_max)
+    return TaskConfig(
+        preset=tc.preset,
+        T=int(T),
+        x0=tuple(x0.tolist()),
+        x_goal=tuple(x_goal.tolist()),
+        Q=tolist(Q),
+        Q_f=tolist(Q_f),
+        R=tolist(R),
+        u_min=u_min,
+        u_max=u_max,
+    )
 
 
 def solver_params(cfg: Config, record_trajectories: bool = False):
     """SolverConfig -> (ILQRParams, SysIdParams)."""
     s = cfg.solver
-    ilqr = ILQRParams(rel_tol=s.rel_tol, k_tol=s.k_tol, mu_init=s.mu_init, mu_min=s.mu_min,
-                      mu_max=s.mu_max, mu_factor=s.mu_factor, accept_ratio=s.accept_ratio,
-                      max_iter=s.max_iter, n_alphas=s.n_alphas,
-                      record_trajectories=record_trajectories)
-    sysid = SysIdParams(sigma_x=s.sigma_x, sigma_u=s.sigma_u, scheme=s.sysid,
-                        n_samples=s.n_samples)
+    ilqr = ILQRParams(
+        rel_tol=s.rel_tol,
+        k_tol=s.k_tol,
+        mu_init=s.mu_init,
+        mu_min=s.mu_min,
+        mu_max=s.mu_max,
+        mu_factor=s.mu_factor,
+        accept_ratio=s.accept_ratio,
+        max_iter=s.max_iter,
+        n_alphas=s.n_alphas,
+        record_trajectories=record_trajectories,
+    )
+    sysid = SysIdParams(sigma_x=s.sigma_x, sigma_u=s.sigma_u, scheme=s.sysid, n_samples=s.n_samples)
     return ilqr, sysid
 
 
@@ -138,12 +154,19 @@ def resolve(cfg: Config) -> Resolved:
     system = build_system_from_config(cfg.system)
     tc = resolve_task(cfg.task, system)
     if cfg.experiment.kind in ("d2c", "control") and cfg.solver.n_samples < system.nx + system.nu:
-        raise ConfigError("solver.n_samples", f"must be >= nx + nu = {system.nx + system.nu} "
-                          f"for the LTV least squares to be determined, got {cfg.solver.n_samples}")
+        raise ConfigError(
+            "solver.n_samples",
+            f"must be >= nx + nu = {system.nx + system.nu} "
+            f"for the LTV least squares to be determined, got {cfg.solver.n_samples}",
+        )
     if cfg.experiment.kind in ("predict", "analysis", "control"):
         _check_surrogates(cfg, system, int(tc.T))
-    sc = dataclasses.replace(cfg.system, backend=system.backend, substeps=system.substeps,
-                             timestep=float(system.mj_model.opt.timestep))
+    sc = dataclasses.replace(
+        cfg.system,
+        backend=system.backend,
+        substeps=system.substeps,
+        timestep=float(system.mj_model.opt.timestep),
+    )
     resolved = dataclasses.replace(cfg, system=sc, task=tc)
     task = make_task(tc.x0, tc.x_goal, tc.Q, tc.Q_f, tc.R, tc.T, tc.u_min, tc.u_max)
     return Resolved(resolved, system, task)
@@ -164,8 +187,10 @@ def _check_surrogates(cfg: Config, system: System, T: int) -> None:
     if n_train < 1:
         raise ConfigError("data.test_fraction", f"leaves no training trajectory of {d.n_traj}")
     if n_train < system.nx + system.nu:
-        raise ConfigError("data.n_traj", f"the LTV fit needs >= nx + nu = {system.nx + system.nu} "
-                          f"training trajectories, got {n_train}")
+        raise ConfigError(
+            "data.n_traj",
+            f"the LTV fit needs >= nx + nu = {system.nx + system.nu} training trajectories, got {n_train}",
+        )
     for name in cfg.surrogate.kinds:
         get_surrogate(name).validate(cfg, system, n_train * T)
     if cfg.experiment.kind == "analysis":  # the analyses fit SINDy and MLPs whatever kinds says

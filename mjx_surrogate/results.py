@@ -33,8 +33,7 @@ from mjx_surrogate import progress
 
 # Run statuses (docs/results.md); the CLI's exit status follows them.
 SUCCESS = ("converged", "stalled", "max_iter", "completed")
-EXIT_CODES = {**{s: 0 for s in SUCCESS}, "diverged": 1, "failed": 1, "killed": 1,
-              "interrupted": 130}
+EXIT_CODES = {**{s: 0 for s in SUCCESS}, "diverged": 1, "failed": 1, "killed": 1, "interrupted": 130}
 
 
 class Interrupted(Exception):
@@ -280,16 +279,22 @@ class Run:
         try:
             metrics, arrays = cached if cached is not None else compute()
         except Exception as exc:
-            self.metrics["stages"][name] = {"status": "failed", "error": f"{type(exc).__name__}: {exc}",
-                                            "wall_s": time.perf_counter() - t0}
+            self.metrics["stages"][name] = {
+                "status": "failed",
+                "error": f"{type(exc).__name__}: {exc}",
+                "wall_s": time.perf_counter() - t0,
+            }
             self._flush()
             raise
         arrays = {k: np.asarray(v) for k, v in arrays.items()}
         interrupted = progress.stop_requested()
         _set_path(self.metrics, name, metrics)
         self.metrics["stages"][name] = {
-            "status": "interrupted" if interrupted else "done", "wall_s": time.perf_counter() - t0,
-            "arrays": sorted(arrays), **({"resumed": True} if cached is not None else {})}
+            "status": "interrupted" if interrupted else "done",
+            "wall_s": time.perf_counter() - t0,
+            "arrays": sorted(arrays),
+            **({"resumed": True} if cached is not None else {}),
+        }
         self.arrays.update(arrays)
         self._flush()
         if interrupted:
@@ -303,8 +308,7 @@ class Run:
             self.metrics["figures"][name] = "written"
             ok = True
         except Exception as exc:
-            self.metrics["figures"][name] = {"status": "failed",
-                                             "error": f"{type(exc).__name__}: {exc}"}
+            self.metrics["figures"][name] = {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
             ok = False
         self._flush()
         return ok

@@ -28,8 +28,9 @@ class PerturbedRollouts(NamedTuple):
     X: jax.Array
 
 
-def draw_perturbations(key: jax.Array, n: int, x0: jax.Array, U: jax.Array,
-                       sigma_x: float, sigma_u: float) -> tuple[jax.Array, jax.Array]:
+def draw_perturbations(
+    key: jax.Array, n: int, x0: jax.Array, U: jax.Array, sigma_x: float, sigma_u: float
+) -> tuple[jax.Array, jax.Array]:
     """Gaussian perturbations dx0 ~ N(0, sigma_x^2) [n, nx], dU ~ N(0, sigma_u^2) [n, T, nu]."""
     kx, ku = jax.random.split(key)
     dx0 = sigma_x * jax.random.normal(kx, (n,) + x0.shape, x0.dtype)
@@ -37,8 +38,9 @@ def draw_perturbations(key: jax.Array, n: int, x0: jax.Array, U: jax.Array,
     return dx0, dU
 
 
-def perturbed_rollouts_fn(system: System, key: jax.Array, x0: jax.Array, U: jax.Array,
-                          n: int, sigma_x: float, sigma_u: float) -> PerturbedRollouts:
+def perturbed_rollouts_fn(
+    system: System, key: jax.Array, x0: jax.Array, U: jax.Array, n: int, sigma_x: float, sigma_u: float
+) -> PerturbedRollouts:
     """Unjitted body of :func:`perturbed_rollouts`, for use inside larger traces."""
     dx0, dU = draw_perturbations(key, n, x0, U, sigma_x, sigma_u)
     X = system.rollout(x0[None] + dx0, U[None] + dU)
@@ -46,8 +48,14 @@ def perturbed_rollouts_fn(system: System, key: jax.Array, x0: jax.Array, U: jax.
 
 
 @functools.partial(jax.jit, static_argnums=(0, 4))
-def perturbed_rollouts(system: System, key: jax.Array, x0: jax.Array, U: jax.Array,
-                       n: int, sigma_x: float | jax.Array, sigma_u: float | jax.Array
-                       ) -> PerturbedRollouts:
+def perturbed_rollouts(
+    system: System,
+    key: jax.Array,
+    x0: jax.Array,
+    U: jax.Array,
+    n: int,
+    sigma_x: float | jax.Array,
+    sigma_u: float | jax.Array,
+) -> PerturbedRollouts:
     """R = n rollouts from x0 [nx] + dx0 under U [T, nu] + dU, one jitted batched call."""
     return perturbed_rollouts_fn(system, key, x0, U, n, sigma_x, sigma_u)

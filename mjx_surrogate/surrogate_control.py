@@ -21,5 +21,4 @@ def solve_on_model(model, task: Task, U0: jax.Array, params: ILQRParams) -> ILQR
     or MLPModel) from U0 [T, nu]."""
     step = model.step
     lin = lambda X, U, K, key: sysid.exact_jacobians(step, X, U)  # noqa: E731
-    return ilqr(step, lin, task_cost(task), task.x0, U0, task.u_min, task.u_max, params,
-                jax.random.key(0))
+    return ilqr(step, lin, task_cost(task), task.x0, U0, task.u_min, task.u_max, params, jax.random.key(0))

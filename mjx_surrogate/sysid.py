@@ -68,16 +68,20 @@ def fit_from_trajectories(dX: jax.Array, dU: jax.Array) -> tuple[jax.Array, jax.
     return lstsq_ltv(jnp.swapaxes(Z, 0, 1), jnp.swapaxes(dX[:, 1:], 0, 1), nx)
 
 
-def _one_step_perturbations(key: jax.Array, T: int, nx: int, nu: int, p: SysIdParams,
-                            dtype) -> tuple[jax.Array, jax.Array]:
+def _one_step_perturbations(
+    key: jax.Array, T: int, nx: int, nu: int, p: SysIdParams, dtype
+) -> tuple[jax.Array, jax.Array]:
     """dx [T, n, nx] ~ N(0, sigma_x^2), du [T, n, nu] ~ N(0, sigma_u^2)."""
     kx, ku = jax.random.split(key)
-    return (p.sigma_x * jax.random.normal(kx, (T, p.n_samples, nx), dtype),
-            p.sigma_u * jax.random.normal(ku, (T, p.n_samples, nu), dtype))
+    return (
+        p.sigma_x * jax.random.normal(kx, (T, p.n_samples, nx), dtype),
+        p.sigma_u * jax.random.normal(ku, (T, p.n_samples, nu), dtype),
+    )
 
 
-def central_difference(step: Callable, X: jax.Array, U: jax.Array, key: jax.Array,
-                       p: SysIdParams) -> tuple[jax.Array, jax.Array]:
+def central_difference(
+    step: Callable, X: jax.Array, U: jax.Array, key: jax.Array, p: SysIdParams
+) -> tuple[jax.Array, jax.Array]:
     """D2C 2.0 scheme around the nominal X [T+1, nx], U [T, nu]; 2 n T one-step calls."""
     T, nu = U.shape
     nx = X.shape[-1]
@@ -89,8 +93,9 @@ def central_difference(step: Callable, X: jax.Array, U: jax.Array, key: jax.Arra
     return lstsq_ltv(jnp.concatenate([dx, du], axis=-1), Y, nx)
 
 
-def forward_difference(step: Callable, X: jax.Array, U: jax.Array, key: jax.Array,
-                       p: SysIdParams) -> tuple[jax.Array, jax.Array]:
+def forward_difference(
+    step: Callable, X: jax.Array, U: jax.Array, key: jax.Array, p: SysIdParams
+) -> tuple[jax.Array, jax.Array]:
     """One-sided scheme around X [T+1, nx], U [T, nu]; (n + 1) T one-step calls.
 
     f(x_t, u_t) is recomputed in the same batch rather than taken from X[t+1], so that a
@@ -106,8 +111,9 @@ def forward_difference(step: Callable, X: jax.Array, U: jax.Array, key: jax.Arra
     return lstsq_ltv(jnp.concatenate([dx, du], axis=-1), f[:, 1:] - f[:, :1], nx)
 
 
-def open_loop_rollouts(rollout: Callable, X: jax.Array, U: jax.Array, key: jax.Array,
-                       p: SysIdParams) -> tuple[jax.Array, jax.Array]:
+def open_loop_rollouts(
+    rollout: Callable, X: jax.Array, U: jax.Array, key: jax.Array, p: SysIdParams
+) -> tuple[jax.Array, jax.Array]:
     """The paper's scheme: rollouts from X[0] + dx0 under U + dU; rollout is batched."""
     kx, ku = jax.random.split(key)
     n = p.n_samples
@@ -117,8 +123,9 @@ def open_loop_rollouts(rollout: Callable, X: jax.Array, U: jax.Array, key: jax.A
     return fit_from_trajectories(Xp - X[None], dU)
 
 
-def closed_loop_rollouts(step: Callable, X: jax.Array, U: jax.Array, K: jax.Array,
-                         key: jax.Array, p: SysIdParams) -> tuple[jax.Array, jax.Array]:
+def closed_loop_rollouts(
+    step: Callable, X: jax.Array, U: jax.Array, K: jax.Array, key: jax.Array, p: SysIdParams
+) -> tuple[jax.Array, jax.Array]:
     """Rollouts under u_t = U_t + dU_t + K_t (x_t - X_t); regress on the applied du."""
     kx, ku = jax.random.split(key)
     n = p.n_samples
@@ -160,8 +167,7 @@ def register_scheme(name: str, scheme: IdentificationScheme) -> None:
 
 def get_scheme(name: str, field: str = "solver.sysid") -> IdentificationScheme:
     if name not in SCHEMES:
-        raise ConfigError(field, f"unknown identification scheme {name!r}; valid: "
-                          f"{', '.join(SCHEMES)}")
+        raise ConfigError(field, f"unknown identification scheme {name!r}; valid: {', '.join(SCHEMES)}")
     return SCHEMES[name]
 
 
@@ -170,15 +176,35 @@ def ltv_linearize(system, p: SysIdParams) -> LinearizeFn:
     return get_scheme(p.scheme).make_linearize(system, p)
 
 
-register_scheme("central_difference", IdentificationScheme(
-    lambda system, p: lambda X, U, K, key: central_difference(system.step, X, U, key, p),
-    lambda T, n: 2 * n * T, "D2C 2.0: one step from (x_t +- dx, u_t +- du) at every t"))
-register_scheme("forward_difference", IdentificationScheme(
-    lambda system, p: lambda X, U, K, key: forward_difference(system.step, X, U, key, p),
-    lambda T, n: (n + 1) * T, "one step from (x_t + dx, u_t + du) and from (x_t, u_t)"))
-register_scheme("rollout", IdentificationScheme(
-    lambda system, p: lambda X, U, K, key: open_loop_rollouts(system.rollout, X, U, key, p),
-    lambda T, n: n * T, "the paper's: n open-loop perturbed rollouts"))
-register_scheme("closed_loop", IdentificationScheme(
-    lambda system, p: lambda X, U, K, key: closed_loop_rollouts(system.step, X, U, K, key, p),
-    lambda T, n: n * T, "n perturbed rollouts under the current feedback gains"))
+register_scheme(
+    "central_difference",
+    IdentificationScheme(
+        lambda system, p: lambda X, U, K, key: central_difference(system.step, X, U, key, p),
+        lambda T, n: 2 * n * T,
+        "D2C 2.0: one step from (x_t +- dx, u_t +- du) at every t",
+    ),
+)
+register_scheme(
+    "forward_difference",
+    IdentificationScheme(
+        lambda system, p: lambda X, U, K, key: forward_difference(system.step, X, U, key, p),
+        lambda T, n: (n + 1) * T,
+        "one step from (x_t + dx, u_t + du) and from (x_t, u_t)",
+    ),
+)
+register_scheme(
+    "rollout",
+    IdentificationScheme(
+        lambda system, p: lambda X, U, K, key: open_loop_rollouts(system.rollout, X, U, key, p),
+        lambda T, n: n * T,
+        "the paper's: n open-loop perturbed rollouts",
+    ),
+)
+register_scheme(
+    "closed_loop",
+    IdentificationScheme(
+        lambda system, p: lambda X, U, K, key: closed_loop_rollouts(system.step, X, U, K, key, p),
+        lambda T, n: n * T,
+        "n perturbed rollouts under the current feedback gains",
+    ),
+)

@@ -14,9 +14,14 @@ class Timed(NamedTuple):
     run_s: float  # the compiled call, to completion (median over the repeats)
 
 
-def compile_then_run(fn: Callable, static_args: tuple, dynamic_args: tuple,
-                     repeats: int = 1, static_kwargs: dict | None = None,
-                     dynamic_kwargs: dict | None = None) -> Timed:
+def compile_then_run(
+    fn: Callable,
+    static_args: tuple,
+    dynamic_args: tuple,
+    repeats: int = 1,
+    static_kwargs: dict | None = None,
+    dynamic_kwargs: dict | None = None,
+) -> Timed:
     """``fn`` is a ``jax.jit`` whose leading positional parameters are static (more static
     parameters may come by keyword); the compiled call runs ``repeats`` times on the same
     inputs and the median time is reported."""

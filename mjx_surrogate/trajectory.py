@@ -43,9 +43,16 @@ def simulate_batch(step: StepFn, x0: jax.Array, U: jax.Array) -> jax.Array:
     return jax.vmap(simulate, in_axes=(None, 0, 0))(step, x0, U)
 
 
-def feedback_rollout(step: StepFn, x0: jax.Array, X_bar: jax.Array, U_bar: jax.Array,
-                     K: jax.Array, V: jax.Array, lo: jax.Array | float = -jnp.inf,
-                     hi: jax.Array | float = jnp.inf) -> tuple[jax.Array, jax.Array]:
+def feedback_rollout(
+    step: StepFn,
+    x0: jax.Array,
+    X_bar: jax.Array,
+    U_bar: jax.Array,
+    K: jax.Array,
+    V: jax.Array,
+    lo: jax.Array | float = -jnp.inf,
+    hi: jax.Array | float = jnp.inf,
+) -> tuple[jax.Array, jax.Array]:
     """Run the policy u_t = clip(U_bar_t + V_t + K_t (x_t - X_bar_t), lo, hi) from x0.
 
     x0 [nx], X_bar [T+1, nx], U_bar, V [T, nu], K [T, nu, nx] -> X [T+1, nx], U [T, nu]
@@ -61,8 +68,9 @@ def feedback_rollout(step: StepFn, x0: jax.Array, X_bar: jax.Array, U_bar: jax.A
     return jnp.concatenate([Xs, xT[None]]), Us
 
 
-def open_loop(step: StepFn, x0: jax.Array, U: jax.Array, lo=-jnp.inf, hi=jnp.inf
-              ) -> tuple[jax.Array, jax.Array]:
+def open_loop(
+    step: StepFn, x0: jax.Array, U: jax.Array, lo=-jnp.inf, hi=jnp.inf
+) -> tuple[jax.Array, jax.Array]:
     """U [T, nu] clipped to [lo, hi] and applied open loop: -> X [T+1, nx], U [T, nu]."""
     T, nu = U.shape
     zeros_K = jnp.zeros((T, nu, x0.shape[0]), U.dtype)

@@ -18,8 +18,8 @@ from mjx_surrogate.runtime import configure_runtime  # noqa: E402
 
 configure_runtime(x64=True)
 
-import jax  # noqa: E402
 import pytest  # noqa: E402
+
 
 @pytest.fixture(scope="session")
 def systems():

@@ -9,8 +9,8 @@ cross-check (tests/test_reference_d2c.py). No control limits (D2C 2.0 used none)
 
 from __future__ import annotations
 
-import numpy as np
 import mujoco
+import numpy as np
 from mujoco import rollout as mj_rollout
 
 
@@ -52,9 +52,11 @@ def rollout_closed_loop(step, x0, Xb, Ub, k, K, alphas):
 def cost(X, U, xg, Q, Qf, R):
     """J for X [..., T+1, nx], U [..., T, nu]; inf where not finite or blown up."""
     dx = X - xg
-    J = 0.5 * (np.einsum("...ti,ij,...tj->...", dx[..., :-1, :], Q, dx[..., :-1, :])
-               + np.einsum("...ti,ij,...tj->...", U, R, U)
-               + np.einsum("...i,ij,...j->...", dx[..., -1, :], Qf, dx[..., -1, :]))
+    J = 0.5 * (
+        np.einsum("...ti,ij,...tj->...", dx[..., :-1, :], Q, dx[..., :-1, :])
+        + np.einsum("...ti,ij,...tj->...", U, R, U)
+        + np.einsum("...i,ij,...j->...", dx[..., -1, :], Qf, dx[..., -1, :])
+    )
     bad = ~np.isfinite(X).all((-1, -2)) | (np.abs(np.nan_to_num(X, nan=np.inf)).max((-1, -2)) > 1e8)
     return np.where(bad | ~np.isfinite(J), np.inf, J)
 
@@ -106,15 +108,34 @@ def backward(A, B, X, U, xg, Q, Qf, R, mu):
     return k, K, dV
 
 
-def solve(step, x0, U0, xg, Q, Qf, R, seed=0, n_samples=10, sigma=1e-3, max_iter=100,
-          rel_tol=1e-6, n_alphas=8, mu=1e-6, mu_min=1e-8, mu_max=1e10, factor=4.0,
-          accept_ratio=1e-4, scheme="central_difference"):
+def solve(
+    step,
+    x0,
+    U0,
+    xg,
+    Q,
+    Qf,
+    R,
+    seed=0,
+    n_samples=10,
+    sigma=1e-3,
+    max_iter=100,
+    rel_tol=1e-6,
+    n_alphas=8,
+    mu=1e-6,
+    mu_min=1e-8,
+    mu_max=1e10,
+    factor=4.0,
+    accept_ratio=1e-4,
+    scheme="central_difference",
+):
     """Returns dict(U, X, cost, iterations, history)."""
     rng = np.random.default_rng(seed)
     T, nu = U0.shape
     alphas = 0.5 ** np.arange(n_alphas)
-    X, U = rollout_closed_loop(step, x0, np.zeros((T + 1, len(x0))), U0, np.zeros((T, nu)),
-                               np.zeros((T, nu, len(x0))), np.zeros(1))
+    X, U = rollout_closed_loop(
+        step, x0, np.zeros((T + 1, len(x0))), U0, np.zeros((T, nu)), np.zeros((T, nu, len(x0))), np.zeros(1)
+    )
     X, U = X[0], U[0]
     J = float(cost(X, U, xg, Q, Qf, R))
     history, fresh, it = [J], True, 0

@@ -30,7 +30,8 @@ def test_gaussian_monomial_gram_is_the_hankel_matrix_of_moments():
     # Var[x^(2N)] = (4N-1)!! - ((2N-1)!!)^2 sigma^(4N): the paper's monomial formula
     for N in range(1, 5):
         assert float(th.entry_variance("monomial", N, N, "gauss", s)) == pytest.approx(
-            th.paper_monomial_variance(N, 0.5), rel=1e-12)
+            th.paper_monomial_variance(N, 0.5), rel=1e-12
+        )
 
 
 @pytest.mark.parametrize("basis,dist", [("hermite", "gauss"), ("legendre", "uniform")])
@@ -40,8 +41,9 @@ def test_orthonormal_bases_have_identity_gram(basis, dist):
     assert th.condition_number(G) == pytest.approx(1.0)
 
 
-@pytest.mark.parametrize("basis,dist,n", [("monomial", "gauss", 2), ("hermite", "gauss", 3),
-                                          ("legendre", "uniform", 4)])
+@pytest.mark.parametrize(
+    "basis,dist,n", [("monomial", "gauss", 2), ("hermite", "gauss", 3), ("legendre", "uniform", 4)]
+)
 def test_monte_carlo_matches_the_closed_form_within_sampling_error(basis, dist, n):
     rng = np.random.default_rng(0)
     R, trials = 4000, 400
@@ -73,15 +75,17 @@ def test_mlp_jacobian_gram_matches_finite_differences():
     flat, unravel = ravel_pytree(model.params)
     h = lambda th_: np.asarray(nnx.merge(model.graphdef, unravel(th_))(zs), np.float64).ravel()  # noqa
     eps = 1e-3
-    fd = np.stack([(h(flat.at[i].add(eps)) - h(flat.at[i].add(-eps))) / (2 * eps)
-                   for i in range(flat.shape[0])], axis=1)
+    fd = np.stack(
+        [(h(flat.at[i].add(eps)) - h(flat.at[i].add(-eps))) / (2 * eps) for i in range(flat.shape[0])], axis=1
+    )
     np.testing.assert_allclose(H, fd, atol=2e-3)
     G = np.asarray(spectra.mlp_gram(model, zs))
     np.testing.assert_allclose(G, H.T @ H / 8, rtol=1e-10, atol=1e-12)
     d = np.asarray(spectra.mlp_descent_direction(model, zs, ys))
     loss = lambda th_: np.mean((h(th_) - np.asarray(ys, np.float64).ravel()) ** 2)  # noqa
-    g = np.array([(loss(flat.at[i].add(eps)) - loss(flat.at[i].add(-eps))) / (2 * eps)
-                  for i in range(flat.shape[0])])
+    g = np.array(
+        [(loss(flat.at[i].add(eps)) - loss(flat.at[i].add(-eps))) / (2 * eps) for i in range(flat.shape[0])]
+    )
     # (1/R) H' Delta = -(R nx / (2 R)) dL/dtheta with L the mean over R nx entries
     np.testing.assert_allclose(d, -g * (8 * 2) / (2 * 8), atol=2e-3)
 

@@ -10,6 +10,7 @@ import sys
 import mujoco
 import numpy as np
 import pytest
+from helpers import assert_png
 
 from experiments import run as cli
 from mjx_surrogate.config import Config, from_dict, to_dict
@@ -34,8 +35,7 @@ BAD = [
     (["smoke_rollout", "--solver.sigma_x", "-1"], "solver.sigma_x"),
     (["default", "--solver.n_samples", "2"], "solver.n_samples"),
     (["smoke_rollout", "--system.name", "mjcf"], "system.mjcf_path"),
-    (["smoke_predict", "--surrogate.sindy.libraries", "poly3_banana"],
-     "surrogate.sindy.libraries[0]"),
+    (["smoke_predict", "--surrogate.sindy.libraries", "poly3_banana"], "surrogate.sindy.libraries[0]"),
     (["smoke_predict", "--surrogate.sindy.trig_coords", "9"], "surrogate.sindy.trig_coords"),
     (["smoke_predict", "--surrogate.kinds", "sindy", "gpr"], "surrogate.kinds[1]"),
     (["smoke_d2c", "--solver.sysid", "bogus"], "solver.sysid"),
@@ -46,8 +46,10 @@ BAD = [
     (["smoke_analysis", "--analysis.convergence_library", "foo"], "analysis.convergence_library"),
     (["smoke_analysis", "--analysis.variance_libraries", "poly3"], "analysis.variance_levels"),
     (["smoke_theory", "--analysis.theory_max_order", "20"], "analysis.theory_max_order"),
-    (["smoke_rollout", "--system.name", "mjcf", "--system.mjcf_path", "/nonexistent.xml"],
-     "system.mjcf_path"),
+    (
+        ["smoke_rollout", "--system.name", "mjcf", "--system.mjcf_path", "/nonexistent.xml"],
+        "system.mjcf_path",
+    ),
 ]
 
 
@@ -63,15 +65,29 @@ def test_bad_input_exits_2_naming_the_field(argv, field, capsys, tmp_path):
 def test_broken_mjcf_file_via_cli(tmp_path, capsys):
     bad = tmp_path / "bad.xml"
     bad.write_text("<mujoco><worldbody><geom type='sphere'/></mujoco>")
-    code = cli.main(["smoke_rollout", "--system.name", "mjcf", "--system.mjcf_path", str(bad),
-                     "--out", str(tmp_path / "runs")])
+    code = cli.main(
+        [
+            "smoke_rollout",
+            "--system.name",
+            "mjcf",
+            "--system.mjcf_path",
+            str(bad),
+            "--out",
+            str(tmp_path / "runs"),
+        ]
+    )
     assert code == 2
     assert capsys.readouterr().err.startswith("error: system.mjcf_path: invalid MJCF")
 
 
 def test_cli_subprocess_exit_status(tmp_path):
-    out = subprocess.run([sys.executable, "-m", "experiments.run", "smoke_rollout", "--task.T",
-                          "0"], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    out = subprocess.run(
+        [sys.executable, "-m", "experiments.run", "smoke_rollout", "--task.T", "0"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert out.returncode == 2
     assert "error: task.T: horizon must be a positive integer" in out.stderr
 
@@ -102,7 +118,9 @@ def test_config_built_in_python_has_its_choices_checked():
 
     cfg = cli.load_config("smoke_d2c")
     bad = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, sysid="bogus"))
-    with pytest.raises(ConfigError, match="^solver.sysid: unknown identification scheme 'bogus'; valid: .*forward_difference"):
+    with pytest.raises(
+        ConfigError, match="^solver.sysid: unknown identification scheme 'bogus'; valid: .*forward_difference"
+    ):
         resolve(bad)
     bad = dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, backend="gpu"))
     with pytest.raises(ConfigError, match="^system.backend: got 'gpu'"):
@@ -113,8 +131,7 @@ def _cost(cfg, X, U):
     x_goal = np.array(cfg["task"]["x_goal"])
     Q, Qf, R = (np.array(cfg["task"][k]) for k in ("Q", "Q_f", "R"))
     dx = X - x_goal
-    run = 0.5 * np.einsum("ti,ij,tj->", dx[:-1], Q, dx[:-1]) + 0.5 * np.einsum(
-        "ti,ij,tj->", U, R, U)
+    run = 0.5 * np.einsum("ti,ij,tj->", dx[:-1], Q, dx[:-1]) + 0.5 * np.einsum("ti,ij,tj->", U, R, U)
     return run + 0.5 * dx[-1] @ Qf @ dx[-1]
 
 
@@ -122,9 +139,9 @@ def test_run_folder_schema_and_native_replay(tmp_path):
     code = cli.main(["smoke_rollout", "--out", str(tmp_path), "--experiment.name", "r"])
     assert code == 0
     (path,) = glob.glob(str(tmp_path / "*_r"))
-    for f in ("config.json", "model.xml", "metrics.json", "arrays.npz", "versions.json",
-              "rollouts.png"):
+    for f in ("config.json", "model.xml", "metrics.json", "arrays.npz", "versions.json", "rollouts.png"):
         assert os.path.getsize(os.path.join(path, f)) > 0, f
+    assert_png(os.path.join(path, "rollouts.png"))
     cfg = json.load(open(os.path.join(path, "config.json")))
     metrics = json.load(open(os.path.join(path, "metrics.json")))
     arrays = np.load(os.path.join(path, "arrays.npz"))
@@ -136,7 +153,7 @@ def test_run_folder_schema_and_native_replay(tmp_path):
     m = mujoco.MjModel.from_xml_string(open(os.path.join(path, "model.xml")).read())
     d = mujoco.MjData(m)
     x0 = arrays["x0"]
-    d.qpos[:], d.qvel[:] = x0[: m.nq], x0[m.nq:]
+    d.qpos[:], d.qvel[:] = x0[: m.nq], x0[m.nq :]
     X = [x0]
     for u in arrays["nominal_U"]:
         d.ctrl[:] = u
@@ -146,7 +163,9 @@ def test_run_folder_schema_and_native_replay(tmp_path):
     X = np.array(X)
     assert arrays["nominal_U"].shape == (T, 1) and arrays["nominal_X"].shape == (T + 1, 2)
     np.testing.assert_allclose(X, arrays["nominal_X"], atol=1e-5)
-    assert _cost(cfg, X, arrays["nominal_U"]) == pytest.approx(metrics["rollouts"]["nominal"]["cost"], rel=1e-5)
+    assert _cost(cfg, X, arrays["nominal_U"]) == pytest.approx(
+        metrics["rollouts"]["nominal"]["cost"], rel=1e-5
+    )
     # The saved config replays as a config.
     assert cli.load_config(os.path.join(path, "config.json")).task.T == T
 
@@ -158,8 +177,10 @@ def test_runs_never_overwrite(tmp_path):
     assert a.path != b.path
     a.write_json("metrics.json", {"a": 1})
     # under construction: only a hidden .partial folder exists
-    assert all(os.path.basename(p).startswith(".") for p in glob.glob(str(tmp_path / "*")) +
-               glob.glob(str(tmp_path / ".*")))
+    assert all(
+        os.path.basename(p).startswith(".")
+        for p in glob.glob(str(tmp_path / "*")) + glob.glob(str(tmp_path / ".*"))
+    )
     pa, pb = a.close(), b.close()
     assert pa != pb and os.path.isdir(pa) and os.path.isdir(pb)
     assert json.load(open(os.path.join(pa, "metrics.json"))) == {"a": 1}

@@ -8,29 +8,33 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import assert_png
 
 from experiments import run as cli
-from helpers import assert_png
 from mjx_surrogate.config import Config, SystemConfig, TaskConfig
 from mjx_surrogate.d2c import solve_d2c, solve_exact, solve_multistart
 from mjx_surrogate.evaluation import evaluate_feedback
-from mjx_surrogate.pipeline import initial_controls
 from mjx_surrogate.ilqr import ILQRParams
-from mjx_surrogate.rollout import rollout
+from mjx_surrogate.pipeline import initial_controls
 from mjx_surrogate.resolution import resolve
+from mjx_surrogate.rollout import rollout
 from mjx_surrogate.sysid import SysIdParams
 from mjx_surrogate.tasks import trajectory_cost
 
 
 def problem(name, preset, backend, **task):
-    res = resolve(Config(system=SystemConfig(name=name, backend=backend),
-                         task=TaskConfig(preset=preset, **task)))
+    res = resolve(
+        Config(system=SystemConfig(name=name, backend=backend), task=TaskConfig(preset=preset, **task))
+    )
     return res.system, res.task
 
 
-@pytest.mark.parametrize("sid", [SysIdParams(n_samples=10),
-                                 SysIdParams(1e-6, 1e-6, "forward_difference", 10)],
-                         ids=["central", "forward"])
+@pytest.mark.parametrize(
+    "sid",
+    [SysIdParams(n_samples=10), SysIdParams(1e-6, 1e-6, "forward_difference", 10)],
+    ids=["central", "forward"],
+)
+@pytest.mark.slow
 def test_pendulum_d2c_matches_exact_oracle(sid):
     s, task = problem("pendulum", "pendulum_d2c", "mjx")
     U0 = initial_controls(jax.random.key(0), task.T, 1, "random", 0.1)
@@ -48,6 +52,7 @@ def test_pendulum_d2c_matches_exact_oracle(sid):
     assert solve_d2c._cache_size() == n
 
 
+@pytest.mark.slow
 def test_cartpole_d2c_on_native_black_box_matches_exact_oracle():
     s, task = problem("cartpole", "cartpole_d2c", "native")
     U0 = jnp.zeros((task.T, 1))
@@ -60,27 +65,30 @@ def test_cartpole_d2c_on_native_black_box_matches_exact_oracle():
     assert np.all(np.isfinite(h)) and np.all(np.diff(h) <= 0)  # monotone, no blown-up trial
 
 
+@pytest.mark.slow
 def test_multistart_keeps_the_best_and_limits_hold():
     s, task = problem("pendulum", "pendulum_d2c", "mjx", u_min=(-3.0,), u_max=(3.0,))
     U0s = initial_controls(jax.random.key(2), task.T, 1, "random", 1.0, n=3)
-    ms = solve_multistart(s, task, U0s, jax.random.key(3), ILQRParams(max_iter=60),
-                          SysIdParams(n_samples=10))
+    ms = solve_multistart(s, task, U0s, jax.random.key(3), ILQRParams(max_iter=60), SysIdParams(n_samples=10))
     costs = np.asarray(ms.costs)
     assert costs.shape == (3,)
     assert float(ms.best.cost) == pytest.approx(costs.min())
     assert np.all(np.abs(np.asarray(ms.best.U)) <= 3.0 + 1e-12)
 
 
+@pytest.mark.slow
 def test_feedback_without_noise_reproduces_the_nominal():
     s, task = problem("pendulum", "pendulum_d2c", "mjx")
     res = solve_exact(s, task, jnp.zeros((task.T, 1)), ILQRParams(max_iter=50))
-    closed, opened = evaluate_feedback(s, task, res.X, res.U, res.K, jnp.array([0.0, 0.1]),
-                                       jax.random.key(0), 16)
+    closed, opened = evaluate_feedback(
+        s, task, res.X, res.U, res.K, jnp.array([0.0, 0.1]), jax.random.key(0), 16
+    )
     assert np.allclose(closed[0], float(res.cost), rtol=1e-9)
     assert np.allclose(opened[0], float(res.cost), rtol=1e-9)
     assert np.median(closed[1]) < np.median(opened[1])  # the local feedback helps
 
 
+@pytest.mark.slow
 def test_d2c_experiment_writes_schema(tmp_path):
     code = cli.main(["smoke_d2c", "--out", str(tmp_path)])
     assert code == 0
@@ -97,4 +105,3 @@ def test_d2c_experiment_writes_schema(tmp_path):
     assert all(st["status"] == "done" for st in m["stages"].values())
     for f in ("cost_history.png", "trajectory_evolution.png", "feedback_noise.png"):
         assert_png(os.path.join(path, f))
-

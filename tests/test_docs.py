@@ -3,9 +3,12 @@
 import os
 import re
 
+import pytest
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
+@pytest.mark.slow
 def test_quickstart_runs_as_written(capsys):
     text = open(os.path.join(ROOT, "docs", "quickstart.md")).read()
     blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)

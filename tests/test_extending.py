@@ -48,19 +48,27 @@ def fit_affine(ctx, train, test, key):
 
 @pytest.fixture(autouse=True)
 def registered():
-    ms.register_scheme("coordinate", ms.IdentificationScheme(
-        lambda system, p: lambda X, U, K, key: coordinate_differences(system.step, X, U, key, p),
-        lambda T, n: 2 * T * 3, "central differences along each coordinate"))
+    ms.register_scheme(
+        "coordinate",
+        ms.IdentificationScheme(
+            lambda system, p: lambda X, U, K, key: coordinate_differences(system.step, X, U, key, p),
+            lambda T, n: 2 * T * 3,
+            "central differences along each coordinate",
+        ),
+    )
     ms.register_surrogate("affine", ms.SurrogateKind(fit_affine, description="x' = [x, u, 1] W"))
     yield
     sysid.SCHEMES.pop("coordinate")
     ms.surrogates.SURROGATES.pop("affine")
 
 
+@pytest.mark.slow
 def test_a_registered_scheme_drives_d2c_to_the_exact_optimum():
-    cfg = ms.Config(system=ms.SystemConfig(name="pendulum"),
-                    task=ms.TaskConfig(preset="pendulum_d2c", T=20),
-                    solver=ms.SolverConfig(sysid="coordinate", sigma_x=1e-4, n_samples=3))
+    cfg = ms.Config(
+        system=ms.SystemConfig(name="pendulum"),
+        task=ms.TaskConfig(preset="pendulum_d2c", T=20),
+        solver=ms.SolverConfig(sysid="coordinate", sigma_x=1e-4, n_samples=3),
+    )
     cfg, system, task = ms.resolve(cfg)
     params, sid = ms.solver_params(cfg)
     U0 = jnp.zeros((task.T, 1))
@@ -70,9 +78,22 @@ def test_a_registered_scheme_drives_d2c_to_the_exact_optimum():
     assert float(d2c.cost) == pytest.approx(float(exact.cost), rel=1e-4)
 
 
+@pytest.mark.slow
 def test_a_registered_scheme_and_surrogate_run_from_the_cli(tmp_path):
-    code = cli.main(["smoke_predict", "--out", str(tmp_path), "--solver.sysid", "coordinate",
-                     "--solver.sigma_x", "1e-4", "--surrogate.kinds", "sindy", "affine"])
+    code = cli.main(
+        [
+            "smoke_predict",
+            "--out",
+            str(tmp_path),
+            "--solver.sysid",
+            "coordinate",
+            "--solver.sigma_x",
+            "1e-4",
+            "--surrogate.kinds",
+            "sindy",
+            "affine",
+        ]
+    )
     (path,) = glob.glob(str(tmp_path / "*smoke_predict"))
     metrics, arrays = load_run(path)
     assert code == 0 and metrics["status"] == "converged"

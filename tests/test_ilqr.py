@@ -20,8 +20,10 @@ T = 25
 
 def linear_problem(A=A, B=B):
     step = lambda x, u: jnp.asarray(A) @ x + jnp.asarray(B) @ u  # noqa: E731
-    lin = lambda X, U, K, key: (jnp.broadcast_to(jnp.asarray(A), (U.shape[0],) + A.shape),  # noqa
-                                jnp.broadcast_to(jnp.asarray(B), (U.shape[0],) + B.shape))
+    lin = lambda X, U, K, key: (
+        jnp.broadcast_to(jnp.asarray(A), (U.shape[0],) + A.shape),  # noqa
+        jnp.broadcast_to(jnp.asarray(B), (U.shape[0],) + B.shape),
+    )
     cost = Cost(lambda x, u: 0.5 * x @ Q @ x + 0.5 * u @ R @ u, lambda x: 0.5 * x @ QF @ x)
     return step, lin, cost
 
@@ -46,8 +48,19 @@ def riccati_lqr():
 
 def solve(U0, lo=-np.inf, hi=np.inf, **kw):
     step, lin, cost = linear_problem()
-    f = jax.jit(lambda U0: ilqr(step, lin, cost, jnp.asarray(X0), U0, jnp.full(1, lo),
-                                jnp.full(1, hi), ILQRParams(**kw), jax.random.key(0)))
+    f = jax.jit(
+        lambda U0: ilqr(
+            step,
+            lin,
+            cost,
+            jnp.asarray(X0),
+            U0,
+            jnp.full(1, lo),
+            jnp.full(1, hi),
+            ILQRParams(**kw),
+            jax.random.key(0),
+        )
+    )
     return f(U0)
 
 
@@ -78,8 +91,13 @@ def test_box_limits_match_convex_qp_reference():
             x = A @ x + B[:, 0] * u[t]
         return c + 0.5 * x @ QF @ x
 
-    ref = minimize(J, np.zeros(T), method="L-BFGS-B", bounds=[(lo, hi)] * T,
-                   options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 10000})
+    ref = minimize(
+        J,
+        np.zeros(T),
+        method="L-BFGS-B",
+        bounds=[(lo, hi)] * T,
+        options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 10000},
+    )
     U = np.asarray(res.U)[:, 0]
     assert U.min() >= lo - 1e-12 and U.max() <= hi + 1e-12
     assert np.sum(np.isclose(np.abs(U), hi)) > 0  # the limits are active
@@ -101,8 +119,17 @@ def test_regularised_step_keeps_an_exact_value_model(mu):
     step, lin, cost = linear_problem(B=Bs)
     U = 0.3 * jax.random.normal(jax.random.key(3), (T, 1))
     inf = jnp.full(1, jnp.inf)
-    X, _ = closed_loop(step, jnp.asarray(X0), jnp.zeros((T + 1, 2)), U, jnp.zeros((T, 1)),
-                       jnp.zeros((T, 1, 2)), 0.0, -inf, inf)
+    X, _ = closed_loop(
+        step,
+        jnp.asarray(X0),
+        jnp.zeros((T + 1, 2)),
+        U,
+        jnp.zeros((T, 1)),
+        jnp.zeros((T, 1, 2)),
+        0.0,
+        -inf,
+        inf,
+    )
     Aa, Ba = lin(X, U, None, None)
     k, K, dV, ok = backward_pass(Aa, Ba, *cost_derivatives(cost, X, U), U, -inf, inf, mu)
     assert bool(ok)
@@ -115,8 +142,19 @@ def test_regularised_step_keeps_an_exact_value_model(mu):
 def test_blown_up_trials_rejected_and_nonfinite_start_reported():
     # Unstable system: the initial controls blow the state up -> reported, no crash.
     step, lin, cost = linear_problem(A=np.array([[1.3, 0.1], [0.0, 1.3]]))
-    f = jax.jit(lambda U0: ilqr(step, lin, cost, jnp.asarray(X0), U0, jnp.full(1, -jnp.inf),
-                                jnp.full(1, jnp.inf), ILQRParams(), jax.random.key(0)))
+    f = jax.jit(
+        lambda U0: ilqr(
+            step,
+            lin,
+            cost,
+            jnp.asarray(X0),
+            U0,
+            jnp.full(1, -jnp.inf),
+            jnp.full(1, jnp.inf),
+            ILQRParams(),
+            jax.random.key(0),
+        )
+    )
     res = f(jnp.full((T, 1), 1e300))
     assert StopReason(int(res.stop_reason)) == StopReason.NOT_FINITE
     assert StopReason(int(res.stop_reason)).verdict == "diverged"
@@ -130,9 +168,19 @@ def test_blown_up_trials_rejected_and_nonfinite_start_reported():
 def test_absurd_weights_reported_not_nan():
     step, lin, _ = linear_problem()
     cost = Cost(lambda x, u: 0.5 * 1e300 * x @ x + 0.5 * u @ u, lambda x: 1e300 * (1e300 * x @ x))
-    res = jax.jit(lambda U0: ilqr(step, lin, cost, jnp.asarray(X0), U0, jnp.full(1, -jnp.inf),
-                                  jnp.full(1, jnp.inf), ILQRParams(max_iter=20),
-                                  jax.random.key(0)))(jnp.zeros((T, 1)))
+    res = jax.jit(
+        lambda U0: ilqr(
+            step,
+            lin,
+            cost,
+            jnp.asarray(X0),
+            U0,
+            jnp.full(1, -jnp.inf),
+            jnp.full(1, jnp.inf),
+            ILQRParams(max_iter=20),
+            jax.random.key(0),
+        )
+    )(jnp.zeros((T, 1)))
     assert not bool(res.converged)
     assert StopReason(int(res.stop_reason)) == StopReason.NOT_FINITE
     assert StopReason(int(res.stop_reason)).verdict == "diverged"

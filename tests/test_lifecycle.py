@@ -13,9 +13,9 @@ import time
 
 import numpy as np
 import pytest
+from helpers import assert_png
 
 from experiments import run as cli
-from helpers import assert_png
 from mjx_surrogate import progress
 from mjx_surrogate.results import Run, RunFolder, load_run
 
@@ -23,17 +23,30 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 # A D2C solve that would run for many minutes: the cost never stops changing by the rules
 # (rel_tol = k_tol = 0) and the regularisation grows by 1e-6 per rejected step.
-ENDLESS = ["smoke_d2c", "--solver.max_iter", "1000000", "--solver.rel_tol", "0",
-           "--solver.k_tol", "0", "--solver.mu_factor", "1.000001",
-           "--experiment.no-exact-oracle", "--experiment.progress"]
+ENDLESS = [
+    "smoke_d2c",
+    "--solver.max_iter",
+    "1000000",
+    "--solver.rel_tol",
+    "0",
+    "--solver.k_tol",
+    "0",
+    "--solver.mu_factor",
+    "1.000001",
+    "--experiment.no-exact-oracle",
+    "--experiment.progress",
+]
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
 def test_signal_mid_solve_ends_the_run_interrupted_and_keeps_its_results(tmp_path, sig):
-    proc = subprocess.Popen([sys.executable, "-m", "experiments.run", *ENDLESS,
-                             "--out", str(tmp_path)], cwd=ROOT, stderr=subprocess.PIPE,
-                            stdout=subprocess.PIPE)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "experiments.run", *ENDLESS, "--out", str(tmp_path)],
+        cwd=ROOT,
+        stderr=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+    )
     seen = bytearray()
 
     def reader():
@@ -81,8 +94,10 @@ def test_failed_figure_keeps_the_solve_and_is_reported(tmp_path, monkeypatch):
     (path,) = glob.glob(str(tmp_path / "*smoke_d2c"))
     metrics, arrays = load_run(path)
     assert code == 0 and metrics["status"] == "converged"
-    assert metrics["figures"]["cost_history.png"] == {"status": "failed",
-                                                      "error": "RuntimeError: a plotting bug"}
+    assert metrics["figures"]["cost_history.png"] == {
+        "status": "failed",
+        "error": "RuntimeError: a plotting bug",
+    }
     assert metrics["figures"]["feedback_noise.png"] == "written"
     assert_png(os.path.join(path, "feedback_noise.png"))
     assert not os.path.exists(os.path.join(path, "cost_history.png"))
@@ -108,8 +123,9 @@ def test_failed_stage_keeps_the_earlier_stages(tmp_path, monkeypatch, capsys):
 
 
 def test_folder_of_a_killed_run_is_recovered_by_the_next_run(tmp_path):
-    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
-                          capture_output=True, text=True).stdout.strip()
+    dead = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True
+    ).stdout.strip()
     killed = RunFolder(str(tmp_path), "killed")
     record = Run(killed)
     record.stage("first", lambda: ({"cost": 1.5}, {"U": np.ones(3)}))

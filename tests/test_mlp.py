@@ -6,8 +6,7 @@ import numpy as np
 
 from mjx_surrogate.surrogates import mlp
 
-SPEC = mlp.MLPSpec(widths=(32, 64), learning_rate=3e-3, batch_size=64, epochs=60,
-                   checkpoints=(0, 30, 60))
+SPEC = mlp.MLPSpec(widths=(32, 64), learning_rate=3e-3, batch_size=64, epochs=60, checkpoints=(0, 30, 60))
 
 
 def _data(key, n=2000):
@@ -57,8 +56,9 @@ def test_increment_target_and_no_recompile():
     x = z[:, :2]
     res = mlp.train(spec, jax.random.key(0), z, mlp.targets(x, y, True), z, mlp.targets(x, y, True))
     out = res.model.step(x, z[:, 2:])
-    np.testing.assert_allclose(out - x, mlp.apply(res.model.graphdef, res.model.params,
-                                                  res.model.norm, z), rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(
+        out - x, mlp.apply(res.model.graphdef, res.model.params, res.model.norm, z), rtol=1e-6, atol=1e-6
+    )
     n = mlp.train._cache_size()
     mlp.train(spec, jax.random.key(1), z, y, z, y)
     assert mlp.train._cache_size() == n

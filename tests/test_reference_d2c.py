@@ -3,8 +3,8 @@
 import jax.numpy as jnp
 import numpy as np
 import pytest
-
 import reference_d2c_numpy as d2c_numpy
+
 from mjx_surrogate.config import Config, SystemConfig, TaskConfig
 from mjx_surrogate.d2c import solve_d2c
 from mjx_surrogate.ilqr import ILQRParams
@@ -13,16 +13,23 @@ from mjx_surrogate.sysid import SysIdParams
 
 
 def test_jax_d2c_matches_numpy_reference_on_pendulum():
-    res = resolve(Config(system=SystemConfig(name="pendulum", backend="native"),
-                         task=TaskConfig(preset="pendulum_d2c")))
+    res = resolve(
+        Config(system=SystemConfig(name="pendulum", backend="native"), task=TaskConfig(preset="pendulum_d2c"))
+    )
     s, task = res.system, res.task
     U0 = np.zeros((task.T, 1))
-    ref = d2c_numpy.solve(d2c_numpy.NativeStepper(s.mj_model, s.substeps), np.asarray(task.x0),
-                          U0, *(np.asarray(a) for a in (task.x_goal, task.Q, task.Q_f, task.R)),
-                          max_iter=100, rel_tol=1e-7)
+    ref = d2c_numpy.solve(
+        d2c_numpy.NativeStepper(s.mj_model, s.substeps),
+        np.asarray(task.x0),
+        U0,
+        *(np.asarray(a) for a in (task.x_goal, task.Q, task.Q_f, task.R)),
+        max_iter=100,
+        rel_tol=1e-7,
+    )
     import jax
 
-    out = solve_d2c(s, task, jnp.asarray(U0), jax.random.key(0), ILQRParams(rel_tol=1e-7),
-                    SysIdParams(n_samples=10))
+    out = solve_d2c(
+        s, task, jnp.asarray(U0), jax.random.key(0), ILQRParams(rel_tol=1e-7), SysIdParams(n_samples=10)
+    )
     assert float(out.cost) == pytest.approx(ref["cost"], rel=1e-4)
     np.testing.assert_allclose(np.asarray(out.U), ref["U"], atol=2e-2)

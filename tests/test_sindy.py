@@ -23,8 +23,9 @@ def test_library_columns_match_pysindy_names_and_values():
     ref_lib = ps.PolynomialLibrary(degree=3) + ps.FourierLibrary(n_frequencies=1)
     ref_lib.fit(z)
     assert library.names(spec, 3) == ref_lib.get_feature_names()
-    np.testing.assert_allclose(library.features(spec, jnp.asarray(z)), ref_lib.transform(z),
-                               rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(
+        library.features(spec, jnp.asarray(z)), ref_lib.transform(z), rtol=1e-12, atol=1e-12
+    )
     pure = LibrarySpec(degree=4, cross_terms=False)
     ref_pure = ps.PolynomialLibrary(degree=4, include_interaction=False)
     assert library.names(pure, 3) == _pysindy_names(ref_pure, 3)
@@ -44,8 +45,7 @@ def test_recovers_a_polynomial_map_to_round_off():
         np.testing.assert_allclose(m.coef, C, atol=1e-8)
     inc = sindy.fit(spec, jnp.asarray(x), jnp.asarray(u), jnp.asarray(x + xn), increment=True)
     np.testing.assert_allclose(inc.coef, C, atol=1e-8)
-    np.testing.assert_allclose(inc.step(jnp.asarray(x[:5]), jnp.asarray(u[:5])), (x + xn)[:5],
-                               atol=1e-8)
+    np.testing.assert_allclose(inc.step(jnp.asarray(x[:5]), jnp.asarray(u[:5])), (x + xn)[:5], atol=1e-8)
 
 
 def _trajectories(rng, n=20, T=40):
@@ -57,8 +57,10 @@ def _trajectories(rng, n=20, T=40):
         u = rng.uniform(-1, 1, (T, 1))
         for t in range(T):
             a, b = x[t]
-            x[t + 1] = [0.9 * a + 0.1 * np.sin(b) + 0.2 * u[t, 0],
-                        0.8 * b - 0.3 * a * a + 0.05 * np.cos(a) + 0.01 * rng.normal()]
+            x[t + 1] = [
+                0.9 * a + 0.1 * np.sin(b) + 0.2 * u[t, 0],
+                0.8 * b - 0.3 * a * a + 0.05 * np.cos(a) + 0.01 * rng.normal(),
+            ]
         xs.append(x)
         us.append(u)
     return xs, us

@@ -12,14 +12,16 @@ from mjx_surrogate.surrogates import sindy
 from mjx_surrogate.surrogates.library import LibrarySpec
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("backend", ["mjx", "native"])
 def test_exact_model_reproduces_the_black_box(systems, backend):
     sys_ = systems("cartpole", backend)
     key = jax.random.key(0)
     x0 = jnp.zeros((5, 4)).at[:, 1].set(jnp.linspace(2.5, 3.1, 5))
     U = 0.3 * jax.random.normal(key, (5, 12, 1))
-    np.testing.assert_allclose(step_models.predict(step_models.black_box(sys_), x0, U),
-                               rollout(sys_, x0, U), atol=1e-12)
+    np.testing.assert_allclose(
+        step_models.predict(step_models.black_box(sys_), x0, U), rollout(sys_, x0, U), atol=1e-12
+    )
     X = rollout(sys_, x0, U)
     np.testing.assert_allclose(step_models.one_step(step_models.black_box(sys_), X, U), X[:, 1:], atol=1e-12)
 

@@ -10,6 +10,7 @@ import sys
 
 import jax
 import jax.numpy as jnp
+import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -53,15 +54,32 @@ print(json.dumps({"env": dict(os.environ) == env, "cwd": os.getcwd() == cwd,
                   "async": jax.config.read("jax_cpu_enable_async_dispatch") == async_before,
                   "backend": bool(xla_bridge._backends)}))
 """
-    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
-                         timeout=120)
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert json.loads(out.stdout.strip().splitlines()[-1]) == {
-        "env": True, "cwd": True, "async": True, "backend": False}, out.stderr
+        "env": True,
+        "cwd": True,
+        "async": True,
+        "backend": False,
+    }, out.stderr
 
 
+@pytest.mark.slow
 def test_default_precision_float32_run_end_to_end(tmp_path):
-    out = subprocess.run([sys.executable, "-m", "experiments.run", "smoke_d2c", "--out",
-                          str(tmp_path)], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "experiments.run",
+            "smoke_d2c",
+            "--out",
+            str(tmp_path),
+            "--experiment.no-exact-oracle",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert out.returncode == 0, out.stderr[-2000:]
     (path,) = glob.glob(str(tmp_path / "*smoke_d2c"))
     import numpy as np
@@ -71,20 +89,21 @@ def test_default_precision_float32_run_end_to_end(tmp_path):
     arrays = np.load(os.path.join(path, "arrays.npz"))
     assert cfg["experiment"]["x64"] is False and arrays["d2c_U"].dtype == np.float32
     assert metrics["status"] == "converged"
-    assert abs(metrics["d2c_vs_exact_relative_gap"]) < 1e-3
+    assert metrics["d2c"]["cost"] < 1.0 and metrics["d2c"]["final_state_error"] < 0.05
     assert "[converged]" in out.stdout and "d2c cost" in out.stdout
 
 
 def test_switching_the_progress_meter_does_not_recompile(systems):
     from mjx_surrogate import progress
-    from mjx_surrogate.d2c import solve_d2c
-    from mjx_surrogate.resolution import resolve
     from mjx_surrogate.config import Config, SystemConfig, TaskConfig
+    from mjx_surrogate.d2c import solve_d2c
     from mjx_surrogate.ilqr import ILQRParams
+    from mjx_surrogate.resolution import resolve
     from mjx_surrogate.sysid import SysIdParams
 
-    _, system, task = resolve(Config(system=SystemConfig(name="pendulum"),
-                                     task=TaskConfig(preset="pendulum_d2c", T=8)))
+    _, system, task = resolve(
+        Config(system=SystemConfig(name="pendulum"), task=TaskConfig(preset="pendulum_d2c", T=8))
+    )
     U0 = jnp.zeros((task.T, 1))
     p, sid = ILQRParams(max_iter=20), SysIdParams(n_samples=6)
     # a meter passed explicitly (NO_PROGRESS or a live one) shares one program; leaving the

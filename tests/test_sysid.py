@@ -50,6 +50,7 @@ def test_lstsq_matches_float64_numpy():
         np.testing.assert_allclose(B[t], W[:, 3:], rtol=1e-8)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["pendulum", "cartpole"])
 def test_exact_jacobians_match_finite_differences(systems, name):
     s = systems(name, "mjx")
@@ -59,17 +60,27 @@ def test_exact_jacobians_match_finite_differences(systems, name):
     step = jax.jit(s.mjx_step)
     eps = 1e-6
     for t in range(2):
-        fd_A = np.stack([(step(X[t] + eps * e, U[t]) - step(X[t] - eps * e, U[t])) / (2 * eps)
-                         for e in np.eye(s.nx)], axis=1)
-        fd_B = np.stack([(step(X[t], U[t] + eps * e) - step(X[t], U[t] - eps * e)) / (2 * eps)
-                         for e in np.eye(s.nu)], axis=1)
+        fd_A = np.stack(
+            [(step(X[t] + eps * e, U[t]) - step(X[t] - eps * e, U[t])) / (2 * eps) for e in np.eye(s.nx)],
+            axis=1,
+        )
+        fd_B = np.stack(
+            [(step(X[t], U[t] + eps * e) - step(X[t], U[t] - eps * e)) / (2 * eps) for e in np.eye(s.nu)],
+            axis=1,
+        )
         np.testing.assert_allclose(A[t], fd_A, atol=1e-7)
         np.testing.assert_allclose(B[t], fd_B, atol=1e-7)
 
 
-@pytest.mark.parametrize("scheme,sigma,tol", [("central_difference", 1e-4, 1e-6),
-                                              ("forward_difference", 1e-4, 1e-3),
-                                              ("forward_difference", 1e-7, 1e-6)])
+@pytest.mark.parametrize(
+    "scheme,sigma,tol",
+    [
+        ("central_difference", 1e-4, 1e-6),
+        ("forward_difference", 1e-4, 1e-3),
+        ("forward_difference", 1e-7, 1e-6),
+    ],
+)
+@pytest.mark.slow
 def test_difference_schemes_close_to_exact_on_mujoco(systems, scheme, sigma, tol):
     """Central differences are second-order accurate, forward differences first-order:
     at sigma 1e-4 only the central scheme reaches 1e-6; forward needs a smaller sigma."""
@@ -80,10 +91,8 @@ def test_difference_schemes_close_to_exact_on_mujoco(systems, scheme, sigma, tol
     p = sysid.SysIdParams(sigma_x=sigma, sigma_u=sigma, n_samples=10, scheme=scheme)
     fit = getattr(sysid, scheme)
     A, B = jax.jit(lambda X, U, k: fit(s.step, X, U, k, p))(X, U, jax.random.key(0))
-    Ae, Be = jax.jit(lambda X, U: sysid.exact_jacobians(systems("cartpole", "mjx").mjx_step,
-                                                       X, U))(X, U)
-    rel = np.linalg.norm(np.concatenate([A - Ae, B - Be], -1)) / np.linalg.norm(
-        np.concatenate([Ae, Be], -1))
+    Ae, Be = jax.jit(lambda X, U: sysid.exact_jacobians(systems("cartpole", "mjx").mjx_step, X, U))(X, U)
+    rel = np.linalg.norm(np.concatenate([A - Ae, B - Be], -1)) / np.linalg.norm(np.concatenate([Ae, Be], -1))
     assert rel < tol
     if scheme == "forward_difference" and sigma == 1e-4:
         assert rel > 1e-6  # first-order error is visible at this sigma

@@ -10,15 +10,21 @@ from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.systems import from_mjcf, make_system
 from mjx_surrogate.systems.system import state_labels
 
-DIMS = {"pendulum": (2, 1), "cartpole": (4, 1), "fish": (27, 5), "swimmer3": (10, 2),
-        "swimmer6": (16, 5), "swimmer15": (34, 14)}
+DIMS = {
+    "pendulum": (2, 1),
+    "cartpole": (4, 1),
+    "fish": (27, 5),
+    "swimmer3": (10, 2),
+    "swimmer6": (16, 5),
+    "swimmer15": (34, 14),
+}
 
 
 def native_reference(system, x0, U):
     """Independent reference: plain mujoco.mj_step on a fresh MjData, float64."""
     m = system.mj_model
     d = mujoco.MjData(m)
-    d.qpos[:], d.qvel[:] = x0[: m.nq], x0[m.nq:]
+    d.qpos[:], d.qvel[:] = x0[: m.nq], x0[m.nq :]
     out = [x0.copy()]
     for u in U:
         d.ctrl[:] = u
@@ -37,10 +43,16 @@ def initial_state(system, rng, scale=0.1):
 
 
 # name, horizon, tolerance (float64; chaotic growth bounds the horizon)
-CASES = [("pendulum", 50, 1e-9), ("cartpole", 50, 1e-9), ("fish", 30, 1e-8),
-         ("swimmer3", 30, 1e-8), ("swimmer6", 20, 1e-8)]
+CASES = [
+    ("pendulum", 50, 1e-9),
+    ("cartpole", 50, 1e-9),
+    ("fish", 30, 1e-8),
+    ("swimmer3", 30, 1e-8),
+    ("swimmer6", 20, 1e-8),
+]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name,T,tol", CASES)
 def test_mjx_step_matches_mj_step(systems, name, T, tol):
     s = systems(name, "mjx")
@@ -105,11 +117,16 @@ def test_from_mjcf_user_model(tmp_path, systems):
     assert s.name == "my_pendulum"
 
 
-@pytest.mark.parametrize("text,needle", [
-    ("<mujoco><worldbody><body></mujoco>", "invalid MJCF"),
-    ("<mujoco><worldbody><body><joint type='hinge'/><geom size='.1'/></body></worldbody></mujoco>",
-     "no actuators"),
-])
+@pytest.mark.parametrize(
+    "text,needle",
+    [
+        ("<mujoco><worldbody><body></mujoco>", "invalid MJCF"),
+        (
+            "<mujoco><worldbody><body><joint type='hinge'/><geom size='.1'/></body></worldbody></mujoco>",
+            "no actuators",
+        ),
+    ],
+)
 def test_broken_mjcf_is_a_config_error(tmp_path, text, needle):
     path = tmp_path / "broken.xml"
     path.write_text(text)
@@ -138,6 +155,7 @@ def test_mjx_step_first_built_inside_a_trace_does_not_leak():
     assert jnp.allclose(inside, outside)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["cartpole", "fish"])
 def test_mjx_programs_hold_no_lapack_call(systems, name):
     """Batched LAPACK deadlocked jaxlib 0.10 on 2 cores (docs/performance.md): the MJX

@@ -87,8 +87,10 @@ def expectation(poly: list[Fraction], dist: Dist, scale=1) -> Fraction:
 def gram_exact(basis: Basis, n: int, dist: Dist, scale=1) -> list[list[Fraction]]:
     """G_kl = E[psi_k psi_l], k, l = 0..n, exactly."""
     P = basis_coefficients(basis, n, scale)
-    return [[expectation(_poly_mul(P[k], P[l]), dist, scale) * _sqrt_norm(basis, k, l)
-             for l in range(n + 1)] for k in range(n + 1)]
+    return [
+        [expectation(_poly_mul(P[k], P[l]), dist, scale) * _sqrt_norm(basis, k, l) for l in range(n + 1)]
+        for k in range(n + 1)
+    ]
 
 
 def _sqrt_norm(basis: Basis, k: int, l: int) -> Fraction:
@@ -136,6 +138,7 @@ def _inverse(G: list[list[Fraction]]) -> list[list[Fraction]]:
 
 # ---- the paper's formulas (Section "Ill-Conditioning of the Linear Least-Squares Solution")
 
+
 def paper_monomial_variance(N: int, sigma: float) -> float:
     """[(4N-1)!! - ((2N-1)!!)^2] sigma^(4N): Var[x^(2N)] under N(0, sigma^2)."""
     return (double_factorial(4 * N - 1) - double_factorial(2 * N - 1) ** 2) * sigma ** (4 * N)
@@ -143,14 +146,22 @@ def paper_monomial_variance(N: int, sigma: float) -> float:
 
 def paper_hermite_samples(N: int, sigma: float) -> float:
     """[(4N-1)!! - ((2N-1)!!)^2] / (N!)^2 * sigma^(2N), as printed in the paper."""
-    return ((double_factorial(4 * N - 1) - double_factorial(2 * N - 1) ** 2)
-            / math.factorial(N) ** 2 * sigma ** (2 * N))
+    return (
+        (double_factorial(4 * N - 1) - double_factorial(2 * N - 1) ** 2)
+        / math.factorial(N) ** 2
+        * sigma ** (2 * N)
+    )
 
 
 def paper_legendre_samples(N: int, sigma: float) -> float:
     """(2N)!^2 4N^2 / ((N!)^4 (2N+1)^2 (4N+1)) * sigma^(2N), as printed in the paper."""
-    return (math.factorial(2 * N) ** 2 * 4 * N**2
-            / (math.factorial(N) ** 4 * (2 * N + 1) ** 2 * (4 * N + 1)) * sigma ** (2 * N))
+    return (
+        math.factorial(2 * N) ** 2
+        * 4
+        * N**2
+        / (math.factorial(N) ** 4 * (2 * N + 1) ** 2 * (4 * N + 1))
+        * sigma ** (2 * N)
+    )
 
 
 def paper_condition(N: int, sigma: float) -> float:
@@ -164,13 +175,14 @@ def samples_needed(variance: float, mean: float, rel_tol: float = 0.1) -> float:
     return variance / (rel_tol * abs(mean)) ** 2
 
 
-def monte_carlo_gram(basis: Basis, n: int, dist: Dist, scale: float, R: int, trials: int,
-                     rng: np.random.Generator) -> np.ndarray:
+def monte_carlo_gram(
+    basis: Basis, n: int, dist: Dist, scale: float, R: int, trials: int, rng: np.random.Generator
+) -> np.ndarray:
     """G^R for `trials` independent data sets of R samples: [trials, n+1, n+1] (float64)."""
-    x = (rng.normal(0.0, scale, (trials, R)) if dist == "gauss"
-         else rng.uniform(-scale, scale, (trials, R)))
+    x = rng.normal(0.0, scale, (trials, R)) if dist == "gauss" else rng.uniform(-scale, scale, (trials, R))
     P = basis_coefficients(basis, n, Fraction(scale).limit_denominator(10**9))
     c = np.sqrt([float(_norm2(basis, m)) for m in range(n + 1)])
-    psi = np.stack([np.polynomial.polynomial.polyval(x, [float(a) for a in P[m]]) * c[m]
-                    for m in range(n + 1)], axis=-1)  # [trials, R, n+1]
+    psi = np.stack(
+        [np.polynomial.polynomial.polyval(x, [float(a) for a in P[m]]) * c[m] for m in range(n + 1)], axis=-1
+    )  # [trials, R, n+1]
     return np.einsum("tri,trj->tij", psi, psi) / R

@@ -42,8 +42,9 @@ def _monomials(spec: LibrarySpec, nz: int) -> list[tuple[int, ...]]:
 
 
 def _trig_terms(spec: LibrarySpec) -> list[tuple[str, int, int]]:
-    return [(fn, h, j) for h in range(1, spec.harmonics + 1) for j in spec.trig_coords
-            for fn in ("sin", "cos")]
+    return [
+        (fn, h, j) for h in range(1, spec.harmonics + 1) for j in spec.trig_coords for fn in ("sin", "cos")
+    ]
 
 
 def size(spec: LibrarySpec, nz: int) -> int:
@@ -71,8 +72,7 @@ def validate(spec: LibrarySpec, nz: int) -> None:
         raise SpecError("harmonics", f"must be >= 1, got {spec.harmonics}")
     bad = [j for j in spec.trig_coords if not 0 <= j < nz]
     if bad:
-        raise SpecError("trig_coords", f"{bad} out of range; valid indices into "
-                        f"z = [x, u] are 0..{nz - 1}")
+        raise SpecError("trig_coords", f"{bad} out of range; valid indices into z = [x, u] are 0..{nz - 1}")
     if size(spec, nz) == 0:
         raise SpecError("library", "the library is empty")
 
@@ -89,7 +89,7 @@ def names(spec: LibrarySpec, nz: int, symbols: list[str] | None = None) -> list[
 
     monos = [mono(t) for t in _monomials(spec, nz)]
     trig = [f"{fn}({h} {sym[j]})" for fn, h, j in _trig_terms(spec)]
-    prods = [f"{m} {t}" for m in monos[int(spec.bias):] for t in trig] if spec.products else []
+    prods = [f"{m} {t}" for m in monos[int(spec.bias) :] for t in trig] if spec.products else []
     return monos + trig + prods
 
 
@@ -109,12 +109,17 @@ def features(spec: LibrarySpec, z: jax.Array) -> jax.Array:
         trig.append(f(h * z[..., j]))
     out = cols + trig
     if spec.products and trig:
-        out += [m * t for m in cols[int(spec.bias):] for t in trig]
+        out += [m * t for m in cols[int(spec.bias) :] for t in trig]
     return jnp.stack(out, axis=-1)
 
 
-_ALIASES = {"cubic_trig": "poly3_trig", "quartic": "poly4", "quartic_trig": "poly4_trig",
-            "cubic": "poly3", "quadratic": "poly2"}
+_ALIASES = {
+    "cubic_trig": "poly3_trig",
+    "quartic": "poly4",
+    "quartic_trig": "poly4_trig",
+    "cubic": "poly3",
+    "quadratic": "poly2",
+}
 
 
 def parse(name: str, trig_coords: Tuple[int, ...], harmonics: int = 1) -> LibrarySpec:
@@ -130,8 +135,15 @@ def parse(name: str, trig_coords: Tuple[int, ...], harmonics: int = 1) -> Librar
         raise SpecError("library", f"unknown library {name!r}; valid: {valid}")
     trig = "trig" in flags or "prod" in flags
     if trig and not trig_coords:
-        raise SpecError("trig_coords", f"library {name!r} has trig terms but there are no "
-                        "trig coordinates (the model has no hinge joint; set them)")
-    return LibrarySpec(degree=int(head[4:]), cross_terms="nocross" not in flags,
-                       trig_coords=tuple(trig_coords) if trig else (), harmonics=harmonics,
-                       products="prod" in flags)
+        raise SpecError(
+            "trig_coords",
+            f"library {name!r} has trig terms but there are no "
+            "trig coordinates (the model has no hinge joint; set them)",
+        )
+    return LibrarySpec(
+        degree=int(head[4:]),
+        cross_terms="nocross" not in flags,
+        trig_coords=tuple(trig_coords) if trig else (),
+        harmonics=harmonics,
+        products="prod" in flags,
+    )

@@ -100,8 +100,9 @@ def optimizer(spec: MLPSpec) -> optax.GradientTransformation:
 
 
 @partial(jax.jit, static_argnames=("spec",))
-def train(spec: MLPSpec, key: jax.Array, z: jax.Array, y: jax.Array,
-          z_test: jax.Array, y_test: jax.Array) -> TrainResult:
+def train(
+    spec: MLPSpec, key: jax.Array, z: jax.Array, y: jax.Array, z_test: jax.Array, y_test: jax.Array
+) -> TrainResult:
     """Train one network on z [M, nz] -> y [M, nx]; test losses on z_test, y_test."""
     M, nz = z.shape
     nx = y.shape[-1]
@@ -140,13 +141,14 @@ def train(spec: MLPSpec, key: jax.Array, z: jax.Array, y: jax.Array,
     saved = _keep(saved, params, ckpt, 0)
     keys = jax.random.split(k_epochs, spec.epochs)
     (params, _, saved), (tr, te) = jax.lax.scan(
-        epoch, (params, opt.init(params), saved), (jnp.arange(spec.epochs), keys))
+        epoch, (params, opt.init(params), saved), (jnp.arange(spec.epochs), keys)
+    )
     return TrainResult(MLPModel(params, norm, gdef, spec.increment), tr, te, saved)
 
 
 def _keep(saved, params, ckpt: jax.Array, epoch: jax.Array):
     """Write params into the checkpoint slots whose epoch equals ``epoch``."""
-    hit = (ckpt == epoch)  # [n_ckpt]
+    hit = ckpt == epoch  # [n_ckpt]
 
     def put(buf, a):
         h = hit.reshape((-1,) + (1,) * a.ndim)
@@ -156,8 +158,9 @@ def _keep(saved, params, ckpt: jax.Array, epoch: jax.Array):
 
 
 @partial(jax.jit, static_argnames=("spec",))
-def train_seeds(spec: MLPSpec, keys: jax.Array, z: jax.Array, y: jax.Array,
-                z_test: jax.Array, y_test: jax.Array) -> TrainResult:
+def train_seeds(
+    spec: MLPSpec, keys: jax.Array, z: jax.Array, y: jax.Array, z_test: jax.Array, y_test: jax.Array
+) -> TrainResult:
     """K networks at once: keys [K], z [K, M, nz], y [K, M, nx] (one data set per seed)."""
     return jax.vmap(lambda k, a, b, c, d: train(spec, k, a, b, c, d))(keys, z, y, z_test, y_test)
 

@@ -69,12 +69,12 @@ def fit_all(ctx: FitContext, train, test, key: jax.Array) -> dict[str, Fitted]:
         fitted = get_surrogate(name).fit(ctx, train, test, jax.random.fold_in(key, i))
         for label, f in fitted.items():
             jax.block_until_ready(f.model)
-            out[label] = f._replace(info={"fit_s": (time.perf_counter() - t0) / len(fitted),
-                                          **f.info})
+            out[label] = f._replace(info={"fit_s": (time.perf_counter() - t0) / len(fitted), **f.info})
     return out
 
 
 # -- built-in kinds -------------------------------------------------------------------
+
 
 def hinge_angles(system) -> tuple[int, ...]:
     """State indices of hinge-joint angles (the default trig coordinates)."""
@@ -83,8 +83,9 @@ def hinge_angles(system) -> tuple[int, ...]:
     return tuple(q for q, _ in hinge_state_indices(system.mj_model))
 
 
-def library_specs(config, system, names: tuple[str, ...] | str | None = None,
-                  field: str = "surrogate.sindy.libraries") -> dict:
+def library_specs(
+    config, system, names: tuple[str, ...] | str | None = None, field: str = "surrogate.sindy.libraries"
+) -> dict:
     """Resolved SINDy libraries by name (default: surrogate.sindy.libraries; a single name
     for a scalar field); a bad one raises ConfigError naming ``field[i]`` (``field`` for a
     single name), or surrogate.sindy.trig_coords / harmonics."""
@@ -100,8 +101,13 @@ def library_specs(config, system, names: tuple[str, ...] | str | None = None,
             spec = library.parse(name, coords, sc.harmonics)
             library.validate(spec, nz)
         except library.SpecError as exc:
-            where = (f"surrogate.sindy.{exc.part}" if exc.part in ("trig_coords", "harmonics")
-                     else field if scalar else f"{field}[{i}]")
+            where = (
+                f"surrogate.sindy.{exc.part}"
+                if exc.part in ("trig_coords", "harmonics")
+                else field
+                if scalar
+                else f"{field}[{i}]"
+            )
             raise ConfigError(where, exc.message) from None
         out[name] = spec
     return out
@@ -113,10 +119,19 @@ def _fit_sindy(ctx: FitContext, train, test, key) -> dict[str, Fitted]:
     s, inc = ctx.config.surrogate.sindy, ctx.config.surrogate.increment
     out = {}
     for name, spec in library_specs(ctx.config, ctx.system).items():
-        model = sindy.fit(spec, train.x, train.u, train.x_next, increment=inc,
-                          threshold=s.stlsq_threshold, alpha=s.stlsq_alpha, method=s.method)
-        out[f"SINDy {name}"] = Fitted(model, {"n_features": int(model.coef.shape[0]),
-                                              "nonzero": int(jnp.sum(model.coef != 0))})
+        model = sindy.fit(
+            spec,
+            train.x,
+            train.u,
+            train.x_next,
+            increment=inc,
+            threshold=s.stlsq_threshold,
+            alpha=s.stlsq_alpha,
+            method=s.method,
+        )
+        out[f"SINDy {name}"] = Fitted(
+            model, {"n_features": int(model.coef.shape[0]), "nonzero": int(jnp.sum(model.coef != 0))}
+        )
     return out
 
 
@@ -125,21 +140,34 @@ def mlp_spec(config):
     from mjx_surrogate.surrogates.mlp import MLPSpec
 
     m = config.surrogate.mlp
-    return MLPSpec(widths=tuple(m.widths), increment=config.surrogate.increment,
-                   learning_rate=m.learning_rate, weight_decay=m.weight_decay,
-                   batch_size=m.batch_size, epochs=m.epochs, checkpoints=tuple(m.checkpoints))
+    return MLPSpec(
+        widths=tuple(m.widths),
+        increment=config.surrogate.increment,
+        learning_rate=m.learning_rate,
+        weight_decay=m.weight_decay,
+        batch_size=m.batch_size,
+        epochs=m.epochs,
+        checkpoints=tuple(m.checkpoints),
+    )
 
 
 def _fit_mlp(ctx: FitContext, train, test, key) -> dict[str, Fitted]:
     from mjx_surrogate.surrogates import mlp
 
     spec = mlp_spec(ctx.config)
-    r = mlp.train(spec, key, jnp.concatenate([train.x, train.u], -1),
-                  mlp.targets(train.x, train.x_next, spec.increment),
-                  jnp.concatenate([test.x, test.u], -1),
-                  mlp.targets(test.x, test.x_next, spec.increment))
-    info = {"epochs": spec.epochs, "final_train_loss": float(r.train_loss[-1]),
-            "final_test_loss": float(r.test_loss[-1])}
+    r = mlp.train(
+        spec,
+        key,
+        jnp.concatenate([train.x, train.u], -1),
+        mlp.targets(train.x, train.x_next, spec.increment),
+        jnp.concatenate([test.x, test.u], -1),
+        mlp.targets(test.x, test.x_next, spec.increment),
+    )
+    info = {
+        "epochs": spec.epochs,
+        "final_train_loss": float(r.train_loss[-1]),
+        "final_test_loss": float(r.test_loss[-1]),
+    }
     return {"MLP": Fitted(r.model, info, {"train_loss": r.train_loss, "test_loss": r.test_loss})}
 
 
@@ -150,10 +178,13 @@ def _validate_sindy(config, system, n_train: int) -> None:
 def _validate_mlp(config, system, n_train: int) -> None:
     b = config.surrogate.mlp.batch_size
     if b > n_train:
-        raise ConfigError("surrogate.mlp.batch_size", f"{b} exceeds the {n_train} training "
-                          "transitions (data.n_traj x task.T)")
+        raise ConfigError(
+            "surrogate.mlp.batch_size",
+            f"{b} exceeds the {n_train} training transitions (data.n_traj x task.T)",
+        )
 
 
-register_surrogate("sindy", SurrogateKind(_fit_sindy, _validate_sindy,
-                                          "SINDy-style least squares, one model per library"))
+register_surrogate(
+    "sindy", SurrogateKind(_fit_sindy, _validate_sindy, "SINDy-style least squares, one model per library")
+)
 register_surrogate("mlp", SurrogateKind(_fit_mlp, _validate_mlp, "Flax MLP, the paper's"))

@@ -83,8 +83,14 @@ def _masked_solve(g: jax.Array, r: jax.Array, mask: jax.Array, alpha: float) -> 
 
 
 @partial(jax.jit, static_argnames=("max_iter", "normalize_columns"))
-def stlsq(theta: jax.Array, y: jax.Array, threshold: float, alpha: float = 0.05,
-          max_iter: int = 20, normalize_columns: bool = False) -> jax.Array:
+def stlsq(
+    theta: jax.Array,
+    y: jax.Array,
+    threshold: float,
+    alpha: float = 0.05,
+    max_iter: int = 20,
+    normalize_columns: bool = False,
+) -> jax.Array:
     """Sequentially thresholded least squares: C [P, k] with pysindy's STLSQ semantics.
 
     The threshold applies to the (column-normalised, if asked) coefficients; the ridge
@@ -109,9 +115,18 @@ def stlsq(theta: jax.Array, y: jax.Array, threshold: float, alpha: float = 0.05,
     return c / s[:, None]
 
 
-def fit(spec: LibrarySpec, x: jax.Array, u: jax.Array, x_next: jax.Array, *,
-        increment: bool = False, threshold: float = 0.0, alpha: float = 0.0,
-        method: Literal["svd", "normal"] = "svd", max_iter: int = 20) -> SindyModel:
+def fit(
+    spec: LibrarySpec,
+    x: jax.Array,
+    u: jax.Array,
+    x_next: jax.Array,
+    *,
+    increment: bool = False,
+    threshold: float = 0.0,
+    alpha: float = 0.0,
+    method: Literal["svd", "normal"] = "svd",
+    max_iter: int = 20,
+) -> SindyModel:
     """Fit a SINDy model on transitions; threshold > 0 selects STLSQ."""
     theta = design(spec, x, u)
     y = x_next - x if increment else x_next

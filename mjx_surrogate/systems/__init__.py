@@ -6,12 +6,28 @@ written from the physical facts of the dm_control suite and the D2C 2.0 setting
 (``shared/reference.md``). State convention everywhere: x = [qpos, qvel, act].
 """
 
-from mjx_surrogate.systems.registry import (default_config, from_mjcf, make_system,
-                                            register_family, register_system, system_names,
-                                            task_presets)
+from mjx_surrogate.systems.registry import (
+    default_config,
+    from_mjcf,
+    make_system,
+    register_family,
+    register_system,
+    system_names,
+    task_presets,
+)
 from mjx_surrogate.systems.spec import SystemDefaults
 from mjx_surrogate.systems.system import BACKENDS, System, build_system
 
-__all__ = ["BACKENDS", "System", "SystemDefaults", "build_system", "default_config",
-           "from_mjcf", "make_system", "register_family", "register_system", "system_names",
-           "task_presets"]
+__all__ = [
+    "BACKENDS",
+    "System",
+    "SystemDefaults",
+    "build_system",
+    "default_config",
+    "from_mjcf",
+    "make_system",
+    "register_family",
+    "register_system",
+    "system_names",
+    "task_presets",
+]

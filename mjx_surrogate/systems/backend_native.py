@@ -23,6 +23,7 @@ from mujoco import rollout as mj_rollout
 
 _SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
+
 class NativeSimulator:
     """Host-side batched simulator for one model; MjData are reused across calls."""
 
@@ -57,8 +58,7 @@ class NativeSimulator:
         # XLA's callback threads hung the process once in thousands of calls here.
         threaded = self.nthread > 1 and B >= self.min_batch_per_thread * self.nthread
         with self._lock:
-            state, _ = mj_rollout.rollout(self.model, self.datas if threaded else self.datas[0],
-                                          init, ctrl)
+            state, _ = mj_rollout.rollout(self.model, self.datas if threaded else self.datas[0], init, ctrl)
         S = self.substeps
         X = np.empty((B, T + 1, self.nx))
         X[:, 0] = xb
@@ -71,13 +71,13 @@ class NativeSimulator:
         X[:, 1:][bad] = np.nan
         return X.reshape(lead + (T + 1, self.nx)).astype(x0.dtype, copy=False)
 
-
     def closed_loop(self, x0, X_bar, U_bar, k, K, alphas, lo, hi):
         """u_t = clip(U_bar_t + alpha k_t + K_t (x_t - X_bar_t)) for every alpha at once:
         x0 [nx], X_bar [T+1, nx], U_bar, k [T, nu], K [T, nu, nx], alphas [A]
         -> X [A, T+1, nx], U [A, T, nu]."""
         x0, X_bar, U_bar, k, K, alphas, lo, hi = (
-            np.asarray(a) for a in (x0, X_bar, U_bar, k, K, alphas, lo, hi))
+            np.asarray(a) for a in (x0, X_bar, U_bar, k, K, alphas, lo, hi)
+        )
         T, nu = U_bar.shape
         A = len(alphas)
         X = np.empty((A, T + 1, self.nx))
@@ -99,10 +99,23 @@ def make_native_closed_loop(sim: NativeSimulator):
     def closed_loop(x0, X_bar, U_bar, k, K, alphas, lo, hi):
         T, nu = U_bar.shape
         dt = x0.dtype
-        out = (jax.ShapeDtypeStruct((alphas.shape[0], T + 1, sim.nx), dt),
-               jax.ShapeDtypeStruct((alphas.shape[0], T, nu), dt))
-        args = [a.astype(dt) for a in (x0, X_bar, U_bar, k, K, alphas,
-                                       jnp.broadcast_to(lo, (nu,)), jnp.broadcast_to(hi, (nu,)))]
+        out = (
+            jax.ShapeDtypeStruct((alphas.shape[0], T + 1, sim.nx), dt),
+            jax.ShapeDtypeStruct((alphas.shape[0], T, nu), dt),
+        )
+        args = [
+            a.astype(dt)
+            for a in (
+                x0,
+                X_bar,
+                U_bar,
+                k,
+                K,
+                alphas,
+                jnp.broadcast_to(lo, (nu,)),
+                jnp.broadcast_to(hi, (nu,)),
+            )
+        ]
         return jax.pure_callback(sim.closed_loop, out, *args, vmap_method="sequential")
 
     return closed_loop

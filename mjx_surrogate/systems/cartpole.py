@@ -46,25 +46,39 @@ _CP_QF = 900 * np.diag([3.0, 10.0, 3.0, 3.0])
 
 
 def _cartpole_d2c(nq, nv, nu):
-    return dict(T=30, x0=state(nq, nv, q1=math.pi - 0.3), x_goal=state(nq, nv),
-                Q=_CP_Q, Q_f=_CP_QF, R=0.005 * np.eye(1))
+    return dict(
+        T=30,
+        x0=state(nq, nv, q1=math.pi - 0.3),
+        x_goal=state(nq, nv),
+        Q=_CP_Q,
+        Q_f=_CP_QF,
+        R=0.005 * np.eye(1),
+    )
 
 
 def _cartpole_swingup(nq, nv, nu):
-    return dict(T=30, x0=state(nq, nv, q1=math.pi), x_goal=state(nq, nv, q1=math.pi / 3),
-                Q=_CP_Q, Q_f=_CP_QF, R=0.005 * np.eye(1))
+    return dict(
+        T=30,
+        x0=state(nq, nv, q1=math.pi),
+        x_goal=state(nq, nv, q1=math.pi / 3),
+        Q=_CP_Q,
+        Q_f=_CP_QF,
+        R=0.005 * np.eye(1),
+    )
 
 
 def _cartpole_upright(nq, nv, nu):
-    return dict(T=30, x0=state(nq, nv, q1=math.pi), x_goal=state(nq, nv),
-                Q=_CP_Q, Q_f=_CP_QF, R=0.005 * np.eye(1))
+    return dict(
+        T=30, x0=state(nq, nv, q1=math.pi), x_goal=state(nq, nv), Q=_CP_Q, Q_f=_CP_QF, R=0.005 * np.eye(1)
+    )
 
 
 TASKS = {
-    "cartpole_d2c": TaskPreset("cartpole", _cartpole_d2c,
-                               "D2C 2.0: theta = pi - 0.3 -> upright at the origin, T 30"),
-    "cartpole_swingup": TaskPreset("cartpole", _cartpole_swingup,
-                                   "paper: 180 deg -> rest at 60 deg, T 30"),
-    "cartpole_upright": TaskPreset("cartpole", _cartpole_upright,
-                                   "paper: hanging -> upright at the origin, T 30"),
+    "cartpole_d2c": TaskPreset(
+        "cartpole", _cartpole_d2c, "D2C 2.0: theta = pi - 0.3 -> upright at the origin, T 30"
+    ),
+    "cartpole_swingup": TaskPreset("cartpole", _cartpole_swingup, "paper: 180 deg -> rest at 60 deg, T 30"),
+    "cartpole_upright": TaskPreset(
+        "cartpole", _cartpole_upright, "paper: hanging -> upright at the origin, T 30"
+    ),
 }

@@ -80,11 +80,9 @@ def _fish_d2c(nq, nv, nu):
     goal = state(nq, nv, q1=0.4, q2=0.2, q3=1.0)
     w = np.zeros(nq + nv)
     w[:3] = 1.0
-    return dict(T=600, x0=x0, x_goal=goal, Q=9 * np.diag(w), Q_f=1500 * np.diag(w),
-                R=0.1 * np.eye(nu))
+    return dict(T=600, x0=x0, x_goal=goal, Q=9 * np.diag(w), Q_f=1500 * np.diag(w), R=0.1 * np.eye(nu))
 
 
 TASKS = {
-    "fish_d2c": TaskPreset("fish", _fish_d2c,
-                           "D2C 2.0: rest -> (0, 0.4, 0.2), quaternion w = 1, T 600"),
+    "fish_d2c": TaskPreset("fish", _fish_d2c, "D2C 2.0: rest -> (0, 0.4, 0.2), quaternion w = 1, T 600"),
 }

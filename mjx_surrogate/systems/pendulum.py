@@ -39,18 +39,28 @@ def default_config() -> SystemDefaults:
 
 
 def _pendulum_d2c(nq, nv, nu):
-    return dict(T=30, x0=state(nq, nv, q0=math.pi - 0.1), x_goal=state(nq, nv),
-                Q=np.zeros((2, 2)), Q_f=900 * np.diag([1.0, 0.1]), R=0.01 * np.eye(1))
+    return dict(
+        T=30,
+        x0=state(nq, nv, q0=math.pi - 0.1),
+        x_goal=state(nq, nv),
+        Q=np.zeros((2, 2)),
+        Q_f=900 * np.diag([1.0, 0.1]),
+        R=0.01 * np.eye(1),
+    )
 
 
 def _pendulum_swingup(nq, nv, nu):
-    return dict(T=30, x0=state(nq, nv, q0=math.pi), x_goal=state(nq, nv, q0=math.pi / 3),
-                Q=np.zeros((2, 2)), Q_f=900 * np.diag([1.0, 0.1]), R=0.01 * np.eye(1))
+    return dict(
+        T=30,
+        x0=state(nq, nv, q0=math.pi),
+        x_goal=state(nq, nv, q0=math.pi / 3),
+        Q=np.zeros((2, 2)),
+        Q_f=900 * np.diag([1.0, 0.1]),
+        R=0.01 * np.eye(1),
+    )
 
 
 TASKS = {
-    "pendulum_d2c": TaskPreset("pendulum", _pendulum_d2c,
-                               "D2C 2.0: theta = pi - 0.1 -> 0 (upright), T 30"),
-    "pendulum_swingup": TaskPreset("pendulum", _pendulum_swingup,
-                                   "paper: 180 deg -> rest at 60 deg, T 30"),
+    "pendulum_d2c": TaskPreset("pendulum", _pendulum_d2c, "D2C 2.0: theta = pi - 0.1 -> 0 (upright), T 30"),
+    "pendulum_swingup": TaskPreset("pendulum", _pendulum_swingup, "paper: 180 deg -> rest at 60 deg, T 30"),
 }

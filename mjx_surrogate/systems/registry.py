@@ -25,15 +25,20 @@ _FAMILIES: dict[str, tuple[re.Pattern, Callable[[int], SystemDefaults]]] = {}
 _TASKS: dict[str, TaskPreset] = {}
 
 
-def register_system(name: str, default_config: Callable[[], SystemDefaults],
-                    tasks: dict[str, TaskPreset] | None = None) -> None:
+def register_system(
+    name: str, default_config: Callable[[], SystemDefaults], tasks: dict[str, TaskPreset] | None = None
+) -> None:
     """Register a system ``name`` and its task presets."""
     _SYSTEMS[name] = default_config
     _TASKS.update(tasks or {})
 
 
-def register_family(label: str, pattern: str, default_config: Callable[[int], SystemDefaults],
-                    tasks: dict[str, TaskPreset] | None = None) -> None:
+def register_family(
+    label: str,
+    pattern: str,
+    default_config: Callable[[int], SystemDefaults],
+    tasks: dict[str, TaskPreset] | None = None,
+) -> None:
     """Register sized systems whose name matches ``pattern`` (one integer group, >= 2)."""
     _FAMILIES[label] = (re.compile(pattern), default_config)
     _TASKS.update(tasks or {})
@@ -45,8 +50,9 @@ def _register_module(name: str, module: ModuleType) -> None:
 
 for _name, _module in (("pendulum", pendulum), ("cartpole", cartpole), ("fish", fish)):
     _register_module(_name, _module)
-register_family("swimmer<N> (N >= 2, e.g. swimmer6)", r"^swimmer(\d+)$", swimmer.default_config,
-                swimmer.TASKS)
+register_family(
+    "swimmer<N> (N >= 2, e.g. swimmer6)", r"^swimmer(\d+)$", swimmer.default_config, swimmer.TASKS
+)
 
 
 def system_names() -> tuple[str, ...]:
@@ -73,12 +79,16 @@ def default_config(name: str) -> SystemDefaults:
         match = pattern.match(name)
         if match and int(match.group(1)) >= 2:
             return make(int(match.group(1)))
-    raise ConfigError("system.name", f"unknown system {name!r}; valid: "
-                      f"{', '.join(system_names())}")
+    raise ConfigError("system.name", f"unknown system {name!r}; valid: {', '.join(system_names())}")
 
 
-def make_system(name: str, backend: str = "auto", substeps: int | None = None,
-                timestep: float | None = None, native_threads: int | None = None) -> System:
+def make_system(
+    name: str,
+    backend: str = "auto",
+    substeps: int | None = None,
+    timestep: float | None = None,
+    native_threads: int | None = None,
+) -> System:
     """Build a registered system (``pendulum``, ``cartpole``, ``fish``, ``swimmerN``).
 
     ``backend="auto"`` takes the measured faster backend for this system on the CPU. The
@@ -88,25 +98,45 @@ def make_system(name: str, backend: str = "auto", substeps: int | None = None,
     import jax
 
     d = default_config(name)
-    return _built(name, d.backend if backend == "auto" else backend,
-                  substeps if substeps is not None else d.substeps, timestep, native_threads,
-                  bool(jax.config.jax_enable_x64))
+    return _built(
+        name,
+        d.backend if backend == "auto" else backend,
+        substeps if substeps is not None else d.substeps,
+        timestep,
+        native_threads,
+        bool(jax.config.jax_enable_x64),
+    )
 
 
 @functools.lru_cache(maxsize=32)
-def _built(name: str, backend: str, substeps: int, timestep: float | None,
-           native_threads: int | None, x64: bool) -> System:
-    return build_system(name, default_config(name).xml(), substeps, backend, timestep,
-                        native_threads, field="system.name")
+def _built(
+    name: str, backend: str, substeps: int, timestep: float | None, native_threads: int | None, x64: bool
+) -> System:
+    return build_system(
+        name, default_config(name).xml(), substeps, backend, timestep, native_threads, field="system.name"
+    )
 
 
-def from_mjcf(path: str, backend: str = "auto", substeps: int = 1,
-              timestep: float | None = None, native_threads: int | None = None) -> System:
+def from_mjcf(
+    path: str,
+    backend: str = "auto",
+    substeps: int = 1,
+    timestep: float | None = None,
+    native_threads: int | None = None,
+) -> System:
     """Build a system from the user's MJCF file (includes and meshes resolved next to it).
     ``auto`` picks ``native``: it runs every MuJoCo feature and won on 2 cores for all but
     the smallest models we measured."""
     if not os.path.isfile(path):
         raise ConfigError("system.mjcf_path", f"no such file {path!r}; give a path to an MJCF .xml")
     name = os.path.splitext(os.path.basename(path))[0]
-    return build_system(name, None, substeps, "native" if backend == "auto" else backend,
-                        timestep, native_threads, field="system.mjcf_path", path=path)
+    return build_system(
+        name,
+        None,
+        substeps,
+        "native" if backend == "auto" else backend,
+        timestep,
+        native_threads,
+        field="system.mjcf_path",
+        path=path,
+    )

@@ -71,14 +71,20 @@ def _swimmer_nose(T):
     def build(nq, nv, nu):
         w = np.zeros(nq + nv)
         w[:2] = 1.0  # the root body's origin is the nose: qpos[0:2]
-        return dict(T=T, x0=state(nq, nv), x_goal=state(nq, nv, q0=0.5, q1=-0.6),
-                    Q=10 * np.diag(w), Q_f=1000 * np.diag(w), R=0.01 * np.eye(nu))
+        return dict(
+            T=T,
+            x0=state(nq, nv),
+            x_goal=state(nq, nv, q0=0.5, q1=-0.6),
+            Q=10 * np.diag(w),
+            Q_f=1000 * np.diag(w),
+            R=0.01 * np.eye(nu),
+        )
+
     return build
 
 
 TASKS = {
     "swimmer3_d2c": TaskPreset("swimmer3", _swimmer_nose(900), "D2C 2.0: nose -> (0.5, -0.6), T 900"),
     "swimmer6_d2c": TaskPreset("swimmer6", _swimmer_nose(800), "D2C 2.0: nose -> (0.5, -0.6), T 800"),
-    "swimmer_nose": TaskPreset("swimmer*", _swimmer_nose(300),
-                               "any swimmerN: nose -> (0.5, -0.6), T 300"),
+    "swimmer_nose": TaskPreset("swimmer*", _swimmer_nose(300), "any swimmerN: nose -> (0.5, -0.6), T 300"),
 }

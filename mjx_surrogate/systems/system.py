@@ -75,8 +75,10 @@ class System:
         return backend_native.NativeSimulator(self.mj_model, self.substeps, self.native_threads)
 
     def __repr__(self) -> str:
-        return (f"System({self.name!r}, backend={self.backend!r}, nx={self.nx}, nu={self.nu}, "
-                f"substeps={self.substeps}, dt={self.dt:g})")
+        return (
+            f"System({self.name!r}, backend={self.backend!r}, nx={self.nx}, nu={self.nu}, "
+            f"substeps={self.substeps}, dt={self.dt:g})"
+        )
 
 
 def can_have_constraints(m: mujoco.MjModel) -> bool:
@@ -87,8 +89,9 @@ def can_have_constraints(m: mujoco.MjModel) -> bool:
     return bool(contacts or limits or friction or m.neq > 0)
 
 
-def compile_mjcf(xml: str | None, field: str = "system.mjcf", timestep: float | None = None,
-                 path: str | None = None) -> tuple[mujoco.MjModel, str]:
+def compile_mjcf(
+    xml: str | None, field: str = "system.mjcf", timestep: float | None = None, path: str | None = None
+) -> tuple[mujoco.MjModel, str]:
     """Compile MJCF text (or the file at ``path``, its includes and assets resolved next to
     it), disabling the constraint solver where nothing can be constrained.
 
@@ -110,9 +113,16 @@ def compile_mjcf(xml: str | None, field: str = "system.mjcf", timestep: float | 
     return model, spec.to_xml()
 
 
-def build_system(name: str, xml: str | None, substeps: int, backend: str,
-                 timestep: float | None = None, native_threads: int | None = None,
-                 field: str = "system.mjcf", path: str | None = None) -> System:
+def build_system(
+    name: str,
+    xml: str | None,
+    substeps: int,
+    backend: str,
+    timestep: float | None = None,
+    native_threads: int | None = None,
+    field: str = "system.mjcf",
+    path: str | None = None,
+) -> System:
     """Compile ``xml`` (or the MJCF file at ``path``) and wrap it as a :class:`System` on
     ``backend`` ("mjx" | "native")."""
     if backend not in BACKENDS:
@@ -137,8 +147,11 @@ def build_system(name: str, xml: str | None, substeps: int, backend: str,
 
 def hinge_state_indices(m: mujoco.MjModel) -> list[tuple[int, int]]:
     """(angle, angular velocity) state indices of every hinge joint, in joint order."""
-    return [(int(m.jnt_qposadr[j]), m.nq + int(m.jnt_dofadr[j])) for j in range(m.njnt)
-            if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    return [
+        (int(m.jnt_qposadr[j]), m.nq + int(m.jnt_dofadr[j]))
+        for j in range(m.njnt)
+        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
+    ]
 
 
 def state_labels(m: mujoco.MjModel) -> list[str]:
