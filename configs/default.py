@@ -6,7 +6,7 @@ CONFIG = Config(
     system=SystemConfig(name="pendulum"),
     task=TaskConfig(preset="pendulum_d2c"),
     solver=SolverConfig(
-        sysid="central_difference", n_samples=10, init="random", init_scale=0.1, max_iter=100, rel_tol=1e-5
+        sysid="central_difference", n_samples=10, max_iter=100, rel_tol=1e-5
     ),
     experiment=ExperimentConfig(kind="d2c"),
 )

@@ -5,6 +5,6 @@ from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemC
 CONFIG = Config(
     system=SystemConfig(name="pendulum"),
     task=TaskConfig(preset="pendulum_d2c", T=10),
-    solver=SolverConfig(n_samples=6, max_iter=30),
+    solver=SolverConfig(n_samples=6, max_iter=30, init="random"),
     experiment=ExperimentConfig(kind="d2c", n_noise_trials=8, progress=False),
 )

@@ -52,7 +52,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
                 "run_s": run_s,
                 "control_steps_per_s": ex.n_rollouts * task.T / run_s,
             },
-            "native_replay_max_abs_diff": float(np.nanmax(np.abs(X_native - np.asarray(out.X)))),
+            "native_replay_max_abs_diff": _max_diff(X_native, np.asarray(out.X)),
         }
         arrays = {
             "x0": task.x0,
@@ -64,7 +64,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         }
         return m, arrays
 
-    _, arrays = record.stage("rollouts", rollouts)
+    m, arrays = record.stage("rollouts", rollouts)
     t = np.arange(task.T + 1) * system.dt
     record.figure(
         "rollouts.png",
@@ -76,4 +76,12 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             title=f"{system.name}: {ex.n_rollouts} perturbed rollouts",
         ),
     )
-    return "completed"
+    nominal_ok = np.isfinite(m["nominal"]["cost"])
+    # "diverged" when the nominal or every perturbed rollout left the finite states
+    return "completed" if nominal_ok and m["perturbed"]["n_diverged"] < ex.n_rollouts else "diverged"
+
+
+def _max_diff(a: np.ndarray, b: np.ndarray) -> float | None:
+    """Largest |a - b| over entries finite in both (None if there is none)."""
+    both = np.isfinite(a) & np.isfinite(b)
+    return float(np.max(np.abs(a - b)[both])) if both.any() else None

@@ -42,13 +42,19 @@ def load_config(spec: str) -> Config:
                 data = json.load(f)
             except json.JSONDecodeError as exc:
                 raise ConfigError("CONFIG", f"{spec!r} is not valid JSON ({exc})") from None
-        return from_dict(Config, data)
+        return from_dict(Config, data, complete=True)
     if spec.endswith(".py"):
         if not os.path.isfile(spec):
             raise ConfigError("CONFIG", f"no such file {spec!r}")
         mod_spec = importlib.util.spec_from_file_location("user_config", spec)
         module = importlib.util.module_from_spec(mod_spec)
-        mod_spec.loader.exec_module(module)
+        try:
+            mod_spec.loader.exec_module(module)
+        except ConfigError:
+            raise
+        except BaseException as exc:  # the user's file: report, never a traceback
+            msg = " ".join(str(exc).split())[:200]
+            raise ConfigError("CONFIG", f"{spec!r} raised {type(exc).__name__}: {msg}") from None
     else:
         if spec not in preset_names():
             raise ConfigError(
@@ -66,14 +72,7 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
     """Returns the config with overrides applied and the preset's name."""
     import tyro
 
-    argv = list(argv)
-    out = None
-    if "--out" in argv:
-        i = argv.index("--out")
-        if i + 1 >= len(argv):
-            raise ConfigError("--out", "needs a directory")
-        out = argv[i + 1]
-        del argv[i : i + 2]
+    argv, out = _take_out(list(argv))
     spec = DEFAULT_PRESET
     if argv and not argv[0].startswith("-"):
         spec = argv.pop(0)
@@ -105,6 +104,43 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
     return cfg, name
 
 
+def _take_out(argv: list[str]) -> tuple[list[str], str | None]:
+    """Remove ``--out DIR`` / ``--out=DIR`` (given at most once) from argv."""
+    rest, outs, i = [], [], 0
+    while i < len(argv):
+        a = argv[i]
+        if a == "--out":
+            if i + 1 >= len(argv) or argv[i + 1].startswith("--"):
+                raise ConfigError("--out", "needs a directory")
+            outs.append(argv[i + 1])
+            i += 2
+            continue
+        if a.startswith("--out="):
+            outs.append(a.split("=", 1)[1])
+        else:
+            rest.append(a)
+        i += 1
+    if len(outs) > 1:
+        raise ConfigError("--out", f"given {len(outs)} times ({', '.join(outs)}); give one directory")
+    if outs and not outs[0]:
+        raise ConfigError("--out", "needs a directory")
+    return rest, (outs[0] if outs else None)
+
+
+def check_out_dir(path: str) -> None:
+    """The output folder exists as a writable directory or can be created."""
+    probe = os.path.abspath(path)
+    while not os.path.exists(probe):
+        parent = os.path.dirname(probe)
+        if parent == probe:
+            break
+        probe = parent
+    if not os.path.isdir(probe):
+        raise ConfigError("experiment.out_dir", f"{probe!r} is a file, not a directory")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise ConfigError("experiment.out_dir", f"{probe!r} is not writable")
+
+
 def _one_line_tyro_error(text: str) -> ConfigError:
     """Condense tyro's boxed message to one line naming the field."""
     lines = [re.sub(r"^[\s│╭╰─]+|[\s│╮╯─]+$", "", ln) for ln in text.splitlines()]
@@ -114,7 +150,9 @@ def _one_line_tyro_error(text: str) -> ConfigError:
     fields = re.findall(r"--[\w.]+", body)
     field = fields[0] if fields else "overrides"
     if "Unrecognized" in body:
-        return ConfigError(field, "unknown field; run with --help for the valid fields")
+        similar = re.findall(r"--[\w.-]+", " ".join(lines[4:]))
+        hint = f"; did you mean {', '.join(dict.fromkeys(similar[:3]))}?" if similar else ""
+        return ConfigError(field, f"unknown field{hint} (run with --help for the valid fields)")
     return ConfigError(field, re.sub(r"\s+", " ", body)[:300])
 
 
@@ -156,11 +194,13 @@ def run(cfg: Config, name: str = "run", resume_from: str | None = None) -> str:
     )
     res = resolve(cfg)
     ex = res.config.experiment
+    check_out_dir(ex.out_dir)
     folder = RunFolder(ex.out_dir, ex.name or name)
     for path in folder.recovered:
         print(f"note: recovered a run folder left unfinished by a killed process: {path}", file=sys.stderr)
     folder.write_json("config.json", to_dict(res.config))
     folder.write_text("model.xml", res.system.xml)
+    folder.write_bytes("model.mjb", model_bytes(res.system.mj_model))
     folder.write_json("versions.json", versions())
     record = Run(folder, resume_from)
     key = jax.random.key(ex.seed)
@@ -181,8 +221,39 @@ def run(cfg: Config, name: str = "run", resume_from: str | None = None) -> str:
     finally:
         path = record.finish(status, error)
         progress.clear_stop()
-    print(summary_line(record.metrics, path))
+    print(summary_screen(record.metrics, path))
     return path
+
+
+def model_bytes(m) -> bytes:
+    """The compiled model as MJB: self-contained (meshes and textures included)."""
+    import mujoco
+    import numpy as np
+
+    buf = np.zeros(mujoco.mj_sizeModel(m), np.uint8)
+    mujoco.mj_saveModel(m, None, buf)
+    return buf.tobytes()
+
+
+def summary_screen(metrics: dict, path: str) -> str:
+    """The end-of-run summary: one line of status and costs, then per solve its cost,
+    verdict, goal test, iterations and time."""
+    lines = [summary_line(metrics, path)]
+    for key in ("d2c", "optimum", "exact"):
+        m = metrics.get(key)
+        if not isinstance(m, dict) or "status" not in m:
+            continue
+        goal = m.get("goal") or {}
+        reached = {True: "goal reached", False: "goal NOT reached"}.get(goal.get("reached"), "")
+        t = m.get("run_s", m.get("wall_s"))
+        lines.append(
+            f"  {key:8s} {m['status']:10s} cost {m.get('cost')} ({m.get('iterations')} iterations"
+            + (f", {t:.2f} s" if isinstance(t, (int, float)) else "")
+            + (f", compile {m['compile_s']:.1f} s" if isinstance(m.get("compile_s"), (int, float)) else "")
+            + f") {reached}"
+            + (f"; goal cost {goal.get('goal_cost_start')} -> {goal.get('goal_cost_final')}" if goal else "")
+        )
+    return "\n".join(lines)
 
 
 def summary_line(metrics: dict, path: str) -> str:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import types
 import typing
 from typing import Any, Literal, Optional, Tuple
@@ -30,7 +31,9 @@ class SystemConfig:
     name: a registered system (pendulum, cartpole, fish, swimmerN) or "mjcf".
     mjcf_path: the user's MJCF file, with name="mjcf".
     backend: "mjx", "native", or "auto" (the measured faster one on the CPU).
-    substeps: physics steps per control step (None: the system's default).
+    substeps: physics steps per control step (None: the system's default, 1 for "mjcf").
+    control_dt: the control time step in seconds instead of substeps (a multiple of the
+      physics time step).
     timestep: physics time step override in seconds (None: the model's).
     native_threads: threads of the native backend (None: all cores).
     """
@@ -39,8 +42,25 @@ class SystemConfig:
     mjcf_path: Optional[str] = None
     backend: Literal["auto", "mjx", "native"] = "auto"
     substeps: Optional[int] = None
+    control_dt: Optional[float] = None
     timestep: Optional[float] = None
     native_threads: Optional[int] = None
+
+
+@dataclasses.dataclass(frozen=True)
+class PointGoal:
+    """A goal on the world position of a named site or body (``kind``), in metres.
+
+    Adds 1/2 weight |p_t - target|^2 to every running cost and 1/2 final_weight
+    |p_T - target|^2 to the terminal cost; p comes from the model's kinematics, the
+    dynamics stay a black box.
+    """
+
+    name: str = ""
+    target: Tuple[float, ...] = (0.0, 0.0, 0.0)
+    weight: float = 0.0
+    final_weight: float = 1.0
+    kind: Literal["site", "body"] = "site"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,7 +70,16 @@ class TaskConfig:
     preset: a task preset (see ``mjx_surrogate.systems.task_presets()``) filling every
     field left as None, or "custom" (then x0, x_goal, T and weights are required).
     Q, Q_f, R: full matrices; Q_diag, Q_f_diag, R_diag: diagonal shortcuts.
-    u_min, u_max: optional box limits on the controls, enforced by the solver.
+    u_min, u_max: box limits on the controls, enforced by the solver; by default the
+      model's actuator ctrlrange, which they may narrow but not widen.
+    x0_keyframe, goal_keyframe: a keyframe of the model (name or index) giving x0, or
+      x_goal and the control reference u_ref (its ctrl).
+    u_ref: the control the R term pulls towards (default zeros).
+    state_error: "euclidean" (x - x_goal) or "geodesic" (hinge angles wrapped to
+      (-pi, pi], quaternions by their rotation vector); None: the preset's, else geodesic.
+    goals: PointGoal terms on sites or bodies, added to the quadratic cost.
+    goal_tolerance: the goal counts as reached when the terminal cost is at most this
+      fraction of the terminal cost at x0 (docs/results.md).
     """
 
     preset: str = "pendulum_d2c"
@@ -65,6 +94,12 @@ class TaskConfig:
     R_diag: Vector = None
     u_min: Vector = None
     u_max: Vector = None
+    x0_keyframe: Optional[str] = None
+    goal_keyframe: Optional[str] = None
+    u_ref: Vector = None
+    state_error: Optional[Literal["euclidean", "geodesic"]] = None
+    goals: Tuple[PointGoal, ...] = ()
+    goal_tolerance: float = 0.01
 
 
 @dataclasses.dataclass(frozen=True)
@@ -89,10 +124,10 @@ class SolverConfig:
     n_alphas: int = _ILQR.n_alphas
     accept_ratio: float = _ILQR.accept_ratio
     sysid: str = "central_difference"  # a registered scheme (mjx_surrogate.sysid.SCHEMES)
-    n_samples: int = _SYSID.n_samples
+    n_samples: Optional[int] = None  # None: max(20, 2 (nx + nu))
     sigma_x: float = _SYSID.sigma_x
     sigma_u: float = _SYSID.sigma_u
-    init: Literal["zeros", "random"] = "random"
+    init: Literal["zeros", "random"] = "zeros"
     init_scale: float = 0.1
     n_starts: int = 1
 
@@ -202,8 +237,12 @@ class ExperimentConfig:
     "theory" (exact moments against Monte Carlo and the paper's formulas) or "control"
     (iLQR on each surrogate, judged on the black box against D2C and the exact oracle).
     x64: run in float64.
-    exact_oracle: also solve with exact MJX Jacobians from the same start (needs a model
-    MJX supports and, on 2 CPU cores, a small one; see docs/performance.md).
+    exact_oracle: also solve from the same start with exact Jacobians (None: on for the
+      registered systems, off for a user's MJCF, whose jacfwd oracle can take minutes to
+      compile; docs/performance.md).
+    oracle: "jacfwd" (jax.jacfwd through the MJX step) or "finite_difference" (central
+      differences of the black-box step along each coordinate: cheap to compile, runs on
+      every backend).
     """
 
     kind: Literal["rollout", "d2c", "predict", "analysis", "theory", "control"] = "d2c"
@@ -214,7 +253,8 @@ class ExperimentConfig:
     n_rollouts: int = 256
     rollout_sigma_x: float = 0.01
     rollout_sigma_u: float = 0.1
-    exact_oracle: bool = True
+    exact_oracle: Optional[bool] = None
+    oracle: Literal["jacfwd", "finite_difference"] = "jacfwd"
     noise_levels: Tuple[float, ...] = (0.0, 0.01, 0.05, 0.1)
     n_noise_trials: int = 64
     progress: bool = True
@@ -277,8 +317,12 @@ def _convert(value: Any, hint: Any, field: str) -> Any:
     return value
 
 
-def from_dict(cls: type, data: Any, prefix: str = "") -> Any:
-    """Nested dict (e.g. a run's config.json) -> config dataclass, strictly checked."""
+def from_dict(cls: type, data: Any, prefix: str = "", complete: bool = False) -> Any:
+    """Nested dict (e.g. a run's config.json) -> config dataclass, strictly checked.
+
+    complete: every field must be present (a run's config.json names them all; a missing
+    one means a config from another version of the schema, reported rather than filled).
+    """
     where = prefix or cls.__name__
     if not isinstance(data, dict):
         raise ConfigError(where, f"expected a mapping, got {type(data).__name__}")
@@ -289,7 +333,18 @@ def from_dict(cls: type, data: Any, prefix: str = "") -> Any:
         field = f"{prefix}.{key}" if prefix else key
         if key not in names:
             raise ConfigError(field, f"unknown field; valid: {', '.join(names)}")
-        kwargs[key] = _convert(value, hints[key], field)
+        hint = hints[key]
+        if complete and dataclasses.is_dataclass(hint):
+            kwargs[key] = from_dict(hint, value, field, complete)
+        else:
+            kwargs[key] = _convert(value, hint, field)
+    missing = [n for n in names if n not in data]
+    if complete and missing:
+        raise ConfigError(
+            prefix or "CONFIG",
+            f"missing field(s) {', '.join(missing)}: a config from another schema version; "
+            "add them or start from a preset",
+        )
     return cls(**kwargs)
 
 
@@ -305,25 +360,42 @@ def check_finite(field: str, values: Any) -> None:
             raise ConfigError(field, f"holds a non-finite value ({v}); all entries must be finite")
 
 
-def _check_choices(obj: Any, prefix: str) -> None:
-    """Every Literal-typed field of a (nested) config dataclass holds one of its choices,
-    also when the config was built in Python rather than parsed from a file."""
-    hints = typing.get_type_hints(type(obj))
-    for f in dataclasses.fields(obj):
-        value, hint = getattr(obj, f.name), hints[f.name]
-        if dataclasses.is_dataclass(value):
-            _check_choices(value, f"{prefix}{f.name}.")
-        elif typing.get_origin(hint) is Literal:
-            _convert(value, hint, f"{prefix}{f.name}")
+def _check_types(cfg: Config) -> None:
+    """Every field holds a value of its declared type (choices included), also when the
+    config was built in Python (a notebook, a .py config) rather than parsed from a file."""
+    if not isinstance(cfg, Config):
+        raise ConfigError("CONFIG", f"expected a mjx_surrogate.config.Config, got {type(cfg).__name__}")
+    hints = typing.get_type_hints(Config)
+    for f in dataclasses.fields(cfg):
+        section = getattr(cfg, f.name)
+        if not isinstance(section, hints[f.name]):
+            raise ConfigError(f.name, f"expected a {f.name} section, got {type(section).__name__}")
+    from_dict(Config, dataclasses.asdict(cfg))
+
+
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,99}$")
 
 
 def validate_static(cfg: Config) -> None:
-    """Checks that need no model: choices, signs, ranges, finiteness of the solver settings."""
-    _check_choices(cfg, "")
+    """Checks that need no model: types, choices, signs, ranges, finiteness, names."""
+    _check_types(cfg)
     s = cfg.solver
+    ex = cfg.experiment
+    if not 0 <= ex.seed < 2**31:
+        raise ConfigError("experiment.seed", f"must be an integer in [0, 2**31 - 1], got {ex.seed}")
+    if ex.name is not None and (not _NAME.match(ex.name) or ".." in ex.name):
+        raise ConfigError(
+            "experiment.name",
+            f"got {ex.name!r}; use 1-100 letters, digits, '.', '_', '+' or '-' (no '/', no '..')",
+        )
+    if not ex.out_dir:
+        raise ConfigError("experiment.out_dir", "must name a directory")
+    if not (math.isfinite(s.accept_ratio) and 0 < s.accept_ratio < 1):
+        raise ConfigError("solver.accept_ratio", f"must be in (0, 1), got {s.accept_ratio}")
+    if s.n_samples is not None and s.n_samples < 1:
+        raise ConfigError("solver.n_samples", f"must be >= 1 (or unset), got {s.n_samples}")
     positive_int = {
         "solver.max_iter": s.max_iter,
-        "solver.n_samples": s.n_samples,
         "solver.n_alphas": s.n_alphas,
         "solver.n_starts": s.n_starts,
         "experiment.n_rollouts": cfg.experiment.n_rollouts,
@@ -356,8 +428,28 @@ def validate_static(cfg: Config) -> None:
         raise ConfigError("task.T", f"horizon must be a positive integer, got {cfg.task.T}")
     if cfg.system.substeps is not None and cfg.system.substeps < 1:
         raise ConfigError("system.substeps", f"must be >= 1, got {cfg.system.substeps}")
-    if cfg.system.timestep is not None and not (cfg.system.timestep > 0):
-        raise ConfigError("system.timestep", f"must be > 0 seconds, got {cfg.system.timestep}")
+    sy = cfg.system
+    for field, v in (("system.timestep", sy.timestep), ("system.control_dt", sy.control_dt)):
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise ConfigError(field, f"must be a finite number of seconds > 0, got {v}")
+    if sy.substeps is not None and sy.control_dt is not None:
+        raise ConfigError("system.control_dt", "give system.control_dt or system.substeps, not both")
+    if sy.native_threads is not None and sy.native_threads < 1:
+        raise ConfigError("system.native_threads", f"must be >= 1 (or unset: all cores), got {sy.native_threads}")
+    t = cfg.task
+    if not (math.isfinite(t.goal_tolerance) and 0 < t.goal_tolerance <= 1):
+        raise ConfigError("task.goal_tolerance", f"must be in (0, 1], got {t.goal_tolerance}")
+    for i, g in enumerate(t.goals):
+        where = f"task.goals[{i}]"
+        if not g.name:
+            raise ConfigError(f"{where}.name", f"names the {g.kind} whose position is steered")
+        if len(g.target) != 3:
+            raise ConfigError(f"{where}.target", f"needs 3 numbers (x, y, z), got {len(g.target)}")
+        check_finite(f"{where}.target", g.target)
+        for w in ("weight", "final_weight"):
+            v = getattr(g, w)
+            if not (math.isfinite(v) and v >= 0):
+                raise ConfigError(f"{where}.{w}", f"must be a finite number >= 0, got {v}")
     d, m, mp = cfg.data, cfg.surrogate.sindy, cfg.surrogate.mlp
     for field, v in {
         "data.n_traj": d.n_traj,

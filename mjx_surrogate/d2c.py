@@ -3,7 +3,9 @@
 ``solve_d2c``: every iteration identifies an LTV model of the black box around the
 current nominal (a scheme of :mod:`mjx_surrogate.sysid`), runs the backward pass on it
 and the line-searched forward pass on the black box, all inside one jitted ``while_loop``.
-``solve_exact``: the same iLQR with A_t, B_t = ``jax.jacfwd`` through the MJX step.
+``solve_exact``: the same iLQR with exact Jacobians: ``jax.jacfwd`` through the MJX step
+(``jacobians="jacfwd"``), or central differences of the black-box step along every
+coordinate (``"finite_difference"``: a cheaper reference, no autodiff to compile).
 Every solve takes a :class:`~mjx_surrogate.progress.ProgressMeter` (traced: switching it
 never recompiles).
 """
@@ -23,8 +25,14 @@ from mjx_surrogate.systems import System
 from mjx_surrogate.tasks import Task, task_cost
 
 
-def exact_linearize(system: System) -> sid.LinearizeFn:
-    """linearize(X, U, K, key) -> exact Jacobians through the differentiable MJX step."""
+ORACLES = ("jacfwd", "finite_difference")
+
+
+def exact_linearize(system: System, jacobians: str = "jacfwd") -> sid.LinearizeFn:
+    """linearize(X, U, K, key) -> Jacobians through the differentiable MJX step
+    ("jacfwd") or by coordinate central differences of the black-box step."""
+    if jacobians == "finite_difference":
+        return lambda X, U, K, key: sid.finite_difference_jacobians(system.step, X, U)
     return lambda X, U, K, key: sid.exact_jacobians(system.mjx_step, X, U)
 
 
@@ -39,11 +47,26 @@ def _solve(
     progress: ProgressMeter,
 ) -> ILQRResult:
     """One iLQR solve: "d2c" on the black box (LTV models, the backend's own line-search
-    rollouts) or "exact" on the MJX step with ``jax.jacfwd`` Jacobians."""
+    rollouts), "exact" on the MJX step with ``jax.jacfwd`` Jacobians, or
+    "finite_difference" on the black box with coordinate central differences."""
     if method == "d2c":
         return ilqr(
             system.step,
             sid.ltv_linearize(system, sysid),
+            task_cost(task),
+            task.x0,
+            U0,
+            task.u_min,
+            task.u_max,
+            params,
+            key,
+            system.closed_loop,
+            progress,
+        )
+    if method == "finite_difference":
+        return ilqr(
+            system.step,
+            exact_linearize(system, method),
             task_cost(task),
             task.x0,
             U0,
@@ -83,16 +106,19 @@ def solve_d2c(
     return _solve(system, task, U0, key, params, sysid, "d2c", progress)
 
 
-@functools.partial(jax.jit, static_argnames=("system",))
+@functools.partial(jax.jit, static_argnames=("system", "jacobians"))
 def solve_exact(
     system: System,
     task: Task,
     U0: jax.Array,
     params: ILQRParams = ILQRParams(),
     progress: ProgressMeter = NO_PROGRESS,
+    jacobians: str = "jacfwd",
 ) -> ILQRResult:
-    """Model-based iLQR from U0 [T, nu] with exact MJX Jacobians (the oracle)."""
-    return _solve(system, task, U0, jax.random.key(0), params, sid.SysIdParams(), "exact", progress)
+    """iLQR from U0 [T, nu] with exact Jacobians (the oracle): ``jacobians`` is "jacfwd"
+    (through the MJX step) or "finite_difference" (of the black-box step)."""
+    method = "exact" if jacobians == "jacfwd" else "finite_difference"
+    return _solve(system, task, U0, jax.random.key(0), params, sid.SysIdParams(), method, progress)
 
 
 class MultiStart(NamedTuple):

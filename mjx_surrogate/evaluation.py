@@ -65,9 +65,19 @@ def evaluate_feedback(
     W = jax.random.normal(key, (L, n_trials, T, nu), U.dtype)
     W = (W * noise_levels[:, None, None, None] * u_scale).reshape(L * n_trials, T, nu)
 
+    del X  # the nominal is re-simulated in the same program (docstring)
+    Uc = jnp.clip(U, task.u_min, task.u_max)
+
     def run(w, gains):
-        Xr, Ur = feedback_rollout(system.step, task.x0, X, U, gains, w, task.u_min, task.u_max)
-        return trajectory_cost(task, Xr, Ur)
+        def body(pair, inp):
+            ub, Kt, wt = inp
+            u = jnp.clip(ub + wt + Kt @ (pair[1] - pair[0]), task.u_min, task.u_max)
+            nxt = jax.vmap(system.step)(pair, jnp.stack([ub, u]))
+            return nxt, (pair[1], u)
+
+        pair0 = jnp.stack([task.x0, task.x0])
+        last, (Xs, Us) = jax.lax.scan(body, pair0, (Uc, gains, w))
+        return trajectory_cost(task, jnp.concatenate([Xs, last[1][None]]), Us)
 
     closed = jax.vmap(run, in_axes=(0, None))(W, K).reshape(L, n_trials)
     opened = jax.vmap(run, in_axes=(0, None))(W, jnp.zeros_like(K)).reshape(L, n_trials)

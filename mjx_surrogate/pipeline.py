@@ -22,7 +22,7 @@ from mjx_surrogate.ilqr import ILQRParams, ILQRResult, StopReason, verdict
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.resolution import solver_params
 from mjx_surrogate.systems import System
-from mjx_surrogate.tasks import Task, trajectory_cost
+from mjx_surrogate.tasks import Task, goal_cost, trajectory_cost
 from mjx_surrogate.trajectory import open_loop
 
 
@@ -53,12 +53,29 @@ def black_box_trajectory(system: System, task: Task, U: jax.Array) -> tuple[jax.
     return X, finite_or_none(trajectory_cost(task, X, Ua))
 
 
-def summary(result: ILQRResult, system: System, task: Task) -> tuple[dict, jax.Array]:
+def goal_test(task: Task, X: jax.Array, tolerance: float) -> dict:
+    """The goal test in the task's own weighted terms (:func:`tasks.goal_cost`): reached
+    when goal_cost(x_T) <= tolerance * goal_cost(x_0) (or <= 1e-9 for a start at the goal)."""
+    start, final = float(goal_cost(task, X[0])), float(goal_cost(task, X[-1]))
+    bound = tolerance * start if start > 0 else 1e-9
+    return {
+        "reached": bool(np.isfinite(final) and final <= bound),
+        "goal_cost_final": finite_or_none(final),
+        "goal_cost_start": finite_or_none(start),
+        "tolerance": tolerance,
+    }
+
+
+def summary(
+    result: ILQRResult, system: System, task: Task, goal_tolerance: float = 0.01
+) -> tuple[dict, jax.Array]:
     """Metrics of a solve in the status vocabulary, judged on the black box.
 
     ``cost`` is the cost of the solve's controls replayed on the black box (``cost_solver``
     the solver's own); ``status`` is the verdict of the stop reason (``diverged`` if the
-    replayed cost is not finite). Returns (metrics, the replayed X [T+1, nx]).
+    replayed cost is not finite); ``goal`` the goal test (:func:`goal_test`), which is
+    separate from the status: a solve can converge to a point that misses the goal.
+    Returns (metrics, the replayed X [T+1, nx]).
     """
     X_bb, cost = black_box_trajectory(system, task, result.U)
     reason = StopReason(int(result.stop_reason))
@@ -69,7 +86,11 @@ def summary(result: ILQRResult, system: System, task: Task) -> tuple[dict, jax.A
         "iterations": int(result.iterations),
         "converged": bool(result.converged),
         "stop_reason": reason.description,
-        "final_state_error": finite_or_none(jnp.linalg.norm(X_bb[-1] - task.x_goal)),
+        "goal": goal_test(task, X_bb, goal_tolerance),
+        "controls_within_limits": bool(
+            np.all(np.asarray(result.U) >= np.asarray(task.u_min))
+            and np.all(np.asarray(result.U) <= np.asarray(task.u_max))
+        ),
     }
     return out, X_bb
 
@@ -88,10 +109,11 @@ def d2c_optimum(
     params: ILQRParams,
     sysid: sid.SysIdParams,
     progress: ProgressMeter = NO_PROGRESS,
+    goal_tolerance: float = 0.01,
 ) -> Optimum:
     """Solve by D2C from U0 and summarise on the black box."""
     result = jax.block_until_ready(solve_d2c(system, task, U0, key, params, sysid, progress))
-    metrics, X = summary(result, system, task)
+    metrics, X = summary(result, system, task, goal_tolerance)
     return Optimum(result, X, metrics)
 
 
@@ -114,7 +136,7 @@ def optimum_stage(res, key: jax.Array):
         U0 = initial_controls(k_init, task.T, system.nu, sc.init, sc.init_scale, None, task.x0.dtype)
         t0 = time.perf_counter()
         with progress.meter("D2C optimum", sc.max_iter, cfg.experiment.progress) as pm:
-            opt = d2c_optimum(system, task, U0, k_d2c, params, sid, pm)
+            opt = d2c_optimum(system, task, U0, k_d2c, params, sid, pm, cfg.task.goal_tolerance)
         m = {**opt.metrics, "wall_s": time.perf_counter() - t0}
         arrays = {
             "X_star": opt.X,

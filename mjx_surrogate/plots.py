@@ -48,14 +48,24 @@ def cost_history(histories: dict[str, np.ndarray], title: str = ""):
 
 
 def trajectory_evolution(
-    t: np.ndarray, X_iters: np.ndarray, x_goal: np.ndarray, labels: list[str], title: str = ""
+    t: np.ndarray,
+    X_iters: np.ndarray,
+    x_goal: np.ndarray,
+    labels: list[str],
+    title: str = "",
+    indices: list[int] | None = None,
 ):
-    """Nominal trajectories X_iters [K, T+1, nx] over iterations, light to dark."""
-    n = min(X_iters.shape[-1], 4)
-    fig, axes = plt.subplots(1, n, figsize=(3.3 * n, 2.9), squeeze=False)
+    """Nominal trajectories X_iters [K, T+1, nx] over iterations, light to dark, for the
+    state coordinates ``indices`` (default: the first 4), four panels a row."""
+    idx = list(indices) if indices is not None else list(range(min(X_iters.shape[-1], 4)))
+    cols = min(len(idx), 4)
+    rows = -(-len(idx) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.3 * cols, 2.7 * rows), squeeze=False)
     K = X_iters.shape[0]
     colors = plt.cm.viridis(np.linspace(0.1, 0.95, K))
-    for i, ax in enumerate(axes[0]):
+    for ax in axes.flat[len(idx) :]:
+        ax.set_visible(False)
+    for i, ax in zip(idx, axes.flat):
         for k in range(K):
             ax.plot(t, X_iters[k, :, i], color=colors[k], lw=1.0 if k < K - 1 else 2.0)
         ax.axhline(x_goal[i], color="r", ls="--", lw=0.8)

@@ -7,14 +7,18 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mjx_surrogate.config import Config, SystemConfig, TaskConfig, check_finite, validate_static
+import mujoco
+
+from mjx_surrogate.config import Config, SystemConfig, validate_static
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.ilqr import ILQRParams
 from mjx_surrogate.surrogates.registry import get_surrogate, library_specs
 from mjx_surrogate.sysid import SysIdParams
-from mjx_surrogate.systems import System, from_mjcf, make_system, task_presets
-from mjx_surrogate.systems.registry import preset_fits
-from mjx_surrogate.tasks import Task, make_task
+from mjx_surrogate.systems import System, from_mjcf, make_system
+from mjx_surrogate.systems.registry import default_config
+from mjx_surrogate.systems.system import compile_mjcf
+from mjx_surrogate.task_resolution import resolve_task
+from mjx_surrogate.tasks import Task
 
 
 class Resolved(NamedTuple):
@@ -23,110 +27,92 @@ class Resolved(NamedTuple):
     task: Task
 
 
+def _substeps(sc: SystemConfig) -> int | None:
+    """system.substeps, or system.control_dt divided by the physics time step."""
+    if sc.control_dt is None:
+        return sc.substeps
+    ts = sc.timestep
+    if ts is None:
+        if sc.name == "mjcf":
+            import os
+
+            if not sc.mjcf_path or not os.path.isfile(sc.mjcf_path):
+                raise ConfigError("system.mjcf_path", f"no such file {sc.mjcf_path!r}")
+            model, _ = compile_mjcf(None, "system.mjcf_path", None, sc.mjcf_path)
+        else:
+            model, _ = compile_mjcf(default_config(sc.name).xml(), "system.name")
+        ts = float(model.opt.timestep)
+    n = round(sc.control_dt / ts)
+    if n < 1 or abs(n * ts - sc.control_dt) > 1e-6 * sc.control_dt:
+        raise ConfigError(
+            "system.control_dt",
+            f"must be a multiple of the physics time step {ts:g} s, got {sc.control_dt:g} s "
+            f"(e.g. {max(n, 1) * ts:g})",
+        )
+    return n
+
+
 def build_system_from_config(sc: SystemConfig) -> System:
+    substeps = _substeps(sc)
     if sc.name == "mjcf":
         if not sc.mjcf_path:
             raise ConfigError("system.mjcf_path", "required when system.name is 'mjcf'")
-        return from_mjcf(sc.mjcf_path, sc.backend, sc.substeps or 1, sc.timestep, sc.native_threads)
+        return from_mjcf(sc.mjcf_path, sc.backend, substeps or 1, sc.timestep, sc.native_threads)
     if sc.mjcf_path:
         raise ConfigError("system.mjcf_path", f"only valid with system.name='mjcf', not {sc.name!r}")
-    return make_system(sc.name, sc.backend, sc.substeps, sc.timestep, sc.native_threads)
+    return make_system(sc.name, sc.backend, substeps, sc.timestep, sc.native_threads)
 
 
-def _preset_fields(tc: TaskConfig, system: System) -> dict:
-    if tc.preset == "custom":
-        return {}
-    presets = task_presets()
-    if tc.preset not in presets:
-        valid = ", ".join(list(presets) + ["custom"])
-        raise ConfigError("task.preset", f"unknown task {tc.preset!r}; valid: {valid}")
-    preset = presets[tc.preset]
-    if not preset_fits(preset, system.name):
+def default_n_samples(nx: int, nu: int) -> int:
+    """Identification samples per time step when solver.n_samples is unset."""
+    return max(20, 2 * (nx + nu))
+
+
+def check_start(system: System, task: Task, sigma_x: float) -> None:
+    """Reject states the solver cannot work from: MuJoCo flags the simulation as unstable
+    within one control step, or the perturbations sigma_x drown in the round-off of the
+    state's magnitude at the working precision."""
+    eps = float(np.finfo(np.asarray(task.x0).dtype).eps)
+    m = system.mj_model
+    for field, x in (("task.x0", np.asarray(task.x0, float)), ("task.x_goal", np.asarray(task.x_goal, float))):
+        mag = float(np.max(np.abs(x), initial=0.0))
+        if mag * eps > 0.1 * sigma_x:
+            raise ConfigError(
+                field,
+                f"|x| up to {mag:g} leaves a resolution of {mag * eps:.2g} at this precision, "
+                f"coarser than the identification perturbations (solver.sigma_x {sigma_x:g}); "
+                "use smaller coordinates or experiment.x64",
+            )
+    d = mujoco.MjData(m)
+    x = np.asarray(task.x0, float)
+    d.qpos[:], d.qvel[:] = x[: m.nq], x[m.nq : m.nq + m.nv]
+    if m.na:
+        d.act[:] = x[m.nq + m.nv :]
+    d.ctrl[:] = np.clip(np.asarray(task.u_ref, float), np.asarray(task.u_min), np.asarray(task.u_max))
+    for _ in range(system.substeps):
+        mujoco.mj_step(m, d)
+    names = {mujoco.mjtWarning.mjWARN_BADQACC: "bad acceleration", mujoco.mjtWarning.mjWARN_BADQPOS: "bad qpos",
+             mujoco.mjtWarning.mjWARN_BADQVEL: "bad qvel"}
+    hit = [n for w, n in names.items() if d.warning[w].number > 0]
+    if hit or not np.all(np.isfinite(d.qpos)):
         raise ConfigError(
-            "task.preset",
-            f"{tc.preset!r} is a task for {preset.system!r}, "
-            f"not {system.name!r}; use a task of that system or 'custom'",
+            "task.x0",
+            f"MuJoCo cannot simulate from this state ({', '.join(hit) or 'non-finite state'} in the first step)",
         )
-    return preset.build(system.nq, system.nv, system.nu)
 
 
-def _matrix(tc: TaskConfig, base: dict, name: str, n: int) -> np.ndarray:
-    full, diag = getattr(tc, name), getattr(tc, name + "_diag")
-    if full is not None and diag is not None:
-        raise ConfigError(f"task.{name}_diag", f"give task.{name} or task.{name}_diag, not both")
-    if diag is not None:
-        check_finite(f"task.{name}_diag", diag)
-        if len(diag) != n:
-            raise ConfigError(f"task.{name}_diag", f"needs {n} entries, got {len(diag)}")
-        m = np.diag(np.asarray(diag, float))
-    elif full is not None:
-        check_finite(f"task.{name}", full)
-        m = np.asarray(full, float)
-        if m.shape != (n, n):
-            raise ConfigError(f"task.{name}", f"must be {n}x{n}, got shape {m.shape}")
-    elif name in base:
-        m = np.asarray(base[name], float)
-    else:
-        raise ConfigError(f"task.{name}", f"required with task.preset='custom' ({n}x{n})")
-    if not np.allclose(m, m.T, atol=1e-12 * max(1.0, np.abs(m).max())):
-        raise ConfigError(f"task.{name}", "must be symmetric")
-    eig = np.linalg.eigvalsh(m)
-    if name == "R" and eig.min() <= 0:
-        raise ConfigError("task.R", f"must be positive definite (smallest eigenvalue {eig.min():g})")
-    if eig.min() < -1e-9 * max(1.0, eig.max()):
-        raise ConfigError(f"task.{name}", f"must be positive semi-definite (eigenvalue {eig.min():g})")
-    return m
-
-
-def _vector(tc: TaskConfig, base: dict, name: str, n: int, required: bool = True):
-    v = getattr(tc, name)
-    if v is None:
-        if name in base:
-            return np.asarray(base[name], float)
-        if not required:
-            return None
-        raise ConfigError(f"task.{name}", f"required with task.preset='custom' ({n} numbers)")
-    if len(v) != n:
-        what = " ([qpos, qvel])" if name.startswith("x") else ""
-        raise ConfigError(f"task.{name}", f"needs {n} entries{what}, got {len(v)}")
-    if name.startswith("x"):
-        check_finite(f"task.{name}", v)
-    return np.asarray(v, float)
-
-
-def resolve_task(tc: TaskConfig, system: System) -> TaskConfig:
-    """Fill every task field from the preset and overrides, with shape and sign checks."""
-    base = _preset_fields(tc, system)
-    T = tc.T if tc.T is not None else base.get("T")
-    if T is None:
-        raise ConfigError("task.T", "required with task.preset='custom' (a positive integer)")
-    if T < 1:
-        raise ConfigError("task.T", f"horizon must be a positive integer, got {T}")
-    nx, nu = system.nx, system.nu
-    x0 = _vector(tc, base, "x0", nx)
-    x_goal = _vector(tc, base, "x_goal", nx)
-    Q, Q_f, R = (_matrix(tc, base, "Q", nx), _matrix(tc, base, "Q_f", nx), _matrix(tc, base, "R", nu))
-    u_min = tc.u_min if tc.u_min is not None else None
-    u_max = tc.u_max if tc.u_max is not None else None
-    for name, b in (("u_min", u_min), ("u_max", u_max)):
-        if b is not None and len(b) != nu:
-            raise ConfigError(f"task.{name}", f"needs nu={nu} entries, got {len(b)}")
-        if b is not None and any(np.isnan(b)):
-            raise ConfigError(f"task.{name}", "holds NaN; use a number or +-inf")
-    if u_min is not None and u_max is not None and np.any(np.asarray(u_min) > np.asarray(u_max)):
-        raise ConfigError("task.u_min", "must be <= task.u_max in every channel")
-    tolist = lambda a: tuple(map(tuple, a.tolist()))  # noqa: E731
-    return TaskConfig(
-        preset=tc.preset,
-        T=int(T),
-        x0=tuple(x0.tolist()),
-        x_goal=tuple(x_goal.tolist()),
-        Q=tolist(Q),
-        Q_f=tolist(Q_f),
-        R=tolist(R),
-        u_min=u_min,
-        u_max=u_max,
-    )
+def check_memory(cfg: Config, system: System, T: int, n_samples: int) -> None:
+    """Reject horizons whose identification batch would not fit in memory (before compile)."""
+    width = 2 * n_samples + cfg.solver.n_alphas * cfg.solver.n_starts
+    bytes_ = 8 * 4 * T * width * (system.nx + system.nu)
+    limit = 16 * 2**30
+    if bytes_ > limit:
+        raise ConfigError(
+            "task.T",
+            f"T={T} needs about {bytes_ / 2**30:.0f} GiB for one identification batch "
+            f"({width} simulations per step); at most {limit / 2**30:.0f} GiB: shorten the horizon "
+            "or lower solver.n_samples",
+        )
 
 
 def solver_params(cfg: Config, record_trajectories: bool = False):
@@ -144,7 +130,8 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
         n_alphas=s.n_alphas,
         record_trajectories=record_trajectories,
     )
-    sysid = SysIdParams(sigma_x=s.sigma_x, sigma_u=s.sigma_u, scheme=s.sysid, n_samples=s.n_samples)
+    n = s.n_samples or SysIdParams().n_samples  # resolve() sets it from nx + nu
+    sysid = SysIdParams(sigma_x=s.sigma_x, sigma_u=s.sigma_u, scheme=s.sysid, n_samples=n)
     return ilqr, sysid
 
 
@@ -152,23 +139,33 @@ def resolve(cfg: Config) -> Resolved:
     """Validate ``cfg``, build its system and task. Raises ConfigError; compiles nothing."""
     validate_static(cfg)
     system = build_system_from_config(cfg.system)
-    tc = resolve_task(cfg.task, system)
-    if cfg.experiment.kind in ("d2c", "control") and cfg.solver.n_samples < system.nx + system.nu:
-        raise ConfigError(
-            "solver.n_samples",
-            f"must be >= nx + nu = {system.nx + system.nu} "
-            f"for the LTV least squares to be determined, got {cfg.solver.n_samples}",
-        )
-    if cfg.experiment.kind in ("predict", "analysis", "control"):
+    tc, task = resolve_task(cfg.task, system)
+    kind = cfg.experiment.kind
+    n_samples = cfg.solver.n_samples or default_n_samples(system.nx, system.nu)
+    if kind in ("d2c", "control", "predict", "analysis"):
+        if n_samples < system.nx + system.nu:
+            raise ConfigError(
+                "solver.n_samples",
+                f"must be >= nx + nu = {system.nx + system.nu} "
+                f"for the LTV least squares to be determined, got {n_samples}",
+            )
+        check_memory(cfg, system, int(tc.T), n_samples)
+    check_start(system, task, cfg.solver.sigma_x)
+    if kind in ("predict", "analysis", "control"):
         _check_surrogates(cfg, system, int(tc.T))
     sc = dataclasses.replace(
         cfg.system,
         backend=system.backend,
         substeps=system.substeps,
+        control_dt=None,
         timestep=float(system.mj_model.opt.timestep),
     )
-    resolved = dataclasses.replace(cfg, system=sc, task=tc)
-    task = make_task(tc.x0, tc.x_goal, tc.Q, tc.Q_f, tc.R, tc.T, tc.u_min, tc.u_max)
+    oracle = cfg.experiment.exact_oracle
+    ex = dataclasses.replace(
+        cfg.experiment, exact_oracle=(cfg.system.name != "mjcf") if oracle is None else oracle
+    )
+    solver = dataclasses.replace(cfg.solver, n_samples=n_samples)
+    resolved = dataclasses.replace(cfg, system=sc, task=tc, experiment=ex, solver=solver)
     return Resolved(resolved, system, task)
 
 

@@ -1,9 +1,15 @@
-"""Quadratic tracking tasks; presets live with their systems (``mjx_surrogate.systems``).
+"""Tracking tasks; presets live with their systems (``mjx_surrogate.systems``).
 
-Cost convention (one for the whole project, docs/results.md):
+Cost convention (one for the whole project, docs/results.md), with e(x) = x - x* or its
+geodesic form (hinge angles wrapped to (-pi, pi], each quaternion block replaced by
+(0, rotation vector of q*^-1 q)) and p_k(x) the world position of goal point k:
 
-    J = sum_{t<T} [ 1/2 (x_t - x*)' Q (x_t - x*) + 1/2 u_t' R u_t ]
-        + 1/2 (x_T - x*)' Q_f (x_T - x*)
+    l(x, u) = 1/2 e' Q e + 1/2 (u - u_ref)' R (u - u_ref) + sum_k 1/2 w_k |p_k(x) - p_k*|^2
+    l_f(x)  = 1/2 e' Q_f e + sum_k 1/2 w_f,k |p_k(x) - p_k*|^2
+    J = sum_{t<T} l(x_t, u_t) + l_f(x_T)
+
+Costs stay analytic (derivatives by autodiff); p_k comes from the model's kinematics,
+the dynamics stay a black box.
 """
 
 from __future__ import annotations
@@ -18,9 +24,15 @@ from flax import struct
 from mjx_surrogate import cost as cost_lib
 
 
+PointsFn = Callable[[jax.Array], jax.Array]  # x [nx] -> goal point positions [k, 3]
+
+
 @struct.dataclass
 class Task:
-    """x0, x_goal [nx]; Q, Q_f [nx, nx]; R [nu, nu]; u_min, u_max [nu] (may be +-inf)."""
+    """x0, x_goal [nx]; Q, Q_f [nx, nx]; R [nu, nu]; u_min, u_max, u_ref [nu] (limits may be
+    +-inf); point goals: targets [k, 3], weights, final_weights [k] and ``points`` (static).
+    ``hinges`` (qpos indices wrapped) and ``quats`` (first qpos index of each quaternion)
+    are empty for the Euclidean state error."""
 
     x0: jax.Array
     x_goal: jax.Array
@@ -29,18 +41,69 @@ class Task:
     R: jax.Array
     u_min: jax.Array
     u_max: jax.Array
+    u_ref: jax.Array
+    targets: jax.Array
+    weights: jax.Array
+    final_weights: jax.Array
     T: int = struct.field(pytree_node=False)
+    hinges: tuple = struct.field(pytree_node=False, default=())
+    quats: tuple = struct.field(pytree_node=False, default=())
+    points: PointsFn | None = struct.field(pytree_node=False, default=None)
+
+
+def quat_error(q: jax.Array, g: jax.Array) -> jax.Array:
+    """Rotation vector [3] of g^-1 q for unit quaternions q, g [4] (w, x, y, z), the short
+    way round; smooth at zero."""
+    q = q / jnp.linalg.norm(q)
+    w = g[0] * q[0] + g[1:] @ q[1:]
+    v = g[0] * q[1:] - q[0] * g[1:] - jnp.cross(g[1:], q[1:])
+    sign = jnp.where(w < 0, -1.0, 1.0)
+    w, v = sign * w, sign * v
+    n2 = v @ v
+    small = n2 < 1e-12
+    n = jnp.sqrt(jnp.where(small, 1.0, n2))
+    return jnp.where(small, 2.0 / w, 2.0 * jnp.arctan2(n, w) / n) * v
+
+
+def state_error(task: Task, x: jax.Array) -> jax.Array:
+    """e(x) [nx]: x - x_goal, hinge angles wrapped, quaternion blocks as (0, rotvec)."""
+    e = x - task.x_goal
+    if task.hinges:
+        i = jnp.asarray(task.hinges)
+        e = e.at[i].set(jnp.mod(e[i] + jnp.pi, 2 * jnp.pi) - jnp.pi)
+    for a in task.quats:
+        rot = quat_error(x[a : a + 4], task.x_goal[a : a + 4])
+        e = e.at[a].set(0.0).at[a + 1 : a + 4].set(rot)
+    return e
+
+
+def _point_terms(task: Task, x: jax.Array, weights: jax.Array) -> jax.Array:
+    if task.points is None:
+        return jnp.zeros((), x.dtype)
+    d = task.points(x) - task.targets
+    return 0.5 * jnp.sum(weights * jnp.sum(d**2, axis=-1))
 
 
 def running_cost(task: Task, x: jax.Array, u: jax.Array) -> jax.Array:
-    """1/2 dx' Q dx + 1/2 u' R u for x [nx], u [nu]."""
-    dx = x - task.x_goal
-    return 0.5 * dx @ task.Q @ dx + 0.5 * u @ task.R @ u
+    """l(x, u) for x [nx], u [nu] (module docstring)."""
+    e, du = state_error(task, x), u - task.u_ref
+    return 0.5 * e @ task.Q @ e + 0.5 * du @ task.R @ du + _point_terms(task, x, task.weights)
 
 
 def terminal_cost(task: Task, x: jax.Array) -> jax.Array:
-    dx = x - task.x_goal
-    return 0.5 * dx @ task.Q_f @ dx
+    """l_f(x) for x [nx]."""
+    e = state_error(task, x)
+    return 0.5 * e @ task.Q_f @ e + _point_terms(task, x, task.final_weights)
+
+
+def goal_cost(task: Task, x: jax.Array) -> jax.Array:
+    """The task's own measure of distance to the goal: l_f(x), or, for a task with no
+    terminal term, the state part of l(x, u_ref)."""
+    has_terminal = bool(np.any(np.asarray(task.Q_f))) or bool(np.any(np.asarray(task.final_weights)))
+    if has_terminal:
+        return terminal_cost(task, x)
+    e = state_error(task, x)
+    return 0.5 * e @ task.Q @ e + _point_terms(task, x, task.weights)
 
 
 def task_cost(task: Task) -> cost_lib.Cost:
@@ -69,11 +132,46 @@ def state(nq: int, nv: int, **qpos: float) -> np.ndarray:
     return x
 
 
-def make_task(x0, x_goal, Q, Q_f, R, T: int, u_min=None, u_max=None, dtype=None) -> Task:
-    """Assemble a :class:`Task` from array-likes (shapes checked by ``setup.resolve``)."""
+def make_task(
+    x0,
+    x_goal,
+    Q,
+    Q_f,
+    R,
+    T: int,
+    u_min=None,
+    u_max=None,
+    dtype=None,
+    *,
+    u_ref=None,
+    targets=None,
+    weights=None,
+    final_weights=None,
+    points: PointsFn | None = None,
+    hinges: tuple = (),
+    quats: tuple = (),
+) -> Task:
+    """Assemble a :class:`Task` from array-likes (shapes checked by ``resolution.resolve``)."""
     dtype = dtype or jnp.asarray(0.0).dtype
     nu = np.shape(R)[0]
     lo = np.full(nu, -np.inf) if u_min is None else np.asarray(u_min, float)
     hi = np.full(nu, np.inf) if u_max is None else np.asarray(u_max, float)
     arr = lambda a: jnp.asarray(np.asarray(a, float), dtype)  # noqa: E731
-    return Task(arr(x0), arr(x_goal), arr(Q), arr(Q_f), arr(R), arr(lo), arr(hi), int(T))
+    k = 0 if targets is None else len(targets)
+    return Task(
+        x0=arr(x0),
+        x_goal=arr(x_goal),
+        Q=arr(Q),
+        Q_f=arr(Q_f),
+        R=arr(R),
+        u_min=arr(lo),
+        u_max=arr(hi),
+        u_ref=arr(np.zeros(nu) if u_ref is None else u_ref),
+        targets=arr(np.zeros((0, 3)) if targets is None else np.reshape(targets, (k, 3))),
+        weights=arr(np.zeros(k) if weights is None else weights),
+        final_weights=arr(np.zeros(k) if final_weights is None else final_weights),
+        T=int(T),
+        hinges=tuple(int(i) for i in hinges),
+        quats=tuple(int(i) for i in quats),
+        points=points if k else None,
+    )

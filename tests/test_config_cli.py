@@ -28,7 +28,7 @@ BAD = [
     (["smoke_rollout", "--task.R_diag", "0"], "task.R"),
     (["smoke_rollout", "--task.x0", "1", "2", "3"], "task.x0"),
     (["smoke_rollout", "--task.preset", "fish_d2c"], "task.preset"),
-    (["smoke_rollout", "--task.preset", "custom"], "task.x0"),
+    (["smoke_rollout", "--task.preset", "custom"], "task.x_goal"),
     (["smoke_rollout", "--task.T", "abc"], "--task.T"),
     (["smoke_rollout", "--no.such.field", "1"], "--no.such.field"),
     (["smoke_rollout", "--system.backend", "gpu"], "--system.backend"),

@@ -33,7 +33,8 @@ ENDLESS = [
     "0",
     "--solver.mu_factor",
     "1.000001",
-    "--experiment.no-exact-oracle",
+    "--experiment.exact-oracle",
+    "False",
     "--experiment.progress",
 ]
 
@@ -90,7 +91,7 @@ def test_failed_figure_keeps_the_solve_and_is_reported(tmp_path, monkeypatch):
         raise RuntimeError("a plotting bug")
 
     monkeypatch.setattr(plots, "cost_history", broken)
-    code = cli.main(["smoke_d2c", "--out", str(tmp_path), "--experiment.no-exact-oracle"])
+    code = cli.main(["smoke_d2c", "--out", str(tmp_path), "--experiment.exact-oracle", "False"])
     (path,) = glob.glob(str(tmp_path / "*smoke_d2c"))
     metrics, arrays = load_run(path)
     assert code == 0 and metrics["status"] == "converged"
@@ -111,7 +112,7 @@ def test_failed_stage_keeps_the_earlier_stages(tmp_path, monkeypatch, capsys):
         raise FloatingPointError("feedback exploded")
 
     monkeypatch.setattr(study, "evaluate_feedback", broken)
-    code = cli.main(["smoke_d2c", "--out", str(tmp_path), "--experiment.no-exact-oracle"])
+    code = cli.main(["smoke_d2c", "--out", str(tmp_path), "--experiment.exact-oracle", "False"])
     (path,) = glob.glob(str(tmp_path / "*smoke_d2c"))
     metrics, arrays = load_run(path)
     assert code == 1 and metrics["status"] == "failed"

@@ -170,3 +170,23 @@ def state_labels(m: mujoco.MjModel) -> list[str]:
             qpos.append(name)
             qvel.append(f"d{name}")
     return qpos + qvel + [f"act{i}" for i in range(m.na)]
+
+
+def actuated_state_indices(m: mujoco.MjModel) -> list[int]:
+    """qpos indices of the hinge and slide joints that actuators drive (directly or through
+    a tendon), in state order; all hinge and slide joints if none is found."""
+    joints = set()
+    for a in range(m.nu):
+        kind, target = int(m.actuator_trntype[a]), int(m.actuator_trnid[a, 0])
+        if kind in (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT)):
+            joints.add(target)
+        elif kind == int(mujoco.mjtTrn.mjTRN_TENDON):
+            adr, num = m.tendon_adr[target], m.tendon_num[target]
+            for w in range(adr, adr + num):
+                if int(m.wrap_type[w]) == int(mujoco.mjtWrap.mjWRAP_JOINT):
+                    joints.add(int(m.wrap_objid[w]))
+    scalar = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    chosen = [j for j in sorted(joints) if int(m.jnt_type[j]) in scalar]
+    if not chosen:
+        chosen = [j for j in range(m.njnt) if int(m.jnt_type[j]) in scalar]
+    return sorted(int(m.jnt_qposadr[j]) for j in chosen)
