@@ -150,7 +150,9 @@ def _one_line_tyro_error(text: str) -> ConfigError:
     fields = re.findall(r"--[\w.]+", body)
     field = fields[0] if fields else "overrides"
     if "Unrecognized" in body:
-        similar = re.findall(r"--[\w.-]+", " ".join(lines[4:]))
+        joined = " ".join(lines)
+        after = joined.split("Perhaps you meant", 1)[1] if "Perhaps you meant" in joined else ""
+        similar = [f.replace("-", "_").replace("__", "--", 1) for f in re.findall(r"--[\w.-]+", after)]
         hint = f"; did you mean {', '.join(dict.fromkeys(similar[:3]))}?" if similar else ""
         return ConfigError(field, f"unknown field{hint} (run with --help for the valid fields)")
     return ConfigError(field, re.sub(r"\s+", " ", body)[:300])

