@@ -1,4 +1,4 @@
-"""CI smoke: D2C on the pendulum over 10 steps against the exact oracle."""
+"""CI smoke: D2C on the pendulum over 10 steps against the finite-difference oracle."""
 
 from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
 
@@ -6,5 +6,5 @@ CONFIG = Config(
     system=SystemConfig(name="pendulum"),
     task=TaskConfig(preset="pendulum_d2c", T=10),
     solver=SolverConfig(n_samples=6, max_iter=30, init="random"),
-    experiment=ExperimentConfig(kind="d2c", n_noise_trials=8, progress=False),
+    experiment=ExperimentConfig(kind="d2c", n_noise_trials=8, progress=False, oracle="finite_difference"),
 )

@@ -119,7 +119,9 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             record.stage(
                 "ltv_relative_error",
                 lambda: (
-                    ltv_error(system, jnp.asarray(a_d2c["d2c_X"]), U_d2c, K_d2c, k_ltv, sid_params, ex.oracle),
+                    ltv_error(
+                        system, jnp.asarray(a_d2c["d2c_X"]), U_d2c, K_d2c, k_ltv, sid_params, ex.oracle
+                    ),
                     {},
                 ),
             )

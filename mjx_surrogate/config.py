@@ -435,7 +435,9 @@ def validate_static(cfg: Config) -> None:
     if sy.substeps is not None and sy.control_dt is not None:
         raise ConfigError("system.control_dt", "give system.control_dt or system.substeps, not both")
     if sy.native_threads is not None and sy.native_threads < 1:
-        raise ConfigError("system.native_threads", f"must be >= 1 (or unset: all cores), got {sy.native_threads}")
+        raise ConfigError(
+            "system.native_threads", f"must be >= 1 (or unset: all cores), got {sy.native_threads}"
+        )
     t = cfg.task
     if not (math.isfinite(t.goal_tolerance) and 0 < t.goal_tolerance <= 1):
         raise ConfigError("task.goal_tolerance", f"must be in (0, 1], got {t.goal_tolerance}")

@@ -24,7 +24,6 @@ from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.systems import System
 from mjx_surrogate.tasks import Task, task_cost
 
-
 ORACLES = ("jacfwd", "finite_difference")
 
 

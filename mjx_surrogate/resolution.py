@@ -5,9 +5,8 @@ from __future__ import annotations
 import dataclasses
 from typing import NamedTuple
 
-import numpy as np
-
 import mujoco
+import numpy as np
 
 from mjx_surrogate.config import Config, SystemConfig, validate_static
 from mjx_surrogate.errors import ConfigError
@@ -74,7 +73,10 @@ def check_start(system: System, task: Task, sigma_x: float) -> None:
     state's magnitude at the working precision."""
     eps = float(np.finfo(np.asarray(task.x0).dtype).eps)
     m = system.mj_model
-    for field, x in (("task.x0", np.asarray(task.x0, float)), ("task.x_goal", np.asarray(task.x_goal, float))):
+    for field, x in (
+        ("task.x0", np.asarray(task.x0, float)),
+        ("task.x_goal", np.asarray(task.x_goal, float)),
+    ):
         mag = float(np.max(np.abs(x), initial=0.0))
         if mag * eps > 0.1 * sigma_x:
             raise ConfigError(
@@ -91,8 +93,11 @@ def check_start(system: System, task: Task, sigma_x: float) -> None:
     d.ctrl[:] = np.clip(np.asarray(task.u_ref, float), np.asarray(task.u_min), np.asarray(task.u_max))
     for _ in range(system.substeps):
         mujoco.mj_step(m, d)
-    names = {mujoco.mjtWarning.mjWARN_BADQACC: "bad acceleration", mujoco.mjtWarning.mjWARN_BADQPOS: "bad qpos",
-             mujoco.mjtWarning.mjWARN_BADQVEL: "bad qvel"}
+    names = {
+        mujoco.mjtWarning.mjWARN_BADQACC: "bad acceleration",
+        mujoco.mjtWarning.mjWARN_BADQPOS: "bad qpos",
+        mujoco.mjtWarning.mjWARN_BADQVEL: "bad qvel",
+    }
     hit = [n for w, n in names.items() if d.warning[w].number > 0]
     if hit or not np.all(np.isfinite(d.qpos)):
         raise ConfigError(

@@ -207,7 +207,9 @@ def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
         if len(tc.u_ref) != nu:
             raise ConfigError("task.u_ref", f"needs nu={nu} entries, got {len(tc.u_ref)}")
         check_finite("task.u_ref", tc.u_ref)
-    u_ref = np.asarray(tc.u_ref if tc.u_ref is not None else (key_ctrl if key_ctrl is not None else np.zeros(nu)))
+    u_ref = np.asarray(
+        tc.u_ref if tc.u_ref is not None else (key_ctrl if key_ctrl is not None else np.zeros(nu))
+    )
     state_error = tc.state_error or base.get("state_error", "geodesic")
     hinges, quats = geodesic_indices(m) if state_error == "geodesic" else ((), ())
     points = _points(system, tc)

@@ -23,7 +23,6 @@ from flax import struct
 
 from mjx_surrogate import cost as cost_lib
 
-
 PointsFn = Callable[[jax.Array], jax.Array]  # x [nx] -> goal point positions [k, 3]
 
 

@@ -71,7 +71,19 @@ def test_limits_wider_than_the_model_ctrlrange(tmp_path, capsys):
         '</worldbody><actuator><motor joint="j" ctrlrange="-1 1"/></actuator></mujoco>'
     )
     base = ["smoke_d2c", "--system.name", "mjcf", "--system.mjcf_path", str(xml), "--task.preset", "custom"]
-    task = ["--task.x_goal", "1", "0", "--task.Q_f_diag", "1", "1", "--task.Q_diag", "0", "0", "--task.R_diag", "1"]
+    task = [
+        "--task.x_goal",
+        "1",
+        "0",
+        "--task.Q_f_diag",
+        "1",
+        "1",
+        "--task.Q_diag",
+        "0",
+        "0",
+        "--task.R_diag",
+        "1",
+    ]
     code, err = _run(base + task + ["--task.u_max", "2"], capsys, tmp_path)
     assert code == 2 and err[0].startswith("error: task.u_max") and "ctrlrange" in err[0], err
 

@@ -53,12 +53,14 @@ def test_pendulum_d2c_matches_exact_oracle(sid):
 
 
 @pytest.mark.slow
-def test_cartpole_d2c_on_native_black_box_matches_exact_oracle():
+def test_cartpole_d2c_on_native_black_box_matches_finite_difference_oracle():
+    # The jacfwd oracle is checked on the pendulum above; on the cartpole it compiles for
+    # about 67 s (docs/performance.md), so the coordinate finite-difference oracle stands in.
     s, task = problem("cartpole", "cartpole_d2c", "native")
     U0 = jnp.zeros((task.T, 1))
     p = ILQRParams(max_iter=300, rel_tol=1e-6)
     d2c = solve_d2c(s, task, U0, jax.random.key(1), p, SysIdParams(n_samples=10))
-    ex = solve_exact(s, task, U0, p)
+    ex = solve_exact(s, task, U0, p, jacobians="finite_difference")
     assert bool(d2c.converged) and bool(ex.converged)
     assert float(d2c.cost) == pytest.approx(float(ex.cost), rel=1e-2)
     h = np.asarray(d2c.cost_history)[: int(d2c.iterations) + 1]

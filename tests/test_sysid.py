@@ -96,3 +96,25 @@ def test_difference_schemes_close_to_exact_on_mujoco(systems, scheme, sigma, tol
     assert rel < tol
     if scheme == "forward_difference" and sigma == 1e-4:
         assert rel > 1e-6  # first-order error is visible at this sigma
+
+
+def test_finite_difference_jacobians_match_jacfwd_on_mujoco():
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    from mjx_surrogate.config import Config, SystemConfig, TaskConfig
+    from mjx_surrogate.resolution import resolve
+    from mjx_surrogate.sysid import exact_jacobians, finite_difference_jacobians
+
+    res = resolve(
+        Config(system=SystemConfig(name="pendulum", backend="mjx"), task=TaskConfig(preset="pendulum_d2c"))
+    )
+    s, task = res.system, res.task
+    U = 0.3 * jax.random.normal(jax.random.key(0), (5, 1), task.x0.dtype)
+    X = jax.jit(lambda u: jax.lax.scan(lambda x, ut: (s.step(x, ut), s.step(x, ut)), task.x0, u)[1])(U)
+    X = jnp.concatenate([task.x0[None], X])
+    A, B = jax.jit(lambda X, U: finite_difference_jacobians(s.step, X, U))(X, U)
+    Ae, Be = jax.jit(lambda X, U: exact_jacobians(s.step, X, U))(X, U)
+    assert np.allclose(A, Ae, atol=1e-7) and np.allclose(B, Be, atol=1e-7)
+    assert not np.allclose(A, 0 * Ae, atol=1e-3)  # non-trivial

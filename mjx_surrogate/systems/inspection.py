@@ -23,7 +23,7 @@ def _names(m: mujoco.MjModel, obj, count: int) -> list[str]:
 
 
 def mjx_support(m: mujoco.MjModel) -> str:
-    """"yes", or why ``mjx.put_model`` refuses the model."""
+    """ "yes", or why ``mjx.put_model`` refuses the model."""
     try:
         with contextlib.redirect_stdout(io.StringIO()):
             from mujoco import mjx

@@ -34,7 +34,9 @@ def point_ids(m: mujoco.MjModel, goals, field: str = "task.goals") -> list[tuple
         j = mujoco.mj_name2id(m, _KINDS[g.kind], g.name)
         if j < 0:
             valid = ", ".join(n for n in object_names(m, g.kind) if not n.startswith("#")) or "none"
-            raise ConfigError(f"{field}[{i}].name", f"no {g.kind} named {g.name!r}; the model's {g.kind}s: {valid}")
+            raise ConfigError(
+                f"{field}[{i}].name", f"no {g.kind} named {g.name!r}; the model's {g.kind}s: {valid}"
+            )
         out.append((g.kind, j))
     return out
 
