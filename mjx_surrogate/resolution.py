@@ -102,7 +102,8 @@ def check_start(system: System, task: Task, sigma_x: float) -> None:
     if hit or not np.all(np.isfinite(d.qpos)):
         raise ConfigError(
             "task.x0",
-            f"MuJoCo cannot simulate from this state ({', '.join(hit) or 'non-finite state'} in the first step)",
+            f"MuJoCo cannot simulate from this state "
+            f"({', '.join(hit) or 'non-finite state'} in the first step)",
         )
 
 
