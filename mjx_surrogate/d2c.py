@@ -49,36 +49,14 @@ def _solve(
     rollouts), "exact" on the MJX step with ``jax.jacfwd`` Jacobians, or
     "finite_difference" on the black box with coordinate central differences."""
     if method == "d2c":
-        return ilqr(
-            system.step,
-            sid.ltv_linearize(system, sysid),
-            task_cost(task),
-            task.x0,
-            U0,
-            task.u_min,
-            task.u_max,
-            params,
-            key,
-            system.closed_loop,
-            progress,
-        )
-    if method == "finite_difference":
-        return ilqr(
-            system.step,
-            exact_linearize(system, method),
-            task_cost(task),
-            task.x0,
-            U0,
-            task.u_min,
-            task.u_max,
-            params,
-            key,
-            system.closed_loop,
-            progress,
-        )
+        step, linearize, closed = system.step, sid.ltv_linearize(system, sysid), system.closed_loop
+    elif method == "finite_difference":
+        step, linearize, closed = system.step, exact_linearize(system, method), system.closed_loop
+    else:
+        step, linearize, closed = system.mjx_step, exact_linearize(system), None
     return ilqr(
-        system.mjx_step,
-        exact_linearize(system),
+        step,
+        linearize,
         task_cost(task),
         task.x0,
         U0,
@@ -86,7 +64,7 @@ def _solve(
         task.u_max,
         params,
         key,
-        None,
+        closed,
         progress,
     )
 
