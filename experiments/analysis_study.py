@@ -19,10 +19,11 @@ from mjx_surrogate.surrogates.registry import library_specs, mlp_spec
 from mjx_surrogate.systems.system import state_labels
 
 
-def _datasets(system, X_star, U_star, key, cfg, level):
+def _datasets(system, task, X_star, U_star, key, cfg, level):
     """K data sets from one sampling distribution: (train list, test list) of Transitions."""
     keys = jax.random.split(key, cfg.analysis.n_datasets)
-    sets = data.sample_seeds(system, X_star, U_star, keys, cfg.data.n_traj, level, cfg.data.x0_sigma)
+    lim = (task.u_min, task.u_max)
+    sets = data.sample_seeds(system, X_star, U_star, keys, cfg.data.n_traj, level, cfg.data.x0_sigma, *lim)
     out = []
     for i in range(cfg.analysis.n_datasets):
         ds = data.Dataset(sets.X[i], sets.U[i])
@@ -64,9 +65,8 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         conv, arrays = {}, {}
         for kind, levels in (("SINDy", a.convergence_sindy_levels), ("MLP", a.convergence_mlp_levels)):
             for j, level in enumerate(levels):
-                sets = _datasets(
-                    system, X_star, U_star, jax.random.fold_in(keys["conv"], 100 * j + len(kind)), cfg, level
-                )
+                k = jax.random.fold_in(keys["conv"], 100 * j + len(kind))
+                sets = _datasets(system, task, X_star, U_star, k, cfg, level)
                 if kind == "SINDy":
                     spec = specs[a.convergence_library]
                     fits = [
@@ -124,7 +124,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
 
     def ill_conditioning():  # 2. Gram spectra
         gram, arrays = {}, {}
-        ((tr, _),) = _datasets(system, X_star, U_star, keys["gram"], _one(cfg), a.gram_sindy_level)
+        ((tr, _),) = _datasets(system, task, X_star, U_star, keys["gram"], _one(cfg), a.gram_sindy_level)
         for name in a.gram_libraries:
             theta = sindy.design(specs[name], tr.x, tr.u)
             eig = spectra.eigenvalues(sindy.gram(theta))
@@ -136,7 +136,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             arrays[f"sindy_gram_eigs_{name}"] = eig
         for j, level in enumerate(a.gram_mlp_levels):
             ((tr, te),) = _datasets(
-                system, X_star, U_star, jax.random.fold_in(keys["gram"], j + 1), _one(cfg), level
+                system, task, X_star, U_star, jax.random.fold_in(keys["gram"], j + 1), _one(cfg), level
             )
             z = jnp.concatenate([tr.x, tr.u], -1)
             zt = jnp.concatenate([te.x, te.u], -1)
@@ -169,7 +169,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     def variance():  # 3. Variance of the projections across data sets
         var, arrays = {}, {}
         for j, (name, level) in enumerate(zip(a.variance_libraries, a.variance_levels)):
-            sets = _datasets(system, X_star, U_star, jax.random.fold_in(keys["var"], j), cfg, level)
+            sets = _datasets(system, task, X_star, U_star, jax.random.fold_in(keys["var"], j), cfg, level)
             spec = specs[name]
             thetas = [sindy.design(spec, tr.x, tr.u) for tr, _ in sets]
             ys = [tr.x_next - tr.x if cfg.surrogate.increment else tr.x_next for tr, _ in sets]
@@ -182,7 +182,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
                 "n_features": int(D.shape[1]),
             }
             arrays[f"variance_projections_{name}_{level:g}"] = D
-        var.update(_mlp_directions(cfg, system, X_star, U_star, keys["var"], spec_mlp, arrays))
+        var.update(_mlp_directions(cfg, system, task, X_star, U_star, keys["var"], spec_mlp, arrays))
         return var, arrays
 
     var, a_var = record.stage("variance", variance)
@@ -206,11 +206,11 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     return m_opt["status"]
 
 
-def _mlp_directions(cfg, system, X_star, U_star, key, spec_mlp, arrays) -> dict:
+def _mlp_directions(cfg, system, task, X_star, U_star, key, spec_mlp, arrays) -> dict:
     """(1/R) H' Delta at the first and last checkpoint, same initial weights, K data sets."""
     a = cfg.analysis
     level = a.gram_mlp_levels[0]
-    sets = _datasets(system, X_star, U_star, jax.random.fold_in(key, 99), cfg, level)
+    sets = _datasets(system, task, X_star, U_star, jax.random.fold_in(key, 99), cfg, level)
     z, xn = _common([tr for tr, _ in sets])
     y = mlp.targets(z[..., : system.nx], xn, spec_mlp.increment)
     spec = spec_mlp._replace(checkpoints=(0, spec_mlp.epochs))

@@ -25,13 +25,15 @@ from mjx_surrogate.systems.system import hinge_state_indices, state_labels
 
 def level_stage(res: Resolved, X_star, U_star, level: float, i: int, key: jax.Array):
     """A stage: the data set at one level, every model fitted and evaluated."""
-    cfg, system, _ = res
+    cfg, system, task = res
     dc = cfg.data
 
     def compute():
         k_data, k_split, k_fit = jax.random.split(key, 3)
         t0 = time.perf_counter()
-        ds = jax.block_until_ready(data.sample(system, X_star, U_star, k_data, dc.n_traj, level, dc.x0_sigma))
+        lim = (task.u_min, task.u_max)
+        ds = data.sample(system, X_star, U_star, k_data, dc.n_traj, level, dc.x0_sigma, *lim)
+        ds = jax.block_until_ready(ds)
         t_data = time.perf_counter() - t0
         train, test = data.split(ds, k_split, dc.test_fraction)
         fitted = fit_all(FitContext(cfg, system), data.transitions(train), data.transitions(test), k_fit)
@@ -75,7 +77,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     cfg, system, task = res
     dc = cfg.data
     k_opt, k_levels = jax.random.split(key)
-    record.set("u_max_definition", "largest |u*| per channel over the horizon")
+    record.set("u_max_definition", "the actuator limit where finite, else the largest |u*| per channel")
     record.add_arrays({"x0": task.x0})
     m_opt, a_opt = record.stage("optimum", pipeline.optimum_stage(res, k_opt))
     if m_opt["cost"] is None:

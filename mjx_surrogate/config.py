@@ -125,8 +125,8 @@ class SolverConfig:
     accept_ratio: float = _ILQR.accept_ratio
     sysid: str = "central_difference"  # a registered scheme (mjx_surrogate.sysid.SCHEMES)
     n_samples: Optional[int] = None  # None: max(20, 2 (nx + nu))
-    sigma_x: float = _SYSID.sigma_x
-    sigma_u: float = _SYSID.sigma_u
+    sigma_x: Optional[float] = None  # None: resolution.default_sigma
+    sigma_u: Optional[float] = None
     init: Literal["zeros", "random"] = "zeros"
     init_scale: float = 0.1
     n_starts: int = 1
@@ -405,8 +405,8 @@ def validate_static(cfg: Config) -> None:
         if v < 1:
             raise ConfigError(field, f"must be >= 1, got {v}")
     positive = {
-        "solver.sigma_x": s.sigma_x,
-        "solver.sigma_u": s.sigma_u,
+        "solver.sigma_x": _SYSID.sigma_x if s.sigma_x is None else s.sigma_x,
+        "solver.sigma_u": _SYSID.sigma_u if s.sigma_u is None else s.sigma_u,
         "solver.mu_max": s.mu_max,
         "solver.mu_factor": s.mu_factor - 1.0,
     }

@@ -6,8 +6,10 @@ the black box driven by perturbed controls
     u_t^i = u_t* + level * U_max * w_t^i,   w_t^i ~ N(0, I),
     x_0^i = x_0* + x0_sigma * v^i,          v^i ~ N(0, I),
 
-where U_max [nu] is the largest |u_t*| per control channel over the horizon (a channel
-with u* = 0 everywhere gets U_max = 1 so that its level still means something). The
+where U_max [nu] is the actuator limit max(|u_min|, |u_max|) of a channel whose limits are
+finite, else the largest |u_t*| of that channel over the horizon (a channel with u* = 0
+everywhere gets U_max = 1 so that its level still means something). Perturbed controls
+are clipped to the limits, so a data set holds the controls the black box applied. The
 paper quotes levels as percentages of U_max (5 ... 100 %); here ``level`` is the fraction.
 All N trajectories come from one batched black-box rollout. Trajectories, not
 transitions, are split train : test, so no test transition is a neighbour in time of a
@@ -41,10 +43,15 @@ class Transitions(NamedTuple):
     x_next: jax.Array  # [M, nx]
 
 
-def u_max(U_star: jax.Array) -> jax.Array:
-    """U_max [nu]: largest |u*| per channel over the horizon (1 where u* is all zero)."""
+def u_max(U_star: jax.Array, lo: jax.Array | None = None, hi: jax.Array | None = None) -> jax.Array:
+    """U_max [nu]: the actuator limit max(|lo|, |hi|) where both are finite, else the
+    largest |u*| per channel over the horizon (1 where u* is all zero)."""
     m = jnp.max(jnp.abs(U_star), axis=0)
-    return jnp.where(m > 0, m, jnp.ones_like(m))
+    m = jnp.where(m > 0, m, jnp.ones_like(m))
+    if lo is None or hi is None:
+        return m
+    limit = jnp.maximum(jnp.abs(lo), jnp.abs(hi))
+    return jnp.where(jnp.isfinite(lo) & jnp.isfinite(hi) & (limit > 0), limit, m)
 
 
 @partial(jax.jit, static_argnames=("system", "n_traj"))
@@ -56,15 +63,20 @@ def sample(
     n_traj: int,
     level: float,
     x0_sigma: float = 0.0,
+    lo: jax.Array | None = None,
+    hi: jax.Array | None = None,
 ) -> Dataset:
     """N perturbed trajectories of the black box around (X*, U*) in one batched rollout.
 
-    X_star [T+1, nx], U_star [T, nu], level: control noise as a fraction of U_max.
+    X_star [T+1, nx], U_star [T, nu], level: control noise as a fraction of U_max;
+    lo, hi [nu]: the task's control limits (None or infinite: none).
     """
     k_u, k_x = jax.random.split(key)
     T, nu = U_star.shape
-    scale = level * u_max(U_star)
+    scale = level * u_max(U_star, lo, hi)
     U = U_star + scale * jax.random.normal(k_u, (n_traj, T, nu), U_star.dtype)
+    if lo is not None and hi is not None:
+        U = jnp.clip(U, lo, hi)
     x0 = X_star[0] + x0_sigma * jax.random.normal(k_x, (n_traj, X_star.shape[-1]), X_star.dtype)
     return Dataset(rollout(system, x0, U), U)
 
@@ -77,9 +89,11 @@ def sample_seeds(
     n_traj: int,
     level: float,
     x0_sigma: float = 0.0,
+    lo: jax.Array | None = None,
+    hi: jax.Array | None = None,
 ) -> Dataset:
     """Data sets from one sampling distribution, one per key: X [S, N, T+1, nx]."""
-    return jax.vmap(lambda k: sample(system, X_star, U_star, k, n_traj, level, x0_sigma))(keys)
+    return jax.vmap(lambda k: sample(system, X_star, U_star, k, n_traj, level, x0_sigma, lo, hi))(keys)
 
 
 def split(data: Dataset, key: jax.Array, test_fraction: float = 0.1) -> tuple[Dataset, Dataset]:

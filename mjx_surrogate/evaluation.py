@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate import step_models
-from mjx_surrogate.data import Dataset
+from mjx_surrogate.data import Dataset, u_max
 from mjx_surrogate.systems import System
 from mjx_surrogate.tasks import Task, trajectory_cost
 from mjx_surrogate.trajectory import feedback_rollout
@@ -56,12 +56,13 @@ def evaluate_feedback(
 ):
     """Cost of u_t = U_t + K_t (x_t - X_t) + w_t (closed loop) and U_t + w_t (open loop).
 
-    w_t ~ N(0, (level * max|U|)^2) per channel, the same draws for both policies.
+    w_t ~ N(0, (level * U_max)^2) per channel (U_max: :func:`mjx_surrogate.data.u_max`, the
+    actuator limit where finite), the same draws for both policies.
     X [T+1, nx], U [T, nu], K [T, nu, nx], noise_levels [L] -> two cost arrays [L, n_trials].
     """
     L = noise_levels.shape[0]
     T, nu = U.shape
-    u_scale = jnp.max(jnp.abs(U), axis=0) + 1e-12  # [nu]
+    u_scale = u_max(U, task.u_min, task.u_max)  # [nu]
     W = jax.random.normal(key, (L, n_trials, T, nu), U.dtype)
     W = (W * noise_levels[:, None, None, None] * u_scale).reshape(L * n_trials, T, nu)
 

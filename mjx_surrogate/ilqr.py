@@ -28,7 +28,9 @@ sizes at once (vmap); a trial is accepted when its cost is finite and
 
 Stopping rules (checked in this order after every iteration; :class:`StopReason`):
 relative cost decrease <= rel_tol; max|k| <= k_tol (1 + max|U|); no trial accepted while
-the model promises |dV| <= rel_tol |J| (the noise floor of the black box); mu > mu_max
+the model promises |dV| <= rel_tol |J| (the noise floor of the black box); in the last two
+k and dV are first multiplied by 1 + reg (:func:`backward_pass`), as a heavily regularised
+step is small without being optimal; mu > mu_max
 (no descent found: stalled); max_iter; a stop requested through the progress meter.
 """
 
@@ -191,7 +193,9 @@ def box_qp(
 
 def backward_pass(A, B, lx, lu, lxx, luu, lux, VxT, VxxT, U, lo, hi, mu):
     """Riccati sweep. Returns k [T, nu], K [T, nu, nx], dV = (sum k'Q_u, sum 1/2 k'Q_uu k),
-    and ok (the regularised Q~_uu positive definite at every t). Without any finite limit
+    ok (the regularised Q~_uu positive definite at every t) and reg, the largest share of
+    the regularisation in the step's curvature, max_t ||mu B'B|| / ||Q_uu|| (Frobenius;
+    reg <= 1: the step is within a factor of about 2 of the Newton step). Without any finite limit
     the box QP is skipped: one solve per t gives k and K."""
     bounded = jnp.any(jnp.isfinite(lo) | jnp.isfinite(hi))
 
@@ -223,12 +227,13 @@ def backward_pass(A, B, lx, lu, lxx, luu, lux, VxT, VxxT, U, lo, hi, mu):
         Vxx_new = 0.5 * (Vxx_new + Vxx_new.T)
         dv = jnp.stack([kt @ Qu, 0.5 * kt @ Quu @ kt])
         ok_t = ok_t & jnp.all(jnp.isfinite(Kt)) & jnp.all(jnp.isfinite(kt))
-        return (Vx_new, Vxx_new, ok & ok_t), (kt, Kt, dv)
+        reg_t = mu * jnp.linalg.norm(Bt.T @ Bt) / jnp.maximum(jnp.linalg.norm(Quu), jnp.finfo(Quu.dtype).tiny)
+        return (Vx_new, Vxx_new, ok & ok_t), (kt, Kt, dv, reg_t)
 
-    (_, _, ok), (k, K, dv) = jax.lax.scan(
+    (_, _, ok), (k, K, dv, reg) = jax.lax.scan(
         body, (VxT, VxxT, jnp.array(True)), (A, B, lx, lu, lxx, luu, lux, U), reverse=True
     )
-    return k, K, dv.sum(0), ok
+    return k, K, dv.sum(0), ok, jnp.max(reg)
 
 
 def cost_derivatives(cost: Cost, X: jax.Array, U: jax.Array):
@@ -316,7 +321,7 @@ def ilqr(
         key, sub = jax.random.split(s.key)
         A, B = jax.lax.cond(s.fresh, lambda: linearize(s.X, s.U, s.K, sub), lambda: (s.A, s.B))
         derivs = cost_derivatives(cost, s.X, s.U)
-        k, K, dV, ok = backward_pass(A, B, *derivs, s.U, u_min, u_max, s.mu)
+        k, K, dV, ok, reg = backward_pass(A, B, *derivs, s.U, u_min, u_max, s.mu)
         if trial_rollouts is None:
             trial = jax.vmap(closed_loop, in_axes=(None, None, None, None, None, None, 0, None, None))
             Xa, Ua = trial(step, x0, s.X, s.U, k, K, alphas, u_min, u_max)
@@ -335,11 +340,14 @@ def ilqr(
         )
         it = s.it + 1
         scale_u = 1.0 + jnp.max(jnp.abs(s.U))
-        small_k = ok & (jnp.max(jnp.abs(k)) < p.k_tol * scale_u)
+        # A small step or a small promise means a minimum only if the regularisation did
+        # not make it small: both scale like 1 / (1 + reg), so they are judged undone.
+        unreg = 1.0 + reg
+        small_k = ok & (unreg * jnp.max(jnp.abs(k)) < p.k_tol * scale_u)
         small_dJ = any_acc & ((s.J - J) <= p.rel_tol * jnp.abs(s.J))
         # No trial accepted although the model promises almost nothing: a minimum, up to
         # the noise of the black box / the LTV estimate.
-        floor = ok & ~any_acc & (jnp.abs(dV[0] + dV[1]) <= p.rel_tol * jnp.abs(s.J))
+        floor = ok & ~any_acc & (unreg * jnp.abs(dV[0] + dV[1]) <= p.rel_tol * jnp.abs(s.J))
         stop = progress_lib.poll(progress, it, J, mu)
         reason = jnp.select(
             [small_dJ, small_k, floor, mu > p.mu_max, it >= p.max_iter, stop],

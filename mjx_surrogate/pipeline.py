@@ -143,7 +143,7 @@ def optimum_stage(res, key: jax.Array):
             "U_star": opt.result.U,
             "K_star": opt.result.K,
             "U0_star": U0,
-            "u_max": data.u_max(opt.result.U),
+            "u_max": data.u_max(opt.result.U, task.u_min, task.u_max),
         }
         if record_trajectories:
             arrays["X_history"] = opt.result.X_history[: int(opt.result.iterations) + 1]

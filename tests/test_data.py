@@ -28,6 +28,23 @@ def test_u_max_and_perturbation_statistics(systems):
     np.testing.assert_array_equal(ds.U, again.U)
 
 
+def test_u_max_is_the_actuator_limit_and_data_hold_the_applied_controls(systems):
+    sys_ = systems("pendulum")
+    T = 8
+    U_star = jnp.linspace(-0.5, 0.3, T)[:, None]
+    X_star = rollout(sys_, jnp.array([[np.pi, 0.0]]), U_star[None])[0]
+    lo, hi = jnp.array([-2.0]), jnp.array([1.0])
+    assert float(data.u_max(U_star, lo, hi)[0]) == 2.0  # max(|u_min|, |u_max|)
+    inf = jnp.array([jnp.inf])
+    assert float(data.u_max(U_star, -inf, inf)[0]) == pytest.approx(0.5)  # no limit: max |u*|
+    ds = data.sample(sys_, X_star, U_star, jax.random.key(0), 4000, 0.05, 0.0, lo, hi)
+    dU = np.asarray(ds.U - U_star)
+    assert dU.std() == pytest.approx(0.05 * 2.0, rel=0.02)
+    wide = data.sample(sys_, X_star, U_star, jax.random.key(0), 4000, 1.0, 0.0, lo, hi)
+    assert float(wide.U.min()) == -2.0 and float(wide.U.max()) == 1.0  # clipped to the limits
+    np.testing.assert_allclose(wide.X, rollout(sys_, wide.X[:, 0], wide.U), atol=1e-12)
+
+
 def test_split_by_trajectory_and_transitions(systems):
     sys_ = systems("pendulum")
     X_star = jnp.zeros((6, 2)).at[:, 0].set(np.pi)

@@ -131,7 +131,7 @@ def test_regularised_step_keeps_an_exact_value_model(mu):
         inf,
     )
     Aa, Ba = lin(X, U, None, None)
-    k, K, dV, ok = backward_pass(Aa, Ba, *cost_derivatives(cost, X, U), U, -inf, inf, mu)
+    k, K, dV, ok, _ = backward_pass(Aa, Ba, *cost_derivatives(cost, X, U), U, -inf, inf, mu)
     assert bool(ok)
     Xn, Un = closed_loop(step, jnp.asarray(X0), X, U, k, K, 1.0, -inf, inf)
     dJ = float(trajectory_cost(cost, Xn, Un) - trajectory_cost(cost, X, U))
@@ -227,3 +227,27 @@ def test_native_one_call_line_search_equals_the_per_step_rollouts(systems):
     assert float(jnp.max(U1)) <= 0.9 and float(jnp.min(U1)) >= -0.8
     np.testing.assert_allclose(U1, U2, atol=1e-12)
     np.testing.assert_allclose(X1, X2, atol=1e-12)
+
+
+def test_a_wrong_model_stalls_instead_of_converging_on_regularised_steps():
+    # The model's B has the wrong sign: trials fail and mu grows until the regularised
+    # step (k ~ 1/mu) and its promise are tiny. That is no minimum: the
+    # verdict must be "stalled", not a small-step or noise-floor "converged".
+    step, _, cost = linear_problem()
+    _, wrong, _ = linear_problem(B=-B)
+    res = jax.jit(
+        lambda U0: ilqr(
+            step,
+            wrong,
+            cost,
+            jnp.asarray(X0),
+            U0,
+            jnp.full(1, -jnp.inf),
+            jnp.full(1, jnp.inf),
+            ILQRParams(max_iter=100),
+            jax.random.key(0),
+        )
+    )(jnp.zeros((T, 1)))
+    assert int(res.iterations) > 1
+    assert StopReason(int(res.stop_reason)) == StopReason.NO_DESCENT
+    assert not bool(res.converged)
