@@ -88,6 +88,13 @@ def test_feedback_without_noise_reproduces_the_nominal():
     assert np.allclose(closed[0], float(res.cost), rtol=1e-9)
     assert np.allclose(opened[0], float(res.cost), rtol=1e-9)
     assert np.median(closed[1]) < np.median(opened[1])  # the local feedback helps
+    # The stored nominal is not trusted: the feedback acts around the nominal re-simulated
+    # in the same program, so a nominal off by round-off (here 1e-3, exaggerated) cannot
+    # turn into a feedback kick (on an unstable optimum that gave 2.8e9 against 6270).
+    closed, opened = evaluate_feedback(
+        s, task, res.X + 1e-3, res.U, 100 * res.K, jnp.zeros(1), jax.random.key(0), 2
+    )
+    assert np.allclose(closed, float(res.cost), rtol=1e-9) and np.allclose(opened, float(res.cost), rtol=1e-9)
 
 
 @pytest.mark.slow

@@ -4,7 +4,7 @@ For each a stated task is solved by D2C on the native backend from zero controls
 the finite-difference oracle from the same start. Checked: the controls stay inside the
 model's ctrlrange (never given by hand), the verdict and the goal flag are true of the
 outcome replayed independently with ``mujoco.rollout``; on contact-free models the D2C
-cost is within 1 % of the oracle's, on contact models at most 5 % above it.
+cost is within 1 % of the oracle's, on contact models at most 1 % above it.
 """
 
 import jax
@@ -138,10 +138,10 @@ def test_third_party_model_solves_inside_its_limits_with_a_true_verdict(name):
         assert float(d2c.cost) == pytest.approx(float(oracle.cost), rel=1e-2)
     else:
         # At contact make/break steps the one-step map has no derivative (central
-        # differences at 6e-6 and 6e-7 differ by up to 556 % on the hopper), so two local
-        # searches agree only as far as the problem resolves: the oracle's own cost moves
-        # by 1.8 % over eps in [6e-7, 2e-5] (docs/your_model.md). D2C must not lose more.
-        assert float(d2c.cost) <= 1.05 * float(oracle.cost), (float(d2c.cost), float(oracle.cost))
+        # differences at 6e-6 and 6e-7 differ by up to 556 % on the hopper), and two local
+        # searches need not end at the same optimum (docs/performance.md): D2C must come
+        # within 1 % of the oracle's cost or below it.
+        assert float(d2c.cost) <= 1.01 * float(oracle.cost), (float(d2c.cost), float(oracle.cost))
 
 
 def tk_goal_bound(task, X, tol):
