@@ -42,10 +42,8 @@ def main() -> None:
 
     import jax
     import jax.numpy as jnp
-    from test_thirdparty import CASES, _qpos0_goal
-    from thirdparty import model_path
+    from test_thirdparty import CASES, case_config
 
-    from mjx_surrogate.config import Config, SolverConfig, SystemConfig, TaskConfig
     from mjx_surrogate.d2c import solve_d2c, solve_exact
     from mjx_surrogate.pipeline import summary
     from mjx_surrogate.resolution import resolve, solver_params
@@ -56,20 +54,13 @@ def main() -> None:
         + (" D2C cost over seeds |" if a.seeds > 1 else "")
     )
     print("|---" * (10 + (a.seeds > 1)) + "|")
-    for name, (package, file, task, system, shift, contacts) in CASES.items():
+    for name, (package, *_, contacts) in CASES.items():
         if a.models and not any(m in name for m in a.models):
             continue
-        path = model_path(package, file)
-        if path is None:
+        cfg = case_config(name)
+        if cfg is None:
             print(f"| {name} | {package} wheel not downloadable |")
             continue
-        if shift is not None:
-            task = {**task, "x_goal": _qpos0_goal(path, shift)}
-        cfg = Config(
-            system=SystemConfig(name="mjcf", mjcf_path=path, backend="native", **system),
-            task=TaskConfig(preset="custom", **task),
-            solver=SolverConfig(max_iter=60),
-        )
         res = resolve(cfg)
         s, tk = res.system, res.task
         params, sid = solver_params(res.config)

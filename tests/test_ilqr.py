@@ -46,22 +46,24 @@ def riccati_lqr():
     return np.array(L), np.array(U), np.array(X)
 
 
-def solve(U0, lo=-np.inf, hi=np.inf, **kw):
-    step, lin, cost = linear_problem()
-    f = jax.jit(
-        lambda U0: ilqr(
-            step,
-            lin,
-            cost,
-            jnp.asarray(X0),
-            U0,
-            jnp.full(1, lo),
-            jnp.full(1, hi),
-            ILQRParams(**kw),
-            jax.random.key(0),
-        )
+def run(step, lin, cost, U0, lo=-np.inf, hi=np.inf, **kw):
+    """iLQR from X0 under jit with the given model; kw: ILQRParams fields."""
+    f = lambda U0: ilqr(
+        step,
+        lin,
+        cost,
+        jnp.asarray(X0),
+        U0,
+        jnp.full(1, lo),
+        jnp.full(1, hi),
+        ILQRParams(**kw),
+        jax.random.key(0),
     )
-    return f(U0)
+    return jax.jit(f)(U0)
+
+
+def solve(U0, lo=-np.inf, hi=np.inf, **kw):
+    return run(*linear_problem(), U0, lo, hi, **kw)
 
 
 def test_matches_discrete_riccati():
@@ -142,19 +144,7 @@ def test_regularised_step_keeps_an_exact_value_model(mu):
 def test_blown_up_trials_rejected_and_nonfinite_start_reported():
     # Unstable system: the initial controls blow the state up -> reported, no crash.
     step, lin, cost = linear_problem(A=np.array([[1.3, 0.1], [0.0, 1.3]]))
-    f = jax.jit(
-        lambda U0: ilqr(
-            step,
-            lin,
-            cost,
-            jnp.asarray(X0),
-            U0,
-            jnp.full(1, -jnp.inf),
-            jnp.full(1, jnp.inf),
-            ILQRParams(),
-            jax.random.key(0),
-        )
-    )
+    f = lambda U0: run(step, lin, cost, U0)  # noqa: E731
     res = f(jnp.full((T, 1), 1e300))
     assert StopReason(int(res.stop_reason)) == StopReason.NOT_FINITE
     assert StopReason(int(res.stop_reason)).verdict == "diverged"
@@ -168,19 +158,7 @@ def test_blown_up_trials_rejected_and_nonfinite_start_reported():
 def test_absurd_weights_reported_not_nan():
     step, lin, _ = linear_problem()
     cost = Cost(lambda x, u: 0.5 * 1e300 * x @ x + 0.5 * u @ u, lambda x: 1e300 * (1e300 * x @ x))
-    res = jax.jit(
-        lambda U0: ilqr(
-            step,
-            lin,
-            cost,
-            jnp.asarray(X0),
-            U0,
-            jnp.full(1, -jnp.inf),
-            jnp.full(1, jnp.inf),
-            ILQRParams(max_iter=20),
-            jax.random.key(0),
-        )
-    )(jnp.zeros((T, 1)))
+    res = run(step, lin, cost, jnp.zeros((T, 1)), max_iter=20)
     assert not bool(res.converged)
     assert StopReason(int(res.stop_reason)) == StopReason.NOT_FINITE
     assert StopReason(int(res.stop_reason)).verdict == "diverged"
@@ -235,19 +213,7 @@ def test_a_wrong_model_stalls_instead_of_converging_on_regularised_steps():
     # verdict must be "stalled", not a small-step or noise-floor "converged".
     step, _, cost = linear_problem()
     _, wrong, _ = linear_problem(B=-B)
-    res = jax.jit(
-        lambda U0: ilqr(
-            step,
-            wrong,
-            cost,
-            jnp.asarray(X0),
-            U0,
-            jnp.full(1, -jnp.inf),
-            jnp.full(1, jnp.inf),
-            ILQRParams(max_iter=100),
-            jax.random.key(0),
-        )
-    )(jnp.zeros((T, 1)))
+    res = run(step, wrong, cost, jnp.zeros((T, 1)), max_iter=100)
     assert int(res.iterations) > 1
     assert StopReason(int(res.stop_reason)) == StopReason.NO_DESCENT
     assert not bool(res.converged)
