@@ -90,7 +90,8 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         def exact_stage():
             with progress.meter("exact-Jacobian iLQR (oracle)", sc.max_iter, ex.progress) as pm:
                 exact = jax.block_until_ready(solve_exact(system, task, U0, params, pm, jacobians=ex.oracle))
-            m, X_ex = pipeline.summary(exact, system, task, cfg.task.goal_tolerance)
+            names = ("exact_U", "exact_X", "exact_K")
+            m, X_ex = pipeline.summary(exact, system, task, cfg.task.goal_tolerance, names)
             return m, {"exact_U": exact.U, "exact_X": X_ex, "exact_K": exact.K}
 
         m_ex, _ = record.stage("exact", exact_stage)

@@ -31,6 +31,10 @@ def ltv_error(system, X, U, K, key, sid_params, jacobians: str = "jacfwd") -> di
     return {"median": float(np.median(rel)), "max": float(np.max(rel)), "scheme": sid_params.scheme}
 
 
+def _names(prefix: str) -> tuple[str, str, str]:
+    return f"{prefix}_U", f"{prefix}_X", f"{prefix}_K"
+
+
 def _solve_arrays(prefix: str, result, X_bb) -> dict:
     out = {
         f"{prefix}_U": result.U,
@@ -76,7 +80,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             with progress.meter("D2C (LTV identification + iLQR)", sc.max_iter, ex.progress) as pm:
                 timed = compile_then_run(solve_d2c, (system,), (task, U0, k_d2c, params, sid_params, pm))
             result, extra = timed.out, {}
-        m, X_bb = pipeline.summary(result, system, task, cfg.task.goal_tolerance)
+        m, X_bb = pipeline.summary(result, system, task, cfg.task.goal_tolerance, _names("d2c"))
         m.update(
             extra,
             compile_s=timed.compile_s,
@@ -103,7 +107,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
                     (task, U0, params, pm),
                     static_kwargs={"jacobians": ex.oracle},
                 )
-            m, X_bb = pipeline.summary(timed.out, system, task, cfg.task.goal_tolerance)
+            m, X_bb = pipeline.summary(timed.out, system, task, cfg.task.goal_tolerance, _names("exact"))
             m.update(compile_s=timed.compile_s, run_s=timed.run_s)
             return m, _solve_arrays("exact", timed.out, X_bb)
 

@@ -14,7 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import data, progress
+from mjx_surrogate import data, native_replay, progress
 from mjx_surrogate import sysid as sid
 from mjx_surrogate.d2c import solve_d2c
 from mjx_surrogate.evaluation import finite_or_none
@@ -67,14 +67,22 @@ def goal_test(task: Task, X: jax.Array, tolerance: float) -> dict:
 
 
 def summary(
-    result: ILQRResult, system: System, task: Task, goal_tolerance: float = 0.01
+    result: ILQRResult,
+    system: System,
+    task: Task,
+    goal_tolerance: float = 0.01,
+    names: tuple[str, str, str] | None = None,
 ) -> tuple[dict, jax.Array]:
     """Metrics of a solve in the status vocabulary, judged on the black box.
 
     ``cost`` is the cost of the solve's controls replayed on the black box (``cost_solver``
     the solver's own); ``status`` is the verdict of the stop reason (``diverged`` if the
     replayed cost is not finite); ``goal`` the goal test (:func:`goal_test`), which is
-    separate from the status: a solve can converge to a point that misses the goal.
+    separate from the status: a solve can converge to a point that misses the goal;
+    ``native_float64`` the costs of the controls replayed on native MuJoCo in float64, open
+    loop and closed loop around the replayed X with the solve's gains
+    (:mod:`mjx_surrogate.native_replay`; ``names``: the run's array names of U, X, K), and
+    ``replay_gap`` the relative difference of the one it judges by from ``cost``.
     Returns (metrics, the replayed X [T+1, nx]).
     """
     X_bb, cost = black_box_trajectory(system, task, result.U)
@@ -92,6 +100,22 @@ def summary(
             and np.all(np.asarray(result.U) <= np.asarray(task.u_max))
         ),
     }
+    native = native_replay.replay_costs(
+        lambda X, U: finite_or_none(trajectory_cost(task, jnp.asarray(X), jnp.asarray(U))),
+        system.mj_model,
+        system.substeps,
+        np.asarray(task.x0),
+        np.asarray(result.U),
+        np.asarray(X_bb),
+        np.asarray(result.K),
+        np.asarray(task.u_min),
+        np.asarray(task.u_max),
+    )
+    judged = native[native["judged_by"]]
+    if names is not None:
+        native["arrays"] = dict(zip(("U", "X", "K"), names))
+    out["native_float64"] = native
+    out["replay_gap"] = finite_or_none((judged - cost) / abs(cost)) if judged is not None and cost else None
     return out, X_bb
 
 
@@ -110,10 +134,11 @@ def d2c_optimum(
     sysid: sid.SysIdParams,
     progress: ProgressMeter = NO_PROGRESS,
     goal_tolerance: float = 0.01,
+    names: tuple[str, str, str] | None = None,
 ) -> Optimum:
-    """Solve by D2C from U0 and summarise on the black box."""
+    """Solve by D2C from U0 and summarise on the black box (``names``: :func:`summary`)."""
     result = jax.block_until_ready(solve_d2c(system, task, U0, key, params, sysid, progress))
-    metrics, X = summary(result, system, task, goal_tolerance)
+    metrics, X = summary(result, system, task, goal_tolerance, names)
     return Optimum(result, X, metrics)
 
 
@@ -136,7 +161,8 @@ def optimum_stage(res, key: jax.Array):
         U0 = initial_controls(k_init, task.T, system.nu, sc.init, sc.init_scale, None, task.x0.dtype)
         t0 = time.perf_counter()
         with progress.meter("D2C optimum", sc.max_iter, cfg.experiment.progress) as pm:
-            opt = d2c_optimum(system, task, U0, k_d2c, params, sid, pm, cfg.task.goal_tolerance)
+            names = ("U_star", "X_star", "K_star")
+            opt = d2c_optimum(system, task, U0, k_d2c, params, sid, pm, cfg.task.goal_tolerance, names)
         m = {**opt.metrics, "wall_s": time.perf_counter() - t0}
         arrays = {
             "X_star": opt.X,
