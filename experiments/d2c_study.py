@@ -85,7 +85,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             extra,
             compile_s=timed.compile_s,
             run_s=timed.run_s,
-            simulated_steps=pipeline.simulated_steps(result, task.T, sc.n_alphas, sid_params),
+            **pipeline.simulation_metrics(result, task.T, sc.n_alphas, sid_params),
         )
         arrays = {"d2c_U0": U0, **_solve_arrays("d2c", result, X_bb)}
         return m, arrays
@@ -138,7 +138,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         closed, opened = np.asarray(closed), np.asarray(opened)
         m = {
             "noise_levels": list(ex.noise_levels),
-            "noise": "std = level * max|u*| per channel",
+            "noise": "std = level * U_max per channel (the actuator limit where finite, else max|u*|)",
             "closed_loop_median": np.median(closed, axis=1).tolist(),
             "open_loop_median": np.median(opened, axis=1).tolist(),
         }
@@ -150,6 +150,16 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     if exact_hist is not None:
         hist["exact Jacobians"] = exact_hist
     record.figure("cost_history.png", lambda: plots.cost_history(hist, f"{system.name}: {cfg.task.preset}"))
+    per_id = sysid.get_scheme(sc.sysid).simulated_steps(task.T, sid_params.n_samples)
+    n_it = m_d2c["iterations"]
+    curve = pipeline.simulation_curve(a_d2c["d2c_cost_history"], n_it, task.T, sc.n_alphas, per_id)
+    record.figure(
+        "cost_vs_simulations.png",
+        lambda: plots.cost_vs_simulations(
+            {f"D2C ({sc.sysid}, n={sid_params.n_samples})": (curve, hist["D2C (LTV)"])},
+            f"{system.name}: cost against black-box control steps",
+        ),
+    )
     t = np.arange(task.T + 1) * system.dt
     Xh = a_d2c.get("d2c_X_history", a_d2c["d2c_X"][None])[: m_d2c["iterations"] + 1]
     record.figure(

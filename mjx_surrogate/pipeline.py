@@ -7,6 +7,7 @@ only compose library calls, write results and draw figures).
 
 from __future__ import annotations
 
+import functools
 import time
 from typing import NamedTuple
 
@@ -37,20 +38,43 @@ def initial_controls(
     return scale * jax.random.normal(key, shape, dtype)
 
 
-def simulated_steps(result: ILQRResult, T: int, n_alphas: int, sysid: sid.SysIdParams) -> int:
-    """Control steps simulated by a D2C solve: the initial rollout, every forward pass and
-    one identification per accepted iteration (plus the first)."""
-    h = np.asarray(result.cost_history)
-    it = int(result.iterations)
-    accepted = int(np.sum(h[1 : it + 1] < h[:it]))
+def simulation_curve(
+    cost_history: np.ndarray, iterations: int, T: int, n_alphas: int, per_identification: int
+) -> np.ndarray:
+    """Black-box control steps simulated up to each iteration, [iterations + 1]: the
+    initial rollout, then per iteration the line search (n_alphas T) and an identification
+    where the nominal changed (the first iteration, and after every accepted one)."""
+    h = np.asarray(cost_history)
+    it = int(iterations)
+    accepted = h[1 : it + 1] < h[:it]
+    identified = np.concatenate([[True], accepted[:-1]])[:it]
+    return T + np.concatenate([[0], np.cumsum(n_alphas * T + identified * per_identification)])
+
+
+def simulation_metrics(result: ILQRResult, T: int, n_alphas: int, sysid: sid.SysIdParams) -> dict:
+    """``simulated_steps`` of a D2C solve and ``simulations_to_optimum``: the control steps
+    simulated until the cost first came within 1 % and 0.1 % of the solve's final cost
+    (machine-independent effort; None if the final cost is not finite)."""
     per_id = sid.get_scheme(sysid.scheme).simulated_steps(T, sysid.n_samples)
-    return T + it * n_alphas * T + min(accepted + 1, it) * per_id
+    curve = simulation_curve(result.cost_history, result.iterations, T, n_alphas, per_id)
+    J = np.asarray(result.cost_history)[: curve.size]
+    to = {}
+    for label, rel in (("1%", 1e-2), ("0.1%", 1e-3)):
+        hit = np.nonzero(J <= J[-1] + rel * abs(J[-1]))[0] if np.isfinite(J[-1]) else []
+        to[label] = int(curve[hit[0]]) if len(hit) else None
+    return {"simulated_steps": int(curve[-1]), "simulations_to_optimum": to}
+
+
+@functools.partial(jax.jit, static_argnames=("system",))
+def _replay_cost(system: System, task: Task, U: jax.Array) -> tuple[jax.Array, jax.Array]:
+    X, Ua = open_loop(system.step, task.x0, U, task.u_min, task.u_max)
+    return X, trajectory_cost(task, X, Ua)
 
 
 def black_box_trajectory(system: System, task: Task, U: jax.Array) -> tuple[jax.Array, float | None]:
     """U [T, nu] replayed from x0 on the black box: (X [T+1, nx], its cost or None)."""
-    X, Ua = jax.jit(lambda u: open_loop(system.step, task.x0, u, task.u_min, task.u_max))(U)
-    return X, finite_or_none(trajectory_cost(task, X, Ua))
+    X, J = _replay_cost(system, task, U)
+    return X, finite_or_none(J)
 
 
 def goal_test(task: Task, X: jax.Array, tolerance: float) -> dict:
@@ -164,6 +188,7 @@ def optimum_stage(res, key: jax.Array):
             names = ("U_star", "X_star", "K_star")
             opt = d2c_optimum(system, task, U0, k_d2c, params, sid, pm, cfg.task.goal_tolerance, names)
         m = {**opt.metrics, "wall_s": time.perf_counter() - t0}
+        m |= simulation_metrics(opt.result, task.T, sc.n_alphas, sid)
         arrays = {
             "X_star": opt.X,
             "U_star": opt.result.U,

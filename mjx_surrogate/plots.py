@@ -225,3 +225,17 @@ def projections(
     axes[0][0].legend(fontsize=7)
     fig.tight_layout()
     return fig
+
+
+def cost_vs_simulations(curves: dict[str, tuple[np.ndarray, np.ndarray]], title: str = ""):
+    """Cost after each iteration against the black-box control steps simulated so far."""
+    fig, ax = plt.subplots(figsize=(5, 3.4))
+    for label, (steps, cost) in curves.items():
+        ax.semilogy(steps, cost, marker=".", label=label)
+    ax.set_xlabel("simulated control steps")
+    ax.set_ylabel("cost J")
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig

@@ -92,7 +92,7 @@ def test_feedback_without_noise_reproduces_the_nominal():
     # in the same program, so a nominal off by round-off (here 1e-3, exaggerated) cannot
     # turn into a feedback kick (on an unstable optimum that gave 2.8e9 against 6270).
     closed, opened = evaluate_feedback(
-        s, task, res.X + 1e-3, res.U, 100 * res.K, jnp.zeros(1), jax.random.key(0), 2
+        s, task, res.X + 1e-3, res.U, 100 * res.K, jnp.zeros(2), jax.random.key(0), 16
     )
     assert np.allclose(closed, float(res.cost), rtol=1e-9) and np.allclose(opened, float(res.cost), rtol=1e-9)
 
@@ -112,5 +112,9 @@ def test_d2c_experiment_writes_schema(tmp_path):
     assert m["status"] == "converged" and m["d2c"]["status"] == "converged"
     assert {"d2c", "exact", "ltv_relative_error", "feedback"} <= set(m["stages"])
     assert all(st["status"] == "done" for st in m["stages"].values())
-    for f in ("cost_history.png", "trajectory_evolution.png", "feedback_noise.png"):
+    assert 0 < m["d2c"]["simulations_to_optimum"]["1%"] <= m["d2c"]["simulations_to_optimum"]["0.1%"]
+    assert m["d2c"]["simulations_to_optimum"]["0.1%"] <= m["d2c"]["simulated_steps"]
+    assert abs(m["d2c"]["replay_gap"]) < 1e-2 and m["d2c"]["native_float64"]["judged_by"] == "closed_loop"
+    figures = ("cost_history.png", "trajectory_evolution.png", "feedback_noise.png", "cost_vs_simulations.png")
+    for f in figures:
         assert_png(os.path.join(path, f))

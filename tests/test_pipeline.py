@@ -1,0 +1,49 @@
+"""Pipeline steps: the simulation count of a D2C solve against a counting black box."""
+
+import types
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from mjx_surrogate import pipeline, sysid
+from mjx_surrogate.ilqr import Cost, ILQRParams, ilqr
+
+A = np.array([[1.0, 0.1], [-0.3, 1.0]])
+B = np.array([[0.0], [0.1]])
+
+
+@pytest.mark.parametrize("scheme", ["central_difference", "forward_difference"])
+def test_simulation_curve_counts_every_black_box_step(scheme):
+    calls = {"n": 0}
+
+    def host_step(x, u):
+        calls["n"] += int(np.prod(x.shape[:-1]))  # a batch of one-step simulations
+        return np.einsum("ij,...j->...i", A, x) + np.einsum("ij,...j->...i", B, u)
+
+    def step(x, u):
+        out = jax.ShapeDtypeStruct(x.shape, x.dtype)
+        return jax.pure_callback(host_step, out, x, u, vmap_method="broadcast_all")
+
+    T, n_alphas = 15, 4
+    p = sysid.SysIdParams(sigma_x=1e-4, sigma_u=1e-4, scheme=scheme, n_samples=6)
+    linearize = sysid.ltv_linearize(types.SimpleNamespace(step=step), p)
+    cost = Cost(lambda x, u: 0.5 * x @ x + 0.05 * u @ u, lambda x: 5.0 * x @ x)
+    params = ILQRParams(max_iter=12, n_alphas=n_alphas, rel_tol=0.0, k_tol=0.0)
+    inf = jnp.full(1, jnp.inf)
+    res = ilqr(
+        step, linearize, cost, jnp.array([1.0, 0.0]), jnp.zeros((T, 1)), -inf, inf, params, jax.random.key(0)
+    )
+    it = int(res.iterations)
+    h = np.asarray(res.cost_history)[: it + 1]
+    assert it >= 5 and np.any(h[1:] == h[:-1])  # some rejected iterations: no re-identification
+    per_id = sysid.get_scheme(scheme).simulated_steps(T, p.n_samples)
+    curve = pipeline.simulation_curve(res.cost_history, it, T, n_alphas, per_id)
+    assert curve.shape == (it + 1,) and curve[0] == T
+    assert curve[-1] == calls["n"]
+    m = pipeline.simulation_metrics(res, T, n_alphas, p)
+    assert m["simulated_steps"] == calls["n"]
+    first = np.nonzero(h <= h[-1] * 1.01)[0][0]
+    assert m["simulations_to_optimum"]["1%"] == curve[first]
+    assert m["simulations_to_optimum"]["1%"] <= m["simulations_to_optimum"]["0.1%"] <= calls["n"]
