@@ -115,6 +115,6 @@ def test_d2c_experiment_writes_schema(tmp_path):
     assert 0 < m["d2c"]["simulations_to_optimum"]["1%"] <= m["d2c"]["simulations_to_optimum"]["0.1%"]
     assert m["d2c"]["simulations_to_optimum"]["0.1%"] <= m["d2c"]["simulated_steps"]
     assert abs(m["d2c"]["replay_gap"]) < 1e-2 and m["d2c"]["native_float64"]["judged_by"] == "closed_loop"
-    figures = ("cost_history.png", "trajectory_evolution.png", "feedback_noise.png", "cost_vs_simulations.png")
-    for f in figures:
+    names = "cost_history trajectory_evolution feedback_noise cost_vs_simulations".split()
+    for f in (n + ".png" for n in names):
         assert_png(os.path.join(path, f))
