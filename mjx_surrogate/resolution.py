@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
@@ -52,7 +53,14 @@ def _substeps(sc: SystemConfig) -> int | None:
     return n
 
 
+_REGISTERED: dict = {}  # (system config, float64?) -> System, registered systems only
+
+
 def build_system_from_config(sc: SystemConfig) -> System:
+    """The system of ``sc``. A registered system is built once per process and precision:
+    a System is immutable and hashes by identity, so experiments of one process (a
+    reproduction, a notebook) share its compiled programs. A user's MJCF, whose files
+    may change between calls, is built afresh."""
     substeps = _substeps(sc)
     if sc.name == "mjcf":
         if not sc.mjcf_path:
@@ -60,7 +68,10 @@ def build_system_from_config(sc: SystemConfig) -> System:
         return from_mjcf(sc.mjcf_path, sc.backend, substeps or 1, sc.timestep, sc.native_threads)
     if sc.mjcf_path:
         raise ConfigError("system.mjcf_path", f"only valid with system.name='mjcf', not {sc.name!r}")
-    return make_system(sc.name, sc.backend, substeps, sc.timestep, sc.native_threads)
+    key = (repr(sc), bool(jax.config.jax_enable_x64))
+    if key not in _REGISTERED:
+        _REGISTERED[key] = make_system(sc.name, sc.backend, substeps, sc.timestep, sc.native_threads)
+    return _REGISTERED[key]
 
 
 def default_n_samples(nx: int, nu: int) -> int:
