@@ -93,7 +93,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
                         mlp.targets(zt[..., : system.nx], xnt, spec_mlp.increment),
                     )
                     kk = jax.random.split(jax.random.fold_in(keys["conv"], 7 + j), a.n_datasets)
-                    trained = mlp.train_seeds(spec_mlp, kk, z, y, zt, yt)
+                    trained = mlp.train_seeds(spec_mlp, kk, z, y, zt, yt, mesh=system.mesh)
                     steps = [mlp.unstack(trained, i).model.step for i in range(a.n_datasets)]
                     extra = {"final_test_loss": np.asarray(trained.test_loss[:, -1]).tolist()}
                 P = np.stack(
@@ -215,7 +215,7 @@ def _mlp_directions(cfg, system, task, X_star, U_star, key, spec_mlp, arrays) ->
     y = mlp.targets(z[..., : system.nx], xn, spec_mlp.increment)
     spec = spec_mlp._replace(checkpoints=(0, spec_mlp.epochs))
     same = jnp.stack([jax.random.fold_in(key, 5)] * a.n_datasets)  # same init and batches
-    trained = mlp.train_seeds(spec, same, z, y, z[:, :256], y[:, :256])
+    trained = mlp.train_seeds(spec, same, z, y, z[:, :256], y[:, :256], mesh=system.mesh)
     out = {}
     for c, epoch in enumerate(spec.checkpoints):
         G = []

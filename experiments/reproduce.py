@@ -10,7 +10,8 @@ is run again reusing every stage that folder finished. Then
 writes the report (default: ``docs/reproduction.md`` for the full size, DIR/reproduction.md
 for --quick) with every figure in order, the paper's caption, what was measured and
 whether the paper's claim held. ``--quick`` shrinks data sets, epochs and orders to a
-CI-scale check of the whole pipeline; its numbers are not evidence.
+CI-scale check of the whole pipeline; its numbers are not evidence. ``--distributed``
+shares the experiments among processes joined by ``jax.distributed`` (docs/scaling.md).
 """
 
 from __future__ import annotations
@@ -26,7 +27,11 @@ import time
 
 from experiments import report
 from experiments.run import load_config, run
+from mjx_surrogate import distributed
+from mjx_surrogate.config import ParallelConfig
+from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.results import SUCCESS
+from mjx_surrogate.runtime import configure_runtime
 
 EXPERIMENTS = (
     "pendulum_predict",
@@ -110,14 +115,32 @@ def main(argv: list[str] | None = None) -> int:
         metavar="NAME",
         help="subset of: " + ", ".join(EXPERIMENTS),
     )
+    ap.add_argument(
+        "--distributed",
+        action="store_true",
+        help="share the experiments among the processes started with this same command\n"
+        "(jax.distributed; rendezvous from JAX_COORDINATOR_ADDRESS, JAX_NUM_PROCESSES and\n"
+        "JAX_PROCESS_ID, or the cluster's environment); process 0 writes the report",
+    )
     a = ap.parse_args(argv)
     out = a.out or os.path.join("runs", "reproduce-quick" if a.quick else "reproduce")
     os.makedirs(out, exist_ok=True)
     names = a.only or list(EXPERIMENTS)
+    if a.distributed:
+        configure_runtime()
+        try:
+            distributed.initialize(ParallelConfig(distributed=True))
+        except ConfigError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+    mine = distributed.my_share(names) if a.distributed else names
     t_start = time.perf_counter()
-    timing_file = os.path.join(out, "wall_times.json")
+    suffix = f"-p{distributed.process_index()}" if a.distributed and distributed.process_count() > 1 else ""
+    timing_file = os.path.join(out, f"wall_times{suffix}.json")
     times = json.load(open(timing_file)) if os.path.exists(timing_file) else {}
     for i, name in enumerate(names, 1):
+        if name not in mine:
+            continue
         done = finished(out, name)
         if done:
             print(f"[{i}/{len(names)}] {name}: done already ({done})", flush=True)
@@ -131,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
         cfg = quick(cfg, name) if a.quick else cfg
         cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(cfg.experiment, out_dir=out))
         t0 = time.perf_counter()
-        path = run(cfg, name, resume_from=resume)
+        path = run(cfg, name, resume_from=resume, local=a.distributed)
         if _status(path) == "interrupted":
             print("interrupted: run the same command again to resume", flush=True)
             return 130
@@ -139,6 +162,12 @@ def main(argv: list[str] | None = None) -> int:
         with open(timing_file + ".tmp", "w") as f:
             json.dump(times, f, indent=1)
         os.replace(timing_file + ".tmp", timing_file)
+    if a.distributed:
+        distributed.barrier("reproduce: every experiment finished")
+        if not distributed.is_writer():
+            return 0
+        for other in sorted(glob.glob(os.path.join(out, "wall_times-p*.json"))):
+            times |= json.load(open(other))
     folders = {n: finished(out, n) for n in EXPERIMENTS}
     path = a.report or (
         os.path.join(out, "reproduction.md") if a.quick else os.path.join("docs", "reproduction.md")

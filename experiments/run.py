@@ -16,14 +16,17 @@ import io
 import json
 import os
 import re
+import shutil
 import sys
+import tempfile
 import threading
 
-from mjx_surrogate.config import Config, from_dict, to_dict
+from mjx_surrogate.config import Config, from_dict, to_dict, validate_static
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.runtime import configure_runtime
 
 DEFAULT_PRESET = "default"
+LAST_STATUS: dict = {}  # the status of this process's last run (its folder may be another's)
 
 
 def preset_names() -> list[str]:
@@ -178,32 +181,43 @@ def kinds():
     }
 
 
-def run(cfg: Config, name: str = "run", resume_from: str | None = None) -> str:
+def run(cfg: Config, name: str = "run", resume_from: str | None = None, local: bool = False) -> str:
     """Run a config; returns the run folder. Raises ConfigError on bad input (before any
     compile). Every stage is written as it finishes; SIGINT/SIGTERM end the run after the
     current solver iteration with status ``interrupted``; ``resume_from`` reuses the stages
-    a previous run of the same config finished."""
+    a previous run of the same config finished.
+
+    With ``parallel.distributed`` every process runs this same call and only process 0
+    writes the run folder (the others write to a temporary folder, removed at the end);
+    ``local``: this process runs the experiment alone on its own devices and writes it
+    (a sweep member, :mod:`experiments.reproduce`)."""
     import jax
 
-    from mjx_surrogate import progress
+    from mjx_surrogate import distributed, progress
     from mjx_surrogate.resolution import resolve
     from mjx_surrogate.results import Interrupted, Run, RunFolder, versions
 
+    validate_static(cfg)  # before joining other processes, which may wait for minutes
     configure_runtime(x64=cfg.experiment.x64 or None)
+    parallel = distributed.initialize(cfg.parallel)
     # Record the precision actually used (a session may already run in x64).
     cfg = dataclasses.replace(
         cfg, experiment=dataclasses.replace(cfg.experiment, x64=bool(jax.config.jax_enable_x64))
     )
-    res = resolve(cfg)
+    res = resolve(cfg, local=local)
     ex = res.config.experiment
     check_out_dir(ex.out_dir)
-    folder = RunFolder(ex.out_dir, ex.name or name)
+    writer = local or distributed.is_writer()
+    out_dir = (
+        ex.out_dir if writer else tempfile.mkdtemp(prefix=f"mjx_surrogate_p{distributed.process_index()}_")
+    )
+    folder = RunFolder(out_dir, ex.name or name)
     for path in folder.recovered:
         print(f"note: recovered a run folder left unfinished by a killed process: {path}", file=sys.stderr)
     folder.write_json("config.json", to_dict(res.config))
     folder.write_text("model.xml", res.system.xml)
     folder.write_bytes("model.mjb", model_bytes(res.system.mj_model))
-    folder.write_json("versions.json", versions())
+    folder.write_json("versions.json", versions() | {"parallel": parallel | _devices(res.system)})
     record = Run(folder, resume_from)
     key = jax.random.key(ex.seed)
     status, error = "failed", None
@@ -223,8 +237,20 @@ def run(cfg: Config, name: str = "run", resume_from: str | None = None) -> str:
     finally:
         path = record.finish(status, error)
         progress.clear_stop()
+    LAST_STATUS["status"] = record.metrics.get("status")
+    if not writer:
+        shutil.rmtree(out_dir, ignore_errors=True)
+        return path
     print(summary_screen(record.metrics, path))
     return path
+
+
+def _devices(system) -> dict:
+    """The devices a run's batched work was spread over."""
+    import jax
+
+    devices = jax.local_devices()[:1] if system.mesh is None else list(system.mesh.devices.flat)
+    return {"mesh_devices": len(devices), "platform": devices[0].platform}
 
 
 def model_bytes(m) -> bytes:
@@ -281,13 +307,11 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     try:
         cfg, name = parse_args(argv)
-        path = run(cfg, name)
+        run(cfg, name)
     except ConfigError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    with open(os.path.join(path, "metrics.json")) as f:
-        status = json.load(f)["status"]
-    return EXIT_CODES.get(status, 1)
+    return EXIT_CODES.get(LAST_STATUS.get("status"), 1)
 
 
 if __name__ == "__main__":

@@ -261,6 +261,26 @@ class ExperimentConfig:
 
 
 @dataclasses.dataclass(frozen=True)
+class ParallelConfig:
+    """Where the batched work runs (docs/scaling.md).
+
+    devices: how many of the visible devices (of every process) the batch axes are spread
+      over (None: all of them; 1: one device, nothing sharded).
+    distributed: join the processes of a multi-process run with ``jax.distributed`` first.
+    coordinator_address, num_processes, process_id: the rendezvous ("host:port" of process
+      0, how many processes, this one's index); None: from the environment
+      (``JAX_COORDINATOR_ADDRESS``, ``JAX_NUM_PROCESSES``, ``JAX_PROCESS_ID``), else JAX's
+      cluster auto-detection (Slurm, Open MPI, Kubernetes...).
+    """
+
+    devices: Optional[int] = None
+    distributed: bool = False
+    coordinator_address: Optional[str] = None
+    num_processes: Optional[int] = None
+    process_id: Optional[int] = None
+
+
+@dataclasses.dataclass(frozen=True)
 class Config:
     system: SystemConfig = SystemConfig()
     task: TaskConfig = TaskConfig()
@@ -269,6 +289,7 @@ class Config:
     data: DataConfig = DataConfig()
     surrogate: SurrogateConfig = SurrogateConfig()
     analysis: AnalysisConfig = AnalysisConfig()
+    parallel: ParallelConfig = ParallelConfig()
 
 
 def to_dict(cfg: Any) -> dict:
@@ -373,6 +394,25 @@ def _check_types(cfg: Config) -> None:
     from_dict(Config, dataclasses.asdict(cfg))
 
 
+_ADDRESS = re.compile(r"^[^\s:]+:\d{1,5}$|^\[[0-9A-Fa-f:.]+\]:\d{1,5}$")
+
+
+def _check_parallel(pc: ParallelConfig) -> None:
+    if pc.devices is not None and pc.devices < 1:
+        raise ConfigError("parallel.devices", f"must be >= 1 (or unset: all devices), got {pc.devices}")
+    if pc.num_processes is not None and pc.num_processes < 1:
+        raise ConfigError("parallel.num_processes", f"must be >= 1 (or unset), got {pc.num_processes}")
+    if pc.process_id is not None and not 0 <= pc.process_id < (pc.num_processes or 2**31):
+        raise ConfigError("parallel.process_id", f"must be in [0, num_processes - 1], got {pc.process_id}")
+    if pc.coordinator_address is not None and not _ADDRESS.match(pc.coordinator_address):
+        raise ConfigError(
+            "parallel.coordinator_address", f"must be 'host:port', got {pc.coordinator_address!r}"
+        )
+    given = [f for f in ("coordinator_address", "num_processes", "process_id") if getattr(pc, f) is not None]
+    if given and not pc.distributed:
+        raise ConfigError(f"parallel.{given[0]}", "only used with parallel.distributed: true")
+
+
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,99}$")
 
 
@@ -390,6 +430,7 @@ def validate_static(cfg: Config) -> None:
         )
     if not ex.out_dir:
         raise ConfigError("experiment.out_dir", "must name a directory")
+    _check_parallel(cfg.parallel)
     if not (math.isfinite(s.accept_ratio) and 0 < s.accept_ratio < 1):
         raise ConfigError("solver.accept_ratio", f"must be in (0, 1), got {s.accept_ratio}")
     if s.n_samples is not None and s.n_samples < 1:

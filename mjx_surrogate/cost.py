@@ -3,8 +3,8 @@
     J(X, U) = sum_{t<T} l(x_t, u_t) + l_f(x_T),    X [T+1, nx], U [T, nu]
 
 Derivatives are taken by autodiff (:func:`mjx_surrogate.ilqr.cost_derivatives`), so a cost
-term is any differentiable function; the tasks' quadratic cost is built in
-:mod:`mjx_surrogate.tasks`.
+term is any differentiable function, unless the cost brings its own ``derivatives`` (the
+tasks' point goals use a Gauss-Newton Hessian, :mod:`mjx_surrogate.tasks`).
 """
 
 from __future__ import annotations
@@ -18,10 +18,14 @@ BLOWUP = 1e8  # |x| beyond this counts as a blown-up trajectory
 
 
 class Cost(NamedTuple):
-    """running(x[nx], u[nu]) -> scalar; terminal(x[nx]) -> scalar."""
+    """running(x[nx], u[nu]) -> scalar; terminal(x[nx]) -> scalar.
+
+    derivatives(X [T+1, nx], U [T, nu]) -> (l_x, l_u, l_xx, l_uu, l_ux, V_x, V_xx), the
+    shapes of :func:`mjx_surrogate.ilqr.cost_derivatives`; None: exact, by autodiff."""
 
     running: Callable[[jax.Array, jax.Array], jax.Array]
     terminal: Callable[[jax.Array], jax.Array]
+    derivatives: Callable | None = None
 
 
 def trajectory_cost(cost: Cost, X: jax.Array, U: jax.Array) -> jax.Array:

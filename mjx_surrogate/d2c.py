@@ -18,8 +18,10 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from mjx_surrogate import sharding
 from mjx_surrogate import sysid as sid
-from mjx_surrogate.ilqr import ILQRParams, ILQRResult, ilqr
+from mjx_surrogate.ilqr import ClosedLoopFn, ILQRParams, ILQRResult, ilqr
+from mjx_surrogate.ilqr import closed_loop as ilqr_closed_loop
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.systems import System
 from mjx_surrogate.tasks import Task, task_cost
@@ -54,6 +56,8 @@ def _solve(
         step, linearize, closed = system.step, exact_linearize(system, method), system.closed_loop
     else:
         step, linearize, closed = system.mjx_step, exact_linearize(system), None
+    if system.mesh is not None:
+        closed = sharded_trials(step, closed, system.mesh)
     return ilqr(
         step,
         linearize,
@@ -67,6 +71,21 @@ def _solve(
         closed,
         progress,
     )
+
+
+def sharded_trials(step, closed_loop, mesh) -> ClosedLoopFn:
+    """The line search's trial rollouts with the step sizes spread over ``mesh``."""
+
+    def trials(x0, X_bar, U_bar, k, K, alphas, lo, hi):
+        def local(a, x0, X_bar, U_bar, k, K, lo, hi):
+            if closed_loop is not None:
+                return closed_loop(x0, X_bar, U_bar, k, K, a, lo, hi)
+            one = lambda alpha: ilqr_closed_loop(step, x0, X_bar, U_bar, k, K, alpha, lo, hi)  # noqa: E731
+            return jax.vmap(one)(a)
+
+        return sharding.map_batch(local, mesh, alphas, rest=(x0, X_bar, U_bar, k, K, lo, hi))
+
+    return trials
 
 
 @functools.partial(jax.jit, static_argnames=("system",))
@@ -115,9 +134,17 @@ def solve_multistart(
     method: str = "d2c",
     progress: ProgressMeter = NO_PROGRESS,
 ) -> MultiStart:
-    """vmap of the solve over S initial control sequences U0s [S, T, nu]; keeps the best."""
+    """vmap of the solve over S initial control sequences U0s [S, T, nu]; keeps the best.
+    With ``system.mesh`` the starts are spread over its devices (each start's own
+    identification and line search stay on its device)."""
     keys = jax.random.split(key, U0s.shape[0])
-    results = jax.vmap(lambda U0, k: _solve(system, task, U0, k, params, sysid, method, progress))(U0s, keys)
+    single = system.on_one_device()
+
+    def solves(U0s, keys, task, params, sysid, progress):
+        one = lambda U0, k: _solve(single, task, U0, k, params, sysid, method, progress)  # noqa: E731
+        return jax.vmap(one)(U0s, keys)
+
+    results = sharding.map_batch(solves, system.mesh, U0s, keys, rest=(task, params, sysid, progress))
     costs = jnp.where(jnp.isfinite(results.cost), results.cost, jnp.inf)
     i = jnp.argmin(costs)
     return MultiStart(jax.tree.map(lambda a: a[i], results), results.cost, i)

@@ -237,7 +237,10 @@ def backward_pass(A, B, lx, lu, lxx, luu, lux, VxT, VxxT, U, lo, hi, mu):
 
 
 def cost_derivatives(cost: Cost, X: jax.Array, U: jax.Array):
-    """l_x [T, nx], l_u [T, nu], l_xx, l_uu, l_ux and terminal V_x, V_xx by autodiff."""
+    """l_x [T, nx], l_u [T, nu], l_xx, l_uu, l_ux and terminal V_x, V_xx by autodiff (or
+    the cost's own ``derivatives``)."""
+    if cost.derivatives is not None:
+        return cost.derivatives(X, U)
     lx, lu = jax.vmap(jax.grad(cost.running, argnums=(0, 1)))(X[:-1], U)
     hess = jax.vmap(jax.hessian(cost.running, argnums=(0, 1)))(X[:-1], U)
     (lxx, _), (lux, luu) = hess

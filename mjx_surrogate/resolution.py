@@ -9,7 +9,9 @@ import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
+from jax.sharding import Mesh
 
+from mjx_surrogate import sharding
 from mjx_surrogate.config import Config, SystemConfig, validate_static
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.ilqr import ILQRParams
@@ -53,24 +55,25 @@ def _substeps(sc: SystemConfig) -> int | None:
     return n
 
 
-_REGISTERED: dict = {}  # (system config, float64?) -> System, registered systems only
+_REGISTERED: dict = {}  # (system config, float64?, mesh) -> System, registered systems only
 
 
-def build_system_from_config(sc: SystemConfig) -> System:
-    """The system of ``sc``. A registered system is built once per process and precision:
-    a System is immutable and hashes by identity, so experiments of one process (a
-    reproduction, a notebook) share its compiled programs. A user's MJCF, whose files
-    may change between calls, is built afresh."""
+def build_system_from_config(sc: SystemConfig, mesh: Mesh | None = None) -> System:
+    """The system of ``sc``, its batched work spread over ``mesh``. A registered system is
+    built once per process, precision and mesh: a System is immutable and hashes by
+    identity, so experiments of one process (a reproduction, a notebook) share its
+    compiled programs. A user's MJCF, whose files may change between calls, is built
+    afresh."""
     substeps = _substeps(sc)
     if sc.name == "mjcf":
         if not sc.mjcf_path:
             raise ConfigError("system.mjcf_path", "required when system.name is 'mjcf'")
-        return from_mjcf(sc.mjcf_path, sc.backend, substeps or 1, sc.timestep, sc.native_threads)
+        return from_mjcf(sc.mjcf_path, sc.backend, substeps or 1, sc.timestep, sc.native_threads, mesh)
     if sc.mjcf_path:
         raise ConfigError("system.mjcf_path", f"only valid with system.name='mjcf', not {sc.name!r}")
-    key = (repr(sc), bool(jax.config.jax_enable_x64))
+    key = (repr(sc), bool(jax.config.jax_enable_x64), mesh)
     if key not in _REGISTERED:
-        _REGISTERED[key] = make_system(sc.name, sc.backend, substeps, sc.timestep, sc.native_threads)
+        _REGISTERED[key] = make_system(sc.name, sc.backend, substeps, sc.timestep, sc.native_threads, mesh)
     return _REGISTERED[key]
 
 
@@ -170,10 +173,20 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
     return ilqr, sysid
 
 
-def resolve(cfg: Config) -> Resolved:
-    """Validate ``cfg``, build its system and task. Raises ConfigError; compiles nothing."""
+def resolve(cfg: Config, local: bool = False) -> Resolved:
+    """Validate ``cfg``, build its system and task. Raises ConfigError; compiles nothing.
+
+    The system's batched work is spread over ``parallel.devices`` of the visible devices
+    (of every process; ``local``: of this process only, for an experiment that one
+    process of a sweep runs alone)."""
     validate_static(cfg)
-    system = build_system_from_config(cfg.system)
+    pool = jax.local_devices() if local else jax.devices()
+    n_dev = cfg.parallel.devices or len(pool)
+    if n_dev > len(pool):
+        raise ConfigError(
+            "parallel.devices", f"must be between 1 and {len(pool)} (visible devices), got {n_dev}"
+        )
+    system = build_system_from_config(cfg.system, sharding.device_mesh(pool[:n_dev]))
     tc, task = resolve_task(cfg.task, system)
     kind = cfg.experiment.kind
     n_samples = cfg.solver.n_samples or default_n_samples(system.nx, system.nu)

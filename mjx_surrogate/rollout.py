@@ -1,6 +1,7 @@
 """Batched rollouts of a system, plain and perturbed around a nominal (x0, U).
 
-The batch axis leads every array, so it can be sharded over devices later.
+The batch axis leads every array and is spread over ``system.mesh`` when the system has
+one (:mod:`mjx_surrogate.sharding`).
 """
 
 from __future__ import annotations
@@ -10,13 +11,14 @@ from typing import NamedTuple
 
 import jax
 
+from mjx_surrogate import sharding
 from mjx_surrogate.systems import System
 
 
 @functools.partial(jax.jit, static_argnums=0)
 def rollout(system: System, x0: jax.Array, U: jax.Array) -> jax.Array:
     """x0 [B, nx], U [B, T, nu] -> X [B, T+1, nx] on the system's backend."""
-    return system.rollout(x0, U)
+    return sharding.map_batch(system.rollout, system.mesh, x0, U)
 
 
 class PerturbedRollouts(NamedTuple):
@@ -43,7 +45,7 @@ def perturbed_rollouts_fn(
 ) -> PerturbedRollouts:
     """Unjitted body of :func:`perturbed_rollouts`, for use inside larger traces."""
     dx0, dU = draw_perturbations(key, n, x0, U, sigma_x, sigma_u)
-    X = system.rollout(x0[None] + dx0, U[None] + dU)
+    X = sharding.map_batch(system.rollout, system.mesh, x0[None] + dx0, U[None] + dU)
     return PerturbedRollouts(dx0, dU, X)
 
 

@@ -4,10 +4,13 @@ Every scheme ends in the same regression, solved for all t at once:
 
     dx_{t+1} ~= A_t dx_t + B_t du_t,   [A_t B_t]' = argmin_W || Z_t W - Y_t ||^2
 
-with Z_t [n, nx+nu] the perturbations and Y_t [n, nx] the responses. Columns of Z_t are
-scaled to unit RMS, then the normal equations (Z'Z/n) W = Z'Y/n are solved by elimination
-(:mod:`mjx_surrogate.linalg`: no batched LAPACK, which can deadlock jaxlib 0.10 on CPU). With random
-perturbations and n >= nx + nu the scaled Gram matrix is well conditioned.
+with Z_t [n, nx+nu] the perturbations and Y_t [n, nx] the responses. The sums G = Z'Z and
+F = Z'Y are the regression's sufficient statistics: with the samples spread over the
+devices of ``system.mesh`` each device sums its own and one ``psum`` adds them
+(:mod:`mjx_surrogate.sharding`). Columns of Z are then scaled to unit RMS (G to a unit
+diagonal) and the normal equations G W = F solved by elimination (:mod:`mjx_surrogate.linalg`:
+no batched LAPACK, which can deadlock jaxlib 0.10 on CPU). With random perturbations and
+n >= nx + nu the scaled Gram matrix is well conditioned.
 
 Schemes (``SysIdParams.scheme``), registered in :data:`SCHEMES` (a new scheme is one
 function plus one :func:`register_scheme` call; docs/extending.md):
@@ -28,7 +31,9 @@ from typing import Any, Callable, NamedTuple
 import jax
 import jax.numpy as jnp
 from flax import struct
+from jax.sharding import Mesh
 
+from mjx_surrogate import sharding
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.linalg import spd_solve
 from mjx_surrogate.trajectory import feedback_rollout
@@ -47,56 +52,83 @@ class SysIdParams:
     n_samples: int = struct.field(pytree_node=False, default=20)
 
 
+def normal_equations(Z: jax.Array, Y: jax.Array, w: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Weighted sufficient statistics of the regression, summed over samples:
+    Z [T, n, m], Y [T, n, nx], w [n] -> G = Z'WZ [T, m, m], F = Z'WY [T, m, nx].
+    A sample of weight 0 (padding) contributes nothing, even if non-finite."""
+    keep = (w > 0)[None, :, None]
+    Zk, Yk = jnp.where(keep, Z, 0.0), jnp.where(keep, Y, 0.0)
+    Zw = Zk * w[None, :, None]
+    return jnp.einsum("tni,tnj->tij", Zw, Zk), jnp.einsum("tni,tnj->tij", Zw, Yk)
+
+
+def solve_normal_equations(G: jax.Array, F: jax.Array, nx: int) -> tuple[jax.Array, jax.Array]:
+    """G [T, m, m], F [T, m, nx] -> A [T, nx, nx], B [T, nx, m - nx]. Rows and columns are
+    scaled to a unit diagonal first (the columns of Z to unit RMS), then solved."""
+    d = jnp.diagonal(G, axis1=1, axis2=2)  # [T, m]
+    s = jnp.where(d > 0, jnp.sqrt(d), 1.0)
+    Gs = G / (s[:, :, None] * s[:, None, :])
+    Fs = F / s[:, :, None]
+    W = jax.vmap(lambda g, f: spd_solve(g, f)[0])(Gs, Fs) / s[:, :, None]  # [T, m, nx]
+    Wt = jnp.swapaxes(W, 1, 2)  # [T, nx, m]
+    return Wt[:, :, :nx], Wt[:, :, nx:]
+
+
 def lstsq_ltv(Z: jax.Array, Y: jax.Array, nx: int) -> tuple[jax.Array, jax.Array]:
     """Z [T, n, nx+nu], Y [T, n, nx] -> A [T, nx, nx], B [T, nx, nu]."""
-    scale = jnp.sqrt(jnp.mean(Z**2, axis=1, keepdims=True))  # [T, 1, nx+nu]
-    scale = jnp.where(scale > 0, scale, 1.0)
-    Zs = Z / scale
-    n = Z.shape[1]
-    G = jnp.einsum("tni,tnj->tij", Zs, Zs) / n  # Gram matrix [T, nx+nu, nx+nu]
-    F = jnp.einsum("tni,tnj->tij", Zs, Y) / n  # projections [T, nx+nu, nx]
-    W = jax.vmap(lambda g, f: spd_solve(g, f)[0])(G, F)  # [T, nx+nu, nx]
-    W = W / jnp.swapaxes(scale, 1, 2)
-    Wt = jnp.swapaxes(W, 1, 2)  # [T, nx, nx+nu]
-    return Wt[:, :, :nx], Wt[:, :, nx:]
+    return solve_normal_equations(*normal_equations(Z, Y, jnp.ones(Z.shape[1], Z.dtype)), nx)
+
+
+def _trajectory_statistics(dX: jax.Array, dU: jax.Array, w: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Statistics of the regression of dX[:, t+1] on [dX[:, t], dU[:, t]] (dX [n, T+1, nx],
+    dU [n, T, nu], weights w [n])."""
+    Z = jnp.swapaxes(jnp.concatenate([dX[:, :-1], dU], axis=-1), 0, 1)
+    return normal_equations(Z, jnp.swapaxes(dX[:, 1:], 0, 1), w)
 
 
 def fit_from_trajectories(dX: jax.Array, dU: jax.Array) -> tuple[jax.Array, jax.Array]:
     """Regress dX[:, t+1] on [dX[:, t], dU[:, t]]: dX [n, T+1, nx], dU [n, T, nu]."""
-    nx = dX.shape[-1]
-    Z = jnp.concatenate([dX[:, :-1], dU], axis=-1)
-    return lstsq_ltv(jnp.swapaxes(Z, 0, 1), jnp.swapaxes(dX[:, 1:], 0, 1), nx)
+    G, F = _trajectory_statistics(dX, dU, jnp.ones(dX.shape[0], dX.dtype))
+    return solve_normal_equations(G, F, dX.shape[-1])
 
 
 def _one_step_perturbations(
     key: jax.Array, T: int, nx: int, nu: int, p: SysIdParams, dtype
 ) -> tuple[jax.Array, jax.Array]:
-    """dx [T, n, nx] ~ N(0, sigma_x^2), du [T, n, nu] ~ N(0, sigma_u^2)."""
+    """dx [n, T, nx] ~ N(0, sigma_x^2), du [n, T, nu] ~ N(0, sigma_u^2); drawn [T, n, .]
+    (the layout of earlier versions, so a key gives the same samples) and returned with
+    the sample axis leading, the axis that is spread over devices."""
     kx, ku = jax.random.split(key)
-    return (
-        p.sigma_x * jax.random.normal(kx, (T, p.n_samples, nx), dtype),
-        p.sigma_u * jax.random.normal(ku, (T, p.n_samples, nu), dtype),
-    )
+    dx = p.sigma_x * jax.random.normal(kx, (T, p.n_samples, nx), dtype)
+    du = p.sigma_u * jax.random.normal(ku, (T, p.n_samples, nu), dtype)
+    return jnp.swapaxes(dx, 0, 1), jnp.swapaxes(du, 0, 1)
 
 
 def central_difference(
-    step: Callable, X: jax.Array, U: jax.Array, key: jax.Array, p: SysIdParams
+    step: Callable, X: jax.Array, U: jax.Array, key: jax.Array, p: SysIdParams, mesh: Mesh | None = None
 ) -> tuple[jax.Array, jax.Array]:
-    """D2C 2.0 scheme around the nominal X [T+1, nx], U [T, nu]; 2 n T one-step calls."""
+    """D2C 2.0 scheme around the nominal X [T+1, nx], U [T, nu]; 2 n T one-step calls,
+    the samples spread over ``mesh``."""
     T, nu = U.shape
     nx = X.shape[-1]
-    dx, du = _one_step_perturbations(key, T, nx, nu, p, X.dtype)
-    xs = jnp.concatenate([X[:-1, None] + dx, X[:-1, None] - dx], axis=1)  # [T, 2n, nx]
-    us = jnp.concatenate([U[:, None] + du, U[:, None] - du], axis=1)
-    f = jax.vmap(step)(xs.reshape(-1, nx), us.reshape(-1, nu)).reshape(T, 2 * p.n_samples, nx)
-    Y = 0.5 * (f[:, : p.n_samples] - f[:, p.n_samples :])
-    return lstsq_ltv(jnp.concatenate([dx, du], axis=-1), Y, nx)
+
+    def stats(samples, w, X, U):
+        dx, du = (jnp.swapaxes(a, 0, 1) for a in samples)  # [T, b, .]
+        b = dx.shape[1]
+        xs = jnp.concatenate([X[:-1, None] + dx, X[:-1, None] - dx], axis=1)  # [T, 2b, nx]
+        us = jnp.concatenate([U[:, None] + du, U[:, None] - du], axis=1)
+        f = jax.vmap(step)(xs.reshape(-1, nx), us.reshape(-1, nu)).reshape(T, 2 * b, nx)
+        return normal_equations(jnp.concatenate([dx, du], axis=-1), 0.5 * (f[:, :b] - f[:, b:]), w)
+
+    samples = _one_step_perturbations(key, T, nx, nu, p, X.dtype)
+    return solve_normal_equations(*sharding.sum_over_batch(stats, mesh, samples, (X, U)), nx)
 
 
 def forward_difference(
-    step: Callable, X: jax.Array, U: jax.Array, key: jax.Array, p: SysIdParams
+    step: Callable, X: jax.Array, U: jax.Array, key: jax.Array, p: SysIdParams, mesh: Mesh | None = None
 ) -> tuple[jax.Array, jax.Array]:
-    """One-sided scheme around X [T+1, nx], U [T, nu]; (n + 1) T one-step calls.
+    """One-sided scheme around X [T+1, nx], U [T, nu]; (n + 1) T one-step calls (plus T
+    per extra device).
 
     f(x_t, u_t) is recomputed in the same batch rather than taken from X[t+1], so that a
     simulator whose step depends on more than (x, u) (e.g. a warm-started constraint
@@ -104,39 +136,58 @@ def forward_difference(
     """
     T, nu = U.shape
     nx = X.shape[-1]
-    dx, du = _one_step_perturbations(key, T, nx, nu, p, X.dtype)
-    xs = jnp.concatenate([X[:-1, None], X[:-1, None] + dx], axis=1)  # [T, n+1, nx]
-    us = jnp.concatenate([U[:, None], U[:, None] + du], axis=1)
-    f = jax.vmap(step)(xs.reshape(-1, nx), us.reshape(-1, nu)).reshape(T, p.n_samples + 1, nx)
-    return lstsq_ltv(jnp.concatenate([dx, du], axis=-1), f[:, 1:] - f[:, :1], nx)
+
+    def stats(samples, w, X, U):
+        dx, du = (jnp.swapaxes(a, 0, 1) for a in samples)  # [T, b, .]
+        b = dx.shape[1]
+        xs = jnp.concatenate([X[:-1, None], X[:-1, None] + dx], axis=1)  # [T, b+1, nx]
+        us = jnp.concatenate([U[:, None], U[:, None] + du], axis=1)
+        f = jax.vmap(step)(xs.reshape(-1, nx), us.reshape(-1, nu)).reshape(T, b + 1, nx)
+        return normal_equations(jnp.concatenate([dx, du], axis=-1), f[:, 1:] - f[:, :1], w)
+
+    samples = _one_step_perturbations(key, T, nx, nu, p, X.dtype)
+    return solve_normal_equations(*sharding.sum_over_batch(stats, mesh, samples, (X, U)), nx)
+
+
+def _rollout_perturbations(key: jax.Array, X: jax.Array, U: jax.Array, p: SysIdParams):
+    kx, ku = jax.random.split(key)
+    n = p.n_samples
+    dx0 = p.sigma_x * jax.random.normal(kx, (n,) + X[0].shape, X.dtype)
+    dU = p.sigma_u * jax.random.normal(ku, (n,) + U.shape, U.dtype)
+    return dx0, dU
 
 
 def open_loop_rollouts(
-    rollout: Callable, X: jax.Array, U: jax.Array, key: jax.Array, p: SysIdParams
+    rollout: Callable, X: jax.Array, U: jax.Array, key: jax.Array, p: SysIdParams, mesh: Mesh | None = None
 ) -> tuple[jax.Array, jax.Array]:
     """The paper's scheme: rollouts from X[0] + dx0 under U + dU; rollout is batched."""
-    kx, ku = jax.random.split(key)
-    n = p.n_samples
-    dx0 = p.sigma_x * jax.random.normal(kx, (n,) + X[0].shape, X.dtype)
-    dU = p.sigma_u * jax.random.normal(ku, (n,) + U.shape, U.dtype)
-    Xp = rollout(X[0][None] + dx0, U[None] + dU)
-    return fit_from_trajectories(Xp - X[None], dU)
+
+    def stats(samples, w, X, U):
+        dx0, dU = samples
+        Xp = rollout(X[0][None] + dx0, U[None] + dU)
+        return _trajectory_statistics(Xp - X[None], dU, w)
+
+    samples = _rollout_perturbations(key, X, U, p)
+    return solve_normal_equations(*sharding.sum_over_batch(stats, mesh, samples, (X, U)), X.shape[-1])
 
 
 def closed_loop_rollouts(
-    step: Callable, X: jax.Array, U: jax.Array, K: jax.Array, key: jax.Array, p: SysIdParams
+    step: Callable,
+    X: jax.Array,
+    U: jax.Array,
+    K: jax.Array,
+    key: jax.Array,
+    p: SysIdParams,
+    mesh: Mesh | None = None,
 ) -> tuple[jax.Array, jax.Array]:
     """Rollouts under u_t = U_t + dU_t + K_t (x_t - X_t); regress on the applied du."""
-    kx, ku = jax.random.split(key)
-    n = p.n_samples
-    dx0 = p.sigma_x * jax.random.normal(kx, (n,) + X[0].shape, X.dtype)
-    dU = p.sigma_u * jax.random.normal(ku, (n,) + U.shape, U.dtype)
 
-    def one(dx0_i, dU_i):
-        return feedback_rollout(step, X[0] + dx0_i, X, U, K, dU_i)
+    def stats(samples, w, X, U, K):
+        Xp, Us = jax.vmap(lambda dx0, dU: feedback_rollout(step, X[0] + dx0, X, U, K, dU))(*samples)
+        return _trajectory_statistics(Xp - X[None], Us - U[None], w)
 
-    Xp, Us = jax.vmap(one)(dx0, dU)  # [n, T+1, nx], [n, T, nu]
-    return fit_from_trajectories(Xp - X[None], Us - U[None])
+    samples = _rollout_perturbations(key, X, U, p)
+    return solve_normal_equations(*sharding.sum_over_batch(stats, mesh, samples, (X, U, K)), X.shape[-1])
 
 
 def exact_jacobians(step: Callable, X: jax.Array, U: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -190,6 +241,11 @@ def get_scheme(name: str, field: str = "solver.sysid") -> IdentificationScheme:
     return SCHEMES[name]
 
 
+def _mesh(system) -> Mesh | None:
+    """The devices ``system`` spreads its batches over (None for any simpler black box)."""
+    return getattr(system, "mesh", None)
+
+
 def ltv_linearize(system, p: SysIdParams) -> LinearizeFn:
     """The linearize hook of scheme ``p.scheme`` on ``system``'s black-box step."""
     return get_scheme(p.scheme).make_linearize(system, p)
@@ -198,7 +254,7 @@ def ltv_linearize(system, p: SysIdParams) -> LinearizeFn:
 register_scheme(
     "central_difference",
     IdentificationScheme(
-        lambda system, p: lambda X, U, K, key: central_difference(system.step, X, U, key, p),
+        lambda system, p: lambda X, U, K, key: central_difference(system.step, X, U, key, p, _mesh(system)),
         lambda T, n: 2 * n * T,
         "D2C 2.0: one step from (x_t +- dx, u_t +- du) at every t",
     ),
@@ -206,7 +262,7 @@ register_scheme(
 register_scheme(
     "forward_difference",
     IdentificationScheme(
-        lambda system, p: lambda X, U, K, key: forward_difference(system.step, X, U, key, p),
+        lambda system, p: lambda X, U, K, key: forward_difference(system.step, X, U, key, p, _mesh(system)),
         lambda T, n: (n + 1) * T,
         "one step from (x_t + dx, u_t + du) and from (x_t, u_t)",
     ),
@@ -214,7 +270,9 @@ register_scheme(
 register_scheme(
     "rollout",
     IdentificationScheme(
-        lambda system, p: lambda X, U, K, key: open_loop_rollouts(system.rollout, X, U, key, p),
+        lambda system, p: (
+            lambda X, U, K, key: open_loop_rollouts(system.rollout, X, U, key, p, _mesh(system))
+        ),
         lambda T, n: n * T,
         "the paper's: n open-loop perturbed rollouts",
     ),
@@ -222,7 +280,9 @@ register_scheme(
 register_scheme(
     "closed_loop",
     IdentificationScheme(
-        lambda system, p: lambda X, U, K, key: closed_loop_rollouts(system.step, X, U, K, key, p),
+        lambda system, p: (
+            lambda X, U, K, key: closed_loop_rollouts(system.step, X, U, K, key, p, _mesh(system))
+        ),
         lambda T, n: n * T,
         "n perturbed rollouts under the current feedback gains",
     ),

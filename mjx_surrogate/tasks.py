@@ -14,6 +14,7 @@ the dynamics stay a black box.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Callable, NamedTuple
 
 import jax
@@ -106,8 +107,37 @@ def goal_cost(task: Task, x: jax.Array) -> jax.Array:
 
 
 def task_cost(task: Task) -> cost_lib.Cost:
-    """The task's quadratic cost as the solver's :class:`~mjx_surrogate.cost.Cost`."""
-    return cost_lib.Cost(lambda x, u: running_cost(task, x, u), lambda x: terminal_cost(task, x))
+    """The task's cost as the solver's :class:`~mjx_surrogate.cost.Cost`; with point goals,
+    their Hessian is Gauss-Newton's (:func:`point_goal_derivatives`)."""
+    derivatives = None if task.points is None else (lambda X, U: point_goal_derivatives(task, X, U))
+    return cost_lib.Cost(lambda x, u: running_cost(task, x, u), lambda x: terminal_cost(task, x), derivatives)
+
+
+def point_goal_derivatives(task: Task, X: jax.Array, U: jax.Array):
+    """Cost derivatives (the shapes of ``ilqr.cost_derivatives``) with the point terms
+    1/2 w |p(x) - target|^2 taken to Gauss-Newton's order: gradient J'W r, Hessian J'W J
+    with J = dp/dx [k, 3, nx] (one ``jacfwd`` of the kinematics). The exact Hessian adds
+    sum_k w_k r_k . d2p_k/dx2, which vanishes at the target, and needs second derivatives
+    of the MJX kinematics: their compile took ~30 s on the reacher. The rest of the cost
+    is differentiated exactly."""
+    plain = dataclasses.replace(task, points=None)
+
+    def gn(x, weights):
+        r = task.points(x) - task.targets  # [k, 3]
+        J = jax.jacfwd(task.points)(x)  # [k, 3, nx]
+        g = jnp.einsum("k,kc,kcn->n", weights, r, J)
+        H = jnp.einsum("k,kcm,kcn->mn", weights, J, J)
+        return g, H
+
+    lx, lu = jax.vmap(jax.grad(lambda x, u: running_cost(plain, x, u), argnums=(0, 1)))(X[:-1], U)
+    (lxx, _), (lux, luu) = jax.vmap(jax.hessian(lambda x, u: running_cost(plain, x, u), argnums=(0, 1)))(
+        X[:-1], U
+    )
+    g, H = jax.vmap(lambda x: gn(x, task.weights))(X[:-1])
+    Vx = jax.grad(lambda x: terminal_cost(plain, x))(X[-1])
+    Vxx = jax.hessian(lambda x: terminal_cost(plain, x))(X[-1])
+    gT, HT = gn(X[-1], task.final_weights)
+    return lx + g, lu, lxx + H, luu, lux, Vx + gT, Vxx + HT
 
 
 def trajectory_cost(task: Task, X: jax.Array, U: jax.Array) -> jax.Array:

@@ -36,6 +36,21 @@ CASES = [
     (["smoke_d2c", "--out"], "--out"),
     (["smoke_d2c", "--out", "a", "--out", "b"], "--out"),
     (["smoke_d2c", "--experment.seed", "1"], "--experment.seed"),
+    (["smoke_d2c", "--parallel.devices", "0"], "parallel.devices"),
+    (["smoke_d2c", "--parallel.devices", "4096"], "parallel.devices"),
+    (["smoke_d2c", "--parallel.coordinator_address", "localhost"], "parallel.coordinator_address"),
+    (["smoke_d2c", "--parallel.num_processes", "2"], "parallel.num_processes"),
+    (
+        [
+            "smoke_d2c",
+            "--parallel.distributed",
+            "--parallel.num_processes",
+            "2",
+            "--parallel.process_id",
+            "2",
+        ],
+        "parallel.process_id",
+    ),
 ]
 
 

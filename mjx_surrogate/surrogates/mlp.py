@@ -7,7 +7,7 @@ the training set's mean and standard deviation; the loss is the MSE of standardi
 targets. Training is one jitted ``lax.scan`` over epochs, each a ``lax.scan`` over
 minibatches of a fresh permutation drawn from the key; parameters are kept at chosen
 checkpoint epochs for the analysis. ``train_seeds`` vmaps training over K (key, data set)
-pairs, so K networks train in one program.
+pairs, so K networks train in one program (spread over a device mesh if given).
 """
 
 from __future__ import annotations
@@ -19,6 +19,9 @@ import jax
 import jax.numpy as jnp
 import optax
 from flax import nnx, struct
+from jax.sharding import Mesh
+
+from mjx_surrogate import sharding
 
 
 class MLPSpec(NamedTuple):
@@ -157,12 +160,20 @@ def _keep(saved, params, ckpt: jax.Array, epoch: jax.Array):
     return jax.tree.map(put, saved, params)
 
 
-@partial(jax.jit, static_argnames=("spec",))
+@partial(jax.jit, static_argnames=("spec", "mesh"))
 def train_seeds(
-    spec: MLPSpec, keys: jax.Array, z: jax.Array, y: jax.Array, z_test: jax.Array, y_test: jax.Array
+    spec: MLPSpec,
+    keys: jax.Array,
+    z: jax.Array,
+    y: jax.Array,
+    z_test: jax.Array,
+    y_test: jax.Array,
+    mesh: Mesh | None = None,
 ) -> TrainResult:
-    """K networks at once: keys [K], z [K, M, nz], y [K, M, nx] (one data set per seed)."""
-    return jax.vmap(lambda k, a, b, c, d: train(spec, k, a, b, c, d))(keys, z, y, z_test, y_test)
+    """K networks at once: keys [K], z [K, M, nz], y [K, M, nx] (one data set per seed),
+    the K trainings spread over ``mesh`` (:mod:`mjx_surrogate.sharding`)."""
+    many = lambda *a: jax.vmap(lambda k, a, b, c, d: train(spec, k, a, b, c, d))(*a)  # noqa: E731
+    return sharding.map_batch(many, mesh, keys, z, y, z_test, y_test)
 
 
 def unstack(result: TrainResult, i: int) -> TrainResult:

@@ -44,8 +44,11 @@ def make_mjx_step(mj_model: mujoco.MjModel, substeps: int):
     # Built eagerly even when first requested inside a trace (System.mjx_step is created
     # lazily): the model and data are constants of every program, never tracers.
     with jax.ensure_compile_time_eval():
-        model = mjx.put_model(_without_batched_lapack(mj_model))
-        data0 = mjx.make_data(model)
+        # On this process's own device: under jax.distributed, jax.devices()[0] may be
+        # another process's.
+        device = jax.local_devices()[0]
+        model = mjx.put_model(_without_batched_lapack(mj_model), device=device)
+        data0 = mjx.make_data(model, device=device)
         if jax.config.jax_enable_x64:
             # Under x64 some int32 fields come back from mjx.step as int64 (e.g. tendon
             # wrap data), which a loop carry rejects: start from the dtypes step returns.

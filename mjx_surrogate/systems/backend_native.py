@@ -13,7 +13,7 @@ Host callbacks inside jitted while loops need synchronous CPU dispatch
 from __future__ import annotations
 
 import os
-import threading
+import queue
 
 import jax
 import jax.numpy as jnp
@@ -25,7 +25,11 @@ _SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
 class NativeSimulator:
-    """Host-side batched simulator for one model; MjData are reused across calls."""
+    """Host-side batched simulator for one model; MjData are reused across calls.
+
+    Calls may come concurrently (one per device when the batch is spread over a mesh,
+    :mod:`mjx_surrogate.sharding`): each call takes a free set of MjData (making a new set
+    only when all are in use), so concurrent calls run in parallel on their own data."""
 
     min_batch_per_thread = 32
 
@@ -33,12 +37,15 @@ class NativeSimulator:
         self.model = mj_model
         self.substeps = substeps
         self.nthread = max(1, nthread or os.cpu_count() or 1)
-        self.datas = [mujoco.MjData(mj_model) for _ in range(self.nthread)]
+        self._free: queue.SimpleQueue = queue.SimpleQueue()
+        self._free.put(self._new_datas())
         self.nx = mj_model.nq + mj_model.nv + mj_model.na
         data = mujoco.MjData(mj_model)
         self.template = np.empty(mujoco.mj_stateSize(mj_model, _SPEC))
         mujoco.mj_getState(mj_model, data, self.template, _SPEC)
-        self._lock = threading.Lock()
+
+    def _new_datas(self) -> list:
+        return [mujoco.MjData(self.model) for _ in range(self.nthread)]
 
     def __call__(self, x0: np.ndarray, U: np.ndarray) -> np.ndarray:
         """x0 [..., nx], U [..., T, nu] (float) -> X [..., T+1, nx] in x0's dtype."""
@@ -57,8 +64,14 @@ class NativeSimulator:
         # large ones on a thread pool made for the call. A persistent pool driven from
         # XLA's callback threads hung the process once in thousands of calls here.
         threaded = self.nthread > 1 and B >= self.min_batch_per_thread * self.nthread
-        with self._lock:
-            state, _ = mj_rollout.rollout(self.model, self.datas if threaded else self.datas[0], init, ctrl)
+        try:
+            datas = self._free.get_nowait()
+        except queue.Empty:
+            datas = self._new_datas()
+        try:
+            state, _ = mj_rollout.rollout(self.model, datas if threaded else datas[0], init, ctrl)
+        finally:
+            self._free.put(datas)
         S = self.substeps
         X = np.empty((B, T + 1, self.nx))
         X[:, 0] = xb

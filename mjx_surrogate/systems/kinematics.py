@@ -45,8 +45,9 @@ def make_points_fn(m: mujoco.MjModel, ids: list[tuple[str, int]], field: str = "
     """``points(x [nx]) -> [k, 3]`` world positions of the (kind, id) points at qpos = x[:nq]."""
     try:
         with jax.ensure_compile_time_eval():
-            model = mjx.put_model(m)
-            data0 = mjx.make_data(model)
+            device = jax.local_devices()[0]
+            model = mjx.put_model(m, device=device)
+            data0 = mjx.make_data(model, device=device)
     except Exception as exc:  # a feature MJX lacks
         raise ConfigError(field, f"point goals need MJX kinematics, which this model lacks ({exc})") from None
     nq = m.nq

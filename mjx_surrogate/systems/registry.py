@@ -14,6 +14,8 @@ import re
 from types import ModuleType
 from typing import Callable
 
+from jax.sharding import Mesh
+
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.systems import cartpole, fish, pendulum, swimmer
 from mjx_surrogate.systems.spec import SystemDefaults
@@ -88,8 +90,10 @@ def make_system(
     substeps: int | None = None,
     timestep: float | None = None,
     native_threads: int | None = None,
+    mesh: Mesh | None = None,
 ) -> System:
-    """Build a registered system (``pendulum``, ``cartpole``, ``fish``, ``swimmerN``).
+    """Build a registered system (``pendulum``, ``cartpole``, ``fish``, ``swimmerN``),
+    its batched work spread over ``mesh`` (:mod:`mjx_surrogate.sharding`; None: one device).
 
     ``backend="auto"`` takes the measured faster backend for this system on the CPU. The
     same arguments (and precision) give the same :class:`System` object, so programs
@@ -105,15 +109,23 @@ def make_system(
         timestep,
         native_threads,
         bool(jax.config.jax_enable_x64),
+        mesh,
     )
 
 
 @functools.lru_cache(maxsize=32)
 def _built(
-    name: str, backend: str, substeps: int, timestep: float | None, native_threads: int | None, x64: bool
+    name: str,
+    backend: str,
+    substeps: int,
+    timestep: float | None,
+    native_threads: int | None,
+    x64: bool,
+    mesh: Mesh | None,
 ) -> System:
+    xml = default_config(name).xml()
     return build_system(
-        name, default_config(name).xml(), substeps, backend, timestep, native_threads, field="system.name"
+        name, xml, substeps, backend, timestep, native_threads, field="system.name", mesh=mesh
     )
 
 
@@ -123,6 +135,7 @@ def from_mjcf(
     substeps: int = 1,
     timestep: float | None = None,
     native_threads: int | None = None,
+    mesh: Mesh | None = None,
 ) -> System:
     """Build a system from the user's MJCF file (includes and meshes resolved next to it).
     ``auto`` picks ``native``: it runs every MuJoCo feature and won on 2 cores for all but
@@ -139,4 +152,5 @@ def from_mjcf(
         native_threads,
         field="system.mjcf_path",
         path=path,
+        mesh=mesh,
     )

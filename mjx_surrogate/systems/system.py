@@ -9,6 +9,7 @@ from typing import Callable
 
 import jax
 import mujoco
+from jax.sharding import Mesh
 
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.systems import backend_mjx, backend_native
@@ -29,6 +30,8 @@ class System:
       rollout: jittable ``(x0[B, nx], U[B, T, nu]) -> X[B, T+1, nx]``.
       closed_loop: the iLQR line search's closed-loop rollouts for all step sizes in one
         call (native backend: one host call instead of one per time step), or None.
+      mesh: the devices that batched work on this system is spread over
+        (:mod:`mjx_surrogate.sharding`); None: one device.
     """
 
     name: str
@@ -40,6 +43,7 @@ class System:
     step: Callable[[jax.Array, jax.Array], jax.Array]
     rollout: Callable[[jax.Array, jax.Array], jax.Array]
     closed_loop: Callable | None = None  # batched line-search rollout (ilqr.ClosedLoopFn)
+    mesh: Mesh | None = None
 
     @property
     def nq(self) -> int:
@@ -73,6 +77,16 @@ class System:
     def native(self) -> backend_native.NativeSimulator:
         """Host-side native simulator (replay, references), whatever the backend."""
         return backend_native.NativeSimulator(self.mj_model, self.substeps, self.native_threads)
+
+    def on_one_device(self) -> "System":
+        """The same system with its batched work kept on one device (for use inside a
+        computation that is itself spread over the mesh, e.g. one of many solves)."""
+        if self.mesh is None:
+            return self
+        single = dataclasses.replace(self, mesh=None)
+        if "native" in self.__dict__:
+            single.__dict__["native"] = self.__dict__["native"]
+        return single
 
     def __repr__(self) -> str:
         return (
@@ -122,9 +136,10 @@ def build_system(
     native_threads: int | None = None,
     field: str = "system.mjcf",
     path: str | None = None,
+    mesh: Mesh | None = None,
 ) -> System:
     """Compile ``xml`` (or the MJCF file at ``path``) and wrap it as a :class:`System` on
-    ``backend`` ("mjx" | "native")."""
+    ``backend`` ("mjx" | "native"), its batched work spread over ``mesh``."""
     if backend not in BACKENDS:
         raise ConfigError("system.backend", f"unknown backend {backend!r}; valid: {BACKENDS}")
     if not isinstance(substeps, int) or substeps < 1:
@@ -139,7 +154,7 @@ def build_system(
         step = backend_native.make_native_step(sim)
         rollout = backend_native.make_native_rollout(sim)
     closed = backend_native.make_native_closed_loop(sim) if backend == "native" else None
-    system = System(name, exact_xml, model, substeps, backend, threads, step, rollout, closed)
+    system = System(name, exact_xml, model, substeps, backend, threads, step, rollout, closed, mesh)
     if backend == "native":
         system.__dict__["native"] = sim  # share the one pool
     return system

@@ -1,0 +1,112 @@
+"""Batch axes over devices: one mesh axis, ``jax.shard_map``, sums reduced by ``psum``.
+
+Every batched computation of the engine has a leading batch axis (identification
+samples, line-search step sizes, multi-start solves, data-set trajectories, MLP seeds).
+With a :class:`jax.sharding.Mesh` of D devices along the single axis :data:`AXIS`:
+
+* :func:`map_batch` runs ``fn`` on each device's slice of the batch axis (``shard_map``,
+  fully manual: a host callback such as the native backend's runs once per device, on
+  the host that owns the device, with that device's slice); the outputs are gathered;
+* :func:`sum_over_batch` reduces per-device sums with one ``psum``: the least-squares fit
+  of :mod:`mjx_surrogate.sysid` sums its sufficient statistics (Z'Z, Z'Y) this way, so
+  raw samples never leave their device.
+
+A batch whose size is not a multiple of D is padded (edge copies for maps, zero weights
+for sums) and the padding dropped. ``mesh=None`` (or a mesh of one device) runs ``fn`` as
+it is: one device, nothing changes. Over processes joined by :mod:`jax.distributed` the
+mesh spans every process's devices and the same code runs unchanged (docs/scaling.md).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, NamedSharding
+from jax.sharding import PartitionSpec as P
+
+from mjx_surrogate.errors import ConfigError
+
+AXIS = "batch"
+
+
+def device_mesh(devices: int | Sequence[jax.Device] | None = None) -> Mesh | None:
+    """A one-axis mesh over ``devices``: None = every visible device (of every process),
+    an int n = the first n of them, or explicit devices. One device gives None."""
+    available = jax.devices()
+    if devices is None:
+        chosen = available
+    elif isinstance(devices, int):
+        if not 1 <= devices <= len(available):
+            raise ConfigError(
+                "parallel.devices", f"must be between 1 and {len(available)} (visible devices), got {devices}"
+            )
+        chosen = available[:devices]
+    else:
+        chosen = list(devices)
+    if len(chosen) == 1:
+        return None
+    return Mesh(np.asarray(chosen), (AXIS,))
+
+
+def size(mesh: Mesh | None) -> int:
+    """Number of devices the batch axes are spread over (1 without a mesh)."""
+    return 1 if mesh is None else int(mesh.shape[AXIS])
+
+
+def replicated(mesh: Mesh | None):
+    """The sharding of an array held whole by every device of ``mesh`` (None: default)."""
+    return None if mesh is None else NamedSharding(mesh, P())
+
+
+def _padded(n: int, d: int) -> int:
+    return -(-n // d) * d
+
+
+def _pad_edge(a: jax.Array, n_pad: int) -> jax.Array:
+    if n_pad == a.shape[0]:
+        return a
+    return jnp.concatenate([a, jnp.repeat(a[-1:], n_pad - a.shape[0], axis=0)])
+
+
+def map_batch(fn: Callable, mesh: Mesh | None, *batched: Any, rest: tuple = ()) -> Any:
+    """fn(*batched, *rest) with every leaf of ``batched`` split along its leading axis
+    (size B, the same for all) over the mesh, and ``rest`` replicated. fn must map a
+    batch of b to outputs with leading axis b; returns the outputs for all B."""
+    if size(mesh) == 1:
+        return fn(*batched, *rest)
+    B = jax.tree.leaves(batched)[0].shape[0]
+    n_pad = _padded(B, size(mesh))
+    padded = jax.tree.map(lambda a: _pad_edge(a, n_pad), batched)
+    mapped = jax.shard_map(
+        lambda b, r: fn(*b, *r),
+        mesh=mesh,
+        in_specs=(P(AXIS), P()),
+        out_specs=P(AXIS),
+        check_vma=False,
+    )(padded, rest)
+    return jax.tree.map(lambda a: a[:B], mapped)
+
+
+def sum_over_batch(fn: Callable, mesh: Mesh | None, batched: Any, rest: tuple = ()) -> Any:
+    """sum_i fn(batched_i, weights_i, *rest) where ``fn(chunk, weights, *rest)`` returns
+    weighted sums over its chunk of the batch (leading axis); each device sums its chunk
+    and one ``psum`` adds the devices' sums. Padding rows have weight 0."""
+    B = jax.tree.leaves(batched)[0].shape[0]
+    dtype = jax.tree.leaves(batched)[0].dtype
+    if size(mesh) == 1:
+        return fn(batched, jnp.ones((B,), dtype), *rest)
+    n_pad = _padded(B, size(mesh))
+    padded = jax.tree.map(
+        lambda a: jnp.concatenate([a, jnp.zeros((n_pad - B,) + a.shape[1:], a.dtype)]), batched
+    )
+    weights = jnp.concatenate([jnp.ones((B,), dtype), jnp.zeros((n_pad - B,), dtype)])
+    return jax.shard_map(
+        lambda b, w, r: jax.lax.psum(fn(b, w, *r), AXIS),
+        mesh=mesh,
+        in_specs=(P(AXIS), P(AXIS), P()),
+        out_specs=P(),
+        check_vma=False,
+    )(padded, weights, rest)
