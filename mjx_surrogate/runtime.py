@@ -7,6 +7,8 @@ should too, before its first JAX computation:
   rollouts up to ~50x slower and compiles minutes long on many-body models
   (docs/performance.md). Only effective before JAX starts its backend; skipped when the
   user's ``XLA_FLAGS`` already names the flag or ``MJX_SURROGATE_KEEP_XLA_FLAGS=1``.
+* ``XLA_FLAGS += --xla_gpu_triton_gemm_any=true`` where a CUDA plugin of JAX is installed:
+  the flag MuJoCo's MJX documentation recommends for GPUs (same rules as above).
 * synchronous CPU dispatch: host callbacks inside jitted while loops (the native backend)
   can hang the CPU runtime at 0 % CPU with asynchronous dispatch (jax-ml/jax#25861).
 * MuJoCo's warning hook: a line search provokes many diverged trials, each of which MuJoCo
@@ -22,6 +24,8 @@ from __future__ import annotations
 import os
 
 FUSION_FLAG = "--xla_cpu_use_fusion_emitters=false"
+GPU_FLAG = "--xla_gpu_triton_gemm_any=true"
+CUDA_PLUGINS = ("jax_cuda12_plugin", "jax_cuda13_plugin")
 MUJOCO_WARNINGS = {"count": 0, "last": ""}
 
 
@@ -44,20 +48,33 @@ def default_cache_dir() -> str | None:
     return os.path.join(os.path.expanduser("~"), ".cache", "mjx_surrogate", "jax")
 
 
+def cuda_plugin_installed() -> bool:
+    import importlib.util
+
+    return any(importlib.util.find_spec(name) is not None for name in CUDA_PLUGINS)
+
+
+def _add_flag(flag: str, applied: dict) -> None:
+    flags = os.environ.get("XLA_FLAGS", "")
+    if os.environ.get("MJX_SURROGATE_KEEP_XLA_FLAGS") or flag.split("=")[0] in flags:
+        return
+    if backend_started():
+        applied["XLA_FLAGS"] = "not applied: the JAX backend had already started"
+        return
+    os.environ["XLA_FLAGS"] = (flags + " " + flag).strip()
+    applied["XLA_FLAGS"] = os.environ["XLA_FLAGS"]
+
+
 def configure_runtime(x64: bool | None = None, compile_cache: str | bool | None = None) -> dict:
     """Apply the settings above (idempotent); ``x64`` sets ``jax_enable_x64`` if given;
     ``compile_cache``: a folder, False (off), or None (the default folder).
 
     Returns what was applied, e.g. for a run's ``versions.json``.
     """
-    applied = {}
-    flags = os.environ.get("XLA_FLAGS", "")
-    if not os.environ.get("MJX_SURROGATE_KEEP_XLA_FLAGS") and "xla_cpu_use_fusion_emitters" not in flags:
-        if not backend_started():
-            os.environ["XLA_FLAGS"] = (flags + " " + FUSION_FLAG).strip()
-            applied["XLA_FLAGS"] = os.environ["XLA_FLAGS"]
-        else:
-            applied["XLA_FLAGS"] = "not applied: the JAX backend had already started"
+    applied: dict = {}
+    _add_flag(FUSION_FLAG, applied)
+    if cuda_plugin_installed():
+        _add_flag(GPU_FLAG, applied)
     import jax
     import mujoco
 

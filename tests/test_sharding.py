@@ -183,3 +183,41 @@ def test_statistics_ignore_zero_weight_padding_and_match_float64_lstsq():
     G2, F2 = sysid.normal_equations(jnp.asarray(Z[:, 5:-2]), jnp.asarray(Y[:, 5:-2]), jnp.ones(5))
     np.testing.assert_allclose(np.asarray(G1 + G2), np.asarray(G), rtol=1e-12)
     np.testing.assert_allclose(np.asarray(F1 + F2), np.asarray(F), rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.slow
+def test_a_sweep_over_two_processes_runs_each_experiment_once_and_one_report(tmp_path):
+    """``experiments.reproduce --distributed``: experiment i runs on process i mod 2, each
+    writes its own run folders, process 0 writes the report after both finish."""
+    out, report = tmp_path / "runs", tmp_path / "report.md"
+    env = dict(_env(), JAX_COORDINATOR_ADDRESS=f"localhost:{_free_port()}", JAX_NUM_PROCESSES="2")
+    cmd = [sys.executable, "-m", "experiments.reproduce", "--quick", "--distributed"]
+    cmd += ["--out", str(out), "--report", str(report), "--only", "theory", "cartpole_control"]
+    procs = [
+        subprocess.Popen(
+            cmd,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            cwd=ROOT,
+            env=dict(env, JAX_PROCESS_ID=str(i)),
+        )
+        for i in range(2)
+    ]
+    try:
+        outs = [p.communicate(timeout=300) for p in procs]
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+    for p, (_, err) in zip(procs, outs):
+        assert p.returncode == 0, err[-3000:]
+    assert "theory: running" in outs[0][0] and "cartpole_control" not in outs[0][0].split("report:")[0]
+    assert "cartpole_control: running" in outs[1][0] and "theory" not in outs[1][0]
+    folders = sorted(f for f in os.listdir(out) if os.path.isdir(out / f) and not f.startswith("."))
+    assert sorted(f.split("_", 1)[1] for f in folders) == ["cartpole_control", "theory"], folders
+    text = report.read_text()
+    assert "Fig. control" in text and "order N" in text
+    assert sorted(json.load(open(out / "wall_times-p0.json"))) == ["theory"]
+    assert sorted(json.load(open(out / "wall_times-p1.json"))) == ["cartpole_control"]
