@@ -10,12 +10,13 @@
 from __future__ import annotations
 
 import time
+from functools import partial
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import data, pipeline, plots, step_models
+from mjx_surrogate import data, locality, pipeline, plots, step_models, sysid
 from mjx_surrogate.evaluation import prediction_errors
 from mjx_surrogate.resolution import Resolved
 from mjx_surrogate.results import Run
@@ -56,10 +57,19 @@ def level_stage(res: Resolved, X_star, U_star, level: float, i: int, key: jax.Ar
             "sample_s": t_data,
             "n_train": int(train.X.shape[0]),
             "n_test": int(test.X.shape[0]),
+            "relative_spread": float(locality.relative_spread(ds.X, X_star)),
         }
         return per_model, arrays
 
     return compute
+
+
+@partial(jax.jit, static_argnums=0)
+def _open_loop_gain(system, X_star, U_star):
+    """The optimum's open-loop gain through its coordinate finite-difference linearisation
+    on the black box (:mod:`mjx_surrogate.locality`)."""
+    A, B = sysid.finite_difference_jacobians(system.step, X_star, U_star)
+    return locality.open_loop_gain(A, B)
 
 
 def _rmse_table(levels, results: dict, key: str) -> str:
@@ -107,6 +117,22 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             ),
         )
     record.set("levels", list(dc.levels))
+    gain = float(_open_loop_gain(system, X_star, U_star))
+    spread = [results[f"{lv:g}"]["_data"]["relative_spread"] for lv in dc.levels]
+    record.set(
+        "locality",
+        {
+            "open_loop_gain": gain,
+            "relative_spread": dict(zip((f"{lv:g}" for lv in dc.levels), spread)),
+            "definition": "docs/method.md#locality",
+        },
+    )
+    record.figure(
+        "locality.png",
+        lambda: plots.locality(
+            np.asarray(dc.levels), np.asarray(spread), gain, f"{system.name}: data locality"
+        ),
+    )
     clean = {lv: {n: v for n, v in r.items() if not n.startswith("_")} for lv, r in results.items()}
     names = list(next(iter(clean.values())).keys())
     for key_, label in (

@@ -41,6 +41,9 @@ def _state_scale(folder: str | None) -> float | None:
     return float(np.sqrt(np.mean(X**2)))
 
 
+LOCAL_SPREAD = 0.5  # a data set is local when its median relative spread is below this
+
+
 def _predict_claim(m: dict, scale: float | None = None) -> tuple[bool | None, str]:
     if not m.get("results"):
         return None, "no results"
@@ -71,7 +74,22 @@ def _predict_claim(m: dict, scale: float | None = None) -> tuple[bool | None, st
             f" The LTV error at the lowest level is {_f(ltv_lo / scale)} of the RMS state "
             f"along the optimum ({_f(scale)})."
         )
-    held = all(grows.values()) and accurate and ltv_lo <= 1.5 * best_glob_lo
+    loc = m.get("locality") or {}
+    spread = loc.get("relative_spread") or {}
+    local = spread.get(lo) is not None and spread[lo] < LOCAL_SPREAD
+    if spread:
+        text += (
+            " Locality (docs/method.md): median relative spread of the data sets "
+            + ", ".join(f"{_f(spread.get(lv))} at {100 * float(lv):g} %" for lv in levels)
+            + f"; open-loop gain of the optimum {_f(loc.get('open_loop_gain'))}."
+        )
+    held = all(grows.values()) and accurate and ltv_lo <= 1.5 * best_glob_lo and local
+    if not held and spread and not local:
+        text += (
+            f" Cause: the data did not stay local even at the lowest level (spread "
+            f"{_f(spread.get(lo))} >= {LOCAL_SPREAD:g}): the perturbed trajectories move about "
+            "as far from the optimum as the manoeuvre itself, where no model is local."
+        )
     return held, text
 
 
@@ -134,7 +152,9 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
     ):
         m = _load(folders.get(name))
         held, text = _predict_claim(m, _state_scale(folders.get(name)))
-        figs = [fig(name, f) for f in figs] + [fig(name, "multi_step_median_vs_level.png")]
+        figs = [fig(name, f) for f in figs] + [
+            fig(name, n) for n in ("multi_step_median_vs_level.png", "locality.png")
+        ]
         table = _read(folders.get(name), "rmse_table.md")
         _section(
             L,
@@ -147,7 +167,8 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
             "local LTV model stays accurate near its trajectory (rule used: every global "
             "model's error grows from the lowest to the highest level; at the lowest level "
             "the LTV error is below 10 % of the RMS state along the optimum and at most "
-            "1.5x the best global model's).",
+            "1.5x the best global model's; the lowest level's data stayed local, median "
+            f"relative spread below {LOCAL_SPREAD:g}).",
         )
 
     a = _load(folders.get("cartpole_analysis"))

@@ -158,6 +158,24 @@ def error_vs_level(levels: np.ndarray, errors: dict[str, np.ndarray], ylabel: st
     return fig
 
 
+def locality(levels: np.ndarray, spread: np.ndarray, gain: float, title: str = ""):
+    """The data sets' relative spread around the optimum against the level (log scale),
+    with 1 (as far off as the whole manoeuvre) marked."""
+    fig, ax = plt.subplots(figsize=(5, 3.4))
+    s = np.asarray(spread, float)
+    s = np.where(np.isfinite(s), s, np.nan)
+    ax.plot(100 * np.asarray(levels), s, marker="o", label="median relative spread")
+    ax.axhline(1.0, color="k", lw=0.8, ls="--", label="= the optimum's own excursion")
+    ax.set_yscale("log")
+    ax.set_xlabel("control perturbation (% of U_max)")
+    ax.set_ylabel("max_t |x - x*| / max_t |x* - x*_0|")
+    ax.set_title(f"{title}\nopen-loop gain of the optimum: {gain:.3g}", fontsize=10)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    return fig
+
+
 def theory_curves(orders: np.ndarray, curves: dict[str, list[float]], ylabel: str, title: str = ""):
     """Quantities against the basis order N, log scale; 'exact' solid, 'paper' dashed,
     'Monte Carlo' as markers, one colour per basis."""

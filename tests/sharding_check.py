@@ -1,12 +1,21 @@
 """Run the engine's batched workloads on one device and spread over meshes; print JSON.
 
-    python tests/sharding_check.py --cpu-devices 4 --meshes 2 4
-    python tests/sharding_check.py --process-id I --num-processes 2 --port P
+    python tests/sharding_check.py --process-id I --num-processes 2 --port P --cpu-devices 2
 
-Spawned by tests/test_sharding.py (a device count is fixed when JAX starts, so each
-configuration needs its own process). Every workload is computed once without a mesh
-(the reference) and once per mesh; the output holds, per workload and mesh, the largest
-difference from the reference, so the test can hold it to a stated tolerance.
+Spawned twice by tests/test_sharding.py: two processes on localhost joined by
+``jax.distributed``, each with 2 host CPU devices (``jax_num_cpu_devices``; a device count
+is fixed when JAX starts). Each workload is computed once without a mesh (the
+reference) and once on a mesh:
+
+* "local": the process's own 2 devices (process 0: the MJX backend's sharded blocks of a
+  D2C solve; process 1: the native backend's whole solves and the MLP seeds; the two
+  work in parallel);
+* "global": all 4 devices of both processes (native backend, MLP seeds; both processes).
+
+Then, optionally, a small D2C experiment through the CLI's ``run`` over the global mesh
+(process 0 writes the run folder) and a two-experiment sweep through
+``experiments.reproduce --distributed``. Each process prints ``RESULT {json}`` with, per
+workload and mesh, the largest difference from the reference.
 """
 
 from __future__ import annotations
@@ -20,16 +29,12 @@ import time
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--cpu-devices", type=int, default=1)
-    ap.add_argument("--meshes", type=int, nargs="*", default=[])
-    ap.add_argument("--process-id", type=int, default=None)
-    ap.add_argument("--num-processes", type=int, default=1)
-    ap.add_argument("--port", type=int, default=0)
-    ap.add_argument("--native", nargs="*", default=list(PARTS), help="workloads on the native backend")
-    ap.add_argument("--mjx", nargs="*", default=["solve", "data"], help="workloads on the MJX backend")
-    ap.add_argument("--mjx-meshes", type=int, nargs="*", default=None, help="(default: --meshes)")
-    ap.add_argument("--no-mlp", action="store_true")
+    ap.add_argument("--process-id", type=int, required=True)
+    ap.add_argument("--num-processes", type=int, default=2)
+    ap.add_argument("--port", type=int, required=True)
+    ap.add_argument("--cpu-devices", type=int, default=2)
     ap.add_argument("--run-dir", default=None, help="then run a small D2C experiment writing here")
+    ap.add_argument("--sweep-dir", default=None, help="then a two-experiment reproduce --distributed here")
     a = ap.parse_args()
 
     from mjx_surrogate.config import ParallelConfig
@@ -38,35 +43,55 @@ def main() -> None:
     configure_runtime(x64=True, compile_cache=False)
     import jax
 
-    jax.config.update("jax_num_cpu_devices", a.cpu_devices)
-    if a.process_id is not None:
-        from mjx_surrogate import distributed
+    from mjx_surrogate import distributed, sharding
 
-        distributed.initialize(
-            ParallelConfig(
-                distributed=True,
-                coordinator_address=f"localhost:{a.port}",
-                num_processes=a.num_processes,
-                process_id=a.process_id,
-            ),
-            timeout_s=60,
-        )
-        meshes = [len(jax.devices())]
+    jax.config.update("jax_num_cpu_devices", a.cpu_devices)
+    distributed.initialize(
+        ParallelConfig(
+            distributed=True,
+            coordinator_address=f"localhost:{a.port}",
+            num_processes=a.num_processes,
+            process_id=a.process_id,
+        ),
+        timeout_s=60,
+    )
+    local = sharding.device_mesh(jax.local_devices())
+    every = sharding.device_mesh(jax.devices())
+    out = {
+        "process": jax.process_index(),
+        "processes": jax.process_count(),
+        "devices": len(jax.devices()),
+        "local_devices": len(jax.local_devices()),
+        "results": {},
+    }
+    r = out["results"]
+    t_start = time.perf_counter()
+
+    def stamp(what: str) -> None:
+        print(f"[{time.perf_counter() - t_start:6.1f} s] {what}", file=sys.stderr, flush=True)
+
+    stamp("joined")
+    if a.process_id == 0:  # this process's devices only: the processes need not agree
+        r["mjx/local"] = mjx_blocks(local)
     else:
-        meshes = a.meshes
-    out = {"devices": len(jax.devices()), "processes": jax.process_count(), "results": {}}
-    mjx_meshes = meshes if a.mjx_meshes is None else a.mjx_meshes
-    for backend, parts, on in (("native", a.native, meshes), ("mjx", a.mjx, mjx_meshes)):
-        if parts:
-            out["results"][backend] = workloads(backend, on, parts)
-    if not a.no_mlp:
-        out["results"]["mlp"] = mlp_workload(meshes)
+        r["native/local"] = workloads("native", local, list(PARTS))
+        r["mlp/local"] = mlp_workload(local)
+    stamp("local workloads done")
+    r["native/global"] = workloads("native", every, list(PARTS))  # every process, in step
+    r["mlp/global"] = mlp_workload(every)
+    stamp("global workloads done")
     if a.run_dir:
-        out["run_cost"] = run_experiment(a.run_dir, a.process_id is not None)
-    if jax.process_index() == 0:
-        print("RESULT " + json.dumps(out), flush=True)
-    if a.process_id is not None:
-        jax.distributed.shutdown()  # together: a process that left first would fail the other
+        out["run_cost"] = run_experiment(a.run_dir, True)
+    stamp("experiment done")
+    if a.sweep_dir:
+        from experiments import reproduce
+
+        sweep = ["--quick", "--distributed", "--out", a.sweep_dir, "--report"]
+        sweep += [os.path.join(a.sweep_dir, "report.md"), "--only", "theory", "cartpole_control"]
+        out["sweep_status"] = reproduce.main(sweep)
+    stamp("sweep done")
+    print("RESULT " + json.dumps(out), flush=True)
+    jax.distributed.shutdown()  # together: a process that left first would fail the other
 
 
 def run_experiment(out_dir: str, distributed: bool) -> float:
@@ -112,13 +137,13 @@ def _diff(a, b) -> float:
 PARTS = ("solve", "multistart", "data")
 
 
-def workloads(backend: str, meshes: list[int], parts: list[str]) -> dict:
+def workloads(backend: str, mesh, parts: list[str]) -> dict:
     """A D2C solve (15 iterations), a 3-start solve and an 11-trajectory data set around
-    the reference optimum, on one device and on each mesh."""
+    the reference optimum, on one device (the reference) and on ``mesh``."""
     import jax
     import jax.numpy as jnp
 
-    from mjx_surrogate import data, sharding
+    from mjx_surrogate import data
     from mjx_surrogate.config import Config, SystemConfig, TaskConfig
     from mjx_surrogate.d2c import solve_d2c, solve_multistart
     from mjx_surrogate.ilqr import ILQRParams
@@ -138,31 +163,71 @@ def workloads(backend: str, meshes: list[int], parts: list[str]) -> dict:
         t0 = time.perf_counter()
         solve = jax.block_until_ready(solve_d2c(system, task, U0, jax.random.key(0), params, sysid))
         got = {"d2c_cost": solve.cost, "d2c_X": solve.X, "d2c_U": solve.U, "d2c_iterations": solve.iterations}
-        t1 = time.perf_counter()
         if "multistart" in parts:
             U0s = 0.3 * jax.random.normal(jax.random.key(1), (3, T, 1))
-            multi = solve_multistart(system, task, U0s, jax.random.key(2), params, sysid)
-            got["multistart_costs"] = jax.block_until_ready(multi.costs)
-        t2 = time.perf_counter()
+            got["multistart_costs"] = solve_multistart(
+                system, task, U0s, jax.random.key(2), params, sysid
+            ).costs
         if "data" in parts:
             X, U = (solve.X, solve.U) if nominal is None else nominal  # the same nominal for all
             got["dataset_X"] = data.sample(system, X, U, jax.random.key(3), 11, 0.1).X
-        took = f"solve {t1 - t0:.1f} s, multistart {t2 - t1:.1f} s"
-        print(f"{backend} mesh {size(mesh)}: {took}", file=sys.stderr)
+        got = jax.device_get(got)
+        print(f"{backend} on {size(mesh)} devices: {time.perf_counter() - t0:.1f} s", file=sys.stderr)
         return got
 
-    ref = {k: jax.device_get(v) for k, v in compute(None).items()}
-    out = {"reference_cost": float(ref["d2c_cost"]), "reference_iterations": int(ref["d2c_iterations"])}
-    for n in meshes:
-        got = compute(sharding.device_mesh(jax.devices()[:n]), (ref["d2c_X"], ref["d2c_U"]))
-        out[str(n)] = {k: _diff(jax.device_get(got[k]), ref[k]) for k in ref}
-    return out
+    ref = compute(None)
+    got = compute(mesh, (ref["d2c_X"], ref["d2c_U"]))
+    diffs = {k: _diff(got[k], ref[k]) for k in ref}
+    return {
+        "reference_cost": float(ref["d2c_cost"]),
+        "reference_iterations": int(ref["d2c_iterations"]),
+    } | diffs
 
 
-def mlp_workload(meshes: list[int]) -> dict:
+def mjx_blocks(mesh) -> dict:
+    """The two sharded parts of a D2C iteration on the MJX backend, and a data set: the
+    LTV identification (samples spread, statistics psum-ed), the line search's trial
+    rollouts (step sizes spread) and 11 perturbed trajectories (spread). Whole MJX solves
+    compile for ~20 s on 2 cores; the solve's other parts are the same replicated code
+    on both backends, and whole solves are checked on the native backend."""
+    import jax
+    import jax.numpy as jnp
+
+    from mjx_surrogate import data, sysid
+    from mjx_surrogate.d2c import sharded_trials
+    from mjx_surrogate.ilqr import closed_loop
+    from mjx_surrogate.systems import make_system
+
+    T, n_alphas = 30, 8
+    p = sysid.SysIdParams(sigma_x=1e-6, sigma_u=1e-6, n_samples=7)
+
+    def compute(mesh):
+        system = make_system("pendulum", "mjx", mesh=mesh)
+        U = 0.5 * jnp.sin(jnp.linspace(0.0, 3.0, T))[:, None]
+        X = data.rollout(system.on_one_device(), jnp.zeros((1, 2)), U[None])[0]
+        A, B = jax.jit(lambda X, U, k: sysid.ltv_linearize(system, p)(X, U, None, k))(X, U, jax.random.key(0))
+        k = 0.1 * jnp.cos(jnp.linspace(0.0, 3.0, T))[:, None]
+        K = jnp.tile(jnp.array([[-0.5, -0.1]]), (T, 1, 1))
+        alphas = 0.5 ** jnp.arange(n_alphas, dtype=X.dtype)
+        lo, hi = jnp.full((1,), -jnp.inf), jnp.full((1,), jnp.inf)
+        if mesh is None:
+            one = lambda a: closed_loop(system.step, X[0], X, U, k, K, a, lo, hi)  # noqa: E731
+            trials = jax.jit(jax.vmap(one))(alphas)
+        else:
+            trials = jax.jit(sharded_trials(system.step, None, mesh))(X[0], X, U, k, K, alphas, lo, hi)
+        ds = data.sample(system, X, U, jax.random.key(3), 11, 0.1)
+        return jax.device_get(
+            {"ltv_A": A, "ltv_B": B, "trials_X": trials[0], "trials_U": trials[1], "dataset_X": ds.X}
+        )
+
+    ref, got = compute(None), compute(mesh)
+    return {k: _diff(got[k], ref[k]) for k in ref}
+
+
+def mlp_workload(mesh) -> dict:
+    """Three networks trained by ``train_seeds``, on one device and spread over ``mesh``."""
     import jax
 
-    from mjx_surrogate import sharding
     from mjx_surrogate.surrogates import mlp
 
     spec = mlp.MLPSpec(widths=(8,), batch_size=16, epochs=3)
@@ -174,17 +239,13 @@ def mlp_workload(meshes: list[int]) -> dict:
 
     def compute(mesh):
         r = mlp.train_seeds(spec, keys, z, y, z[:, :16], y[:, :16], mesh=mesh)
-        return {"test_loss": r.test_loss, "params": jax.tree.leaves(r.model.params)}
+        return jax.device_get({"test_loss": r.test_loss, "params": jax.tree.leaves(r.model.params)})
 
-    ref = jax.device_get(compute(None))
-    out = {}
-    for n in meshes:
-        got = jax.device_get(compute(sharding.device_mesh(jax.devices()[:n])))
-        out[str(n)] = {
-            "test_loss": _diff(got["test_loss"], ref["test_loss"]),
-            "params": max(_diff(g, r) for g, r in zip(got["params"], ref["params"])),
-        }
-    return out
+    ref, got = compute(None), compute(mesh)
+    return {
+        "test_loss": _diff(got["test_loss"], ref["test_loss"]),
+        "params": max(_diff(g, r) for g, r in zip(got["params"], ref["params"])),
+    }
 
 
 if __name__ == "__main__":

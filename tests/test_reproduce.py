@@ -19,9 +19,9 @@ from mjx_surrogate.results import load_run
 from mjx_surrogate.tasks import trajectory_cost
 
 FIGURES = {
-    "pendulum_predict": ["predict_10pct.png", "predict_60pct.png"],
-    "cartpole_predict": ["predict_10pct.png", "predict_60pct.png"],
-    "fish_predict": ["predict_5pct.png", "predict_30pct.png"],
+    "pendulum_predict": ["predict_10pct.png", "predict_60pct.png", "locality.png"],
+    "cartpole_predict": ["predict_10pct.png", "predict_60pct.png", "locality.png"],
+    "fish_predict": ["predict_5pct.png", "predict_30pct.png", "locality.png"],
     "cartpole_analysis": [
         "convergence_sindy_10pct.png",
         "convergence_sindy_100pct.png",
@@ -58,6 +58,7 @@ def test_quick_reproduction_produces_every_figure_and_resumes(tmp_path, capsys):
         "Fig. Variance MLP",
         "Fig. control",
         "order N",
+        "Locality (docs/method.md): median relative spread",
     ):
         assert section in text, section
     for link in re.findall(r"\]\(([^)]+\.png)\)", text):

@@ -1,10 +1,14 @@
 """Batch axes over devices and processes give the one-device results.
 
-A device count is fixed when JAX starts, so the multi-device cases run in subprocesses
-(tests/sharding_check.py): 4 host CPU devices (meshes of 2 and 4), and 2 processes on
-localhost joined by ``jax.distributed`` (a mesh of 2, one device each). Each compares a
-D2C solve, a multi-start solve, a data set and a seed-vmapped MLP fit with the same
-computation on one device.
+A device count is fixed when JAX starts, so the multi-device cases run in two processes
+on localhost (tests/sharding_check.py), joined by ``jax.distributed``, each with 2 host
+CPU devices: meshes of 2 host devices (one process's own) and of 4 devices (both
+processes'). On them a D2C solve, a multi-start solve, a data set and a seed-vmapped MLP
+fit are compared with the same computation on one device on the native backend, on both
+meshes; on the MJX backend, on the 2-device mesh, the sharded parts of a solve (one
+identification, one line search's trials) and a data set. The same processes
+then run a D2C experiment through the CLI over the 4-device mesh and a two-experiment
+sweep.
 
 Tolerances: data sets and each MLP's test loss come out bitwise equal (every trajectory
 and network is computed whole on one device); a D2C solve sums the regression's
@@ -38,6 +42,7 @@ TOL = {
     "d2c_iterations": 0,
     "multistart_costs": 1e-9,
     "dataset_X": 0.0,
+    "ltv": 1e-8,  # A, B of one identification, and the trial rollouts
 }
 
 
@@ -53,77 +58,32 @@ def _result(stdout: str) -> dict:
     return json.loads(lines[-1][len("RESULT ") :])
 
 
-def _check(results: dict, expected: dict) -> None:
-    """expected: {backend: {mesh: [quantities]}}; every difference within TOL."""
-    for backend, by_mesh in expected.items():
-        r = results[backend]
-        if backend == "mlp":
-            for n in by_mesh:  # each network's test loss bitwise; weights to float32 round-off
-                assert r[n]["test_loss"] == 0.0 and r[n]["params"] <= 1e-6, r
-            continue
-        assert np.isfinite(r["reference_cost"]) and r["reference_iterations"] > 0, r
-        for n, keys in by_mesh.items():
-            assert sorted(r[n]) == sorted(keys), (backend, n, sorted(r[n]))
-            for key in keys:
-                assert r[n][key] <= TOL[key], (backend, n, key, r[n][key])
-
-
-@pytest.mark.slow
-def test_meshes_of_2_and_4_host_devices_give_the_one_device_results():
-    cmd = [
-        sys.executable,
-        os.path.join(HERE, "sharding_check.py"),
-        "--cpu-devices",
-        "4",
-        "--meshes",
-        "2",
-        "4",
-        "--mjx-meshes",
-        "4",
-    ]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=400, env=_env(), cwd=ROOT)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    out = _result(proc.stdout)
-    assert out["devices"] == 4 and out["processes"] == 1
-    everything, solve_and_data = list(TOL), ["d2c_cost", "d2c_X", "d2c_U", "d2c_iterations", "dataset_X"]
-    _check(
-        out["results"],
-        {
-            "native": {"2": everything, "4": everything},
-            "mjx": {"4": solve_and_data},
-            "mlp": {"2": None, "4": None},
-        },
-    )
-
-
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("localhost", 0))
         return s.getsockname()[1]
 
 
+def _check_workload(r: dict, keys: list[str]) -> None:
+    assert np.isfinite(r["reference_cost"]) and r["reference_iterations"] > 0, r
+    assert sorted(k for k in r if not k.startswith("reference")) == sorted(keys), r
+    for key in keys:
+        assert r[key] <= TOL[key], (key, r[key])
+
+
+def _check_mlp(r: dict) -> None:
+    assert r["test_loss"] == 0.0 and r["params"] <= 1e-6, r  # weights: float32 round-off
+
+
 @pytest.mark.slow
-def test_two_processes_joined_by_jax_distributed_give_the_one_device_results(tmp_path):
+def test_two_processes_with_two_devices_each_give_the_one_device_results(tmp_path):
     port = _free_port()
+    runs, sweep = tmp_path / "runs", tmp_path / "sweep"
+    script = os.path.join(HERE, "sharding_check.py")
     procs = [
         subprocess.Popen(
-            [
-                sys.executable,
-                os.path.join(HERE, "sharding_check.py"),
-                "--process-id",
-                str(i),
-                "--num-processes",
-                "2",
-                "--port",
-                str(port),
-                "--run-dir",
-                str(tmp_path / "runs"),
-                "--native",
-                "solve",
-                "data",
-                "--mjx",
-                "--no-mlp",
-            ],
+            [sys.executable, script, "--process-id", str(i), "--port", str(port)]
+            + ["--run-dir", str(runs), "--sweep-dir", str(sweep)],
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
@@ -141,17 +101,39 @@ def test_two_processes_joined_by_jax_distributed_give_the_one_device_results(tmp
                 p.wait()
     for p, (_, err) in zip(procs, outs):
         assert p.returncode == 0, err[-3000:]
-    out = _result(outs[0][0])
-    assert out["devices"] == 2 and out["processes"] == 2
-    _check(out["results"], {"native": {"2": ["d2c_cost", "d2c_X", "d2c_U", "d2c_iterations", "dataset_X"]}})
-    # One run folder, written by process 0; process 1 wrote nothing there.
-    folders = [f for f in os.listdir(tmp_path / "runs") if not f.startswith(".")]
+    p0, p1 = (_result(o) for o, _ in outs)
+    for i, p in enumerate((p0, p1)):
+        assert (p["process"], p["processes"], p["devices"], p["local_devices"]) == (i, 2, 4, 2)
+    everything = list(TOL)
+    mjx = p0["results"]["mjx/local"]
+    assert sorted(mjx) == ["dataset_X", "ltv_A", "ltv_B", "trials_U", "trials_X"], mjx
+    assert max(mjx.values()) <= TOL["ltv"] and mjx["dataset_X"] == 0.0, mjx
+    _check_workload(p1["results"]["native/local"], everything)
+    _check_mlp(p1["results"]["mlp/local"])
+    for p in (p0, p1):
+        _check_workload(p["results"]["native/global"], everything)
+        _check_mlp(p["results"]["mlp/global"])
+
+    # The CLI over the 4-device mesh: one run folder, written by process 0 only.
+    folders = [f for f in os.listdir(runs) if not f.startswith(".")]
     assert len(folders) == 1, folders
-    metrics = json.load(open(tmp_path / "runs" / folders[0] / "metrics.json"))
+    metrics = json.load(open(runs / folders[0] / "metrics.json"))
     assert metrics["status"] in ("converged", "stalled", "max_iter"), metrics["status"]
-    versions = json.load(open(tmp_path / "runs" / folders[0] / "versions.json"))
-    assert versions["parallel"]["processes"] == 2 and versions["parallel"]["mesh_devices"] == 2
-    assert out["run_cost"] == metrics["d2c"]["cost"]
+    versions = json.load(open(runs / folders[0] / "versions.json"))
+    assert versions["parallel"]["processes"] == 2 and versions["parallel"]["mesh_devices"] == 4
+    assert p0["run_cost"] == metrics["d2c"]["cost"]
+
+    # The sweep: experiment i on process i mod 2, each writes its own run folder, and
+    # process 0 writes the one report after both finished.
+    assert p0["sweep_status"] == 0 and p1["sweep_status"] == 0
+    assert "theory: running" in outs[0][0] and "cartpole_control: running" not in outs[0][0]
+    assert "cartpole_control: running" in outs[1][0] and "theory: running" not in outs[1][0]
+    done = sorted(f.split("_", 1)[1] for f in os.listdir(sweep) if (sweep / f / "metrics.json").exists())
+    assert done == ["cartpole_control", "theory"], done
+    text = (sweep / "report.md").read_text()
+    assert "Fig. control" in text and "order N" in text
+    assert sorted(json.load(open(sweep / "wall_times-p0.json"))) == ["theory"]
+    assert sorted(json.load(open(sweep / "wall_times-p1.json"))) == ["cartpole_control"]
 
 
 def test_one_device_means_no_mesh_and_too_many_devices_is_a_config_error():
@@ -183,41 +165,3 @@ def test_statistics_ignore_zero_weight_padding_and_match_float64_lstsq():
     G2, F2 = sysid.normal_equations(jnp.asarray(Z[:, 5:-2]), jnp.asarray(Y[:, 5:-2]), jnp.ones(5))
     np.testing.assert_allclose(np.asarray(G1 + G2), np.asarray(G), rtol=1e-12)
     np.testing.assert_allclose(np.asarray(F1 + F2), np.asarray(F), rtol=1e-12, atol=1e-15)
-
-
-@pytest.mark.slow
-def test_a_sweep_over_two_processes_runs_each_experiment_once_and_one_report(tmp_path):
-    """``experiments.reproduce --distributed``: experiment i runs on process i mod 2, each
-    writes its own run folders, process 0 writes the report after both finish."""
-    out, report = tmp_path / "runs", tmp_path / "report.md"
-    env = dict(_env(), JAX_COORDINATOR_ADDRESS=f"localhost:{_free_port()}", JAX_NUM_PROCESSES="2")
-    cmd = [sys.executable, "-m", "experiments.reproduce", "--quick", "--distributed"]
-    cmd += ["--out", str(out), "--report", str(report), "--only", "theory", "cartpole_control"]
-    procs = [
-        subprocess.Popen(
-            cmd,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            cwd=ROOT,
-            env=dict(env, JAX_PROCESS_ID=str(i)),
-        )
-        for i in range(2)
-    ]
-    try:
-        outs = [p.communicate(timeout=300) for p in procs]
-    finally:
-        for p in procs:
-            if p.poll() is None:
-                p.kill()
-                p.wait()
-    for p, (_, err) in zip(procs, outs):
-        assert p.returncode == 0, err[-3000:]
-    assert "theory: running" in outs[0][0] and "cartpole_control" not in outs[0][0].split("report:")[0]
-    assert "cartpole_control: running" in outs[1][0] and "theory" not in outs[1][0]
-    folders = sorted(f for f in os.listdir(out) if os.path.isdir(out / f) and not f.startswith("."))
-    assert sorted(f.split("_", 1)[1] for f in folders) == ["cartpole_control", "theory"], folders
-    text = report.read_text()
-    assert "Fig. control" in text and "order N" in text
-    assert sorted(json.load(open(out / "wall_times-p0.json"))) == ["theory"]
-    assert sorted(json.load(open(out / "wall_times-p1.json"))) == ["cartpole_control"]
