@@ -1,9 +1,10 @@
-"""CI smoke: D2C on the pendulum over 10 steps against the finite-difference oracle."""
+"""CI smoke: D2C on the pendulum over 10 steps against the finite-difference oracle, on the
+native backend (its programs compile in seconds)."""
 
 from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(
-    system=SystemConfig(name="pendulum"),
+    system=SystemConfig(name="pendulum", backend="native"),
     task=TaskConfig(preset="pendulum_d2c", T=10),
     solver=SolverConfig(n_samples=6, max_iter=30, init="random"),
     experiment=ExperimentConfig(kind="d2c", n_noise_trials=8, progress=False, oracle="finite_difference"),

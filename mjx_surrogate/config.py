@@ -71,7 +71,7 @@ class TaskConfig:
     field left as None, or "custom" (then x0, x_goal, T and weights are required).
     Q, Q_f, R: full matrices; Q_diag, Q_f_diag, R_diag: diagonal shortcuts.
     u_min, u_max: box limits on the controls, enforced by the solver; by default the
-      model's actuator ctrlrange, which they may narrow but not widen.
+      preset's, else the model's actuator ctrlrange, which they may narrow but not widen.
     x0_keyframe, goal_keyframe: a keyframe of the model (name or index) giving x0, or
       x_goal and the control reference u_ref (its ctrl).
     u_ref: the control the R term pulls towards (default zeros).

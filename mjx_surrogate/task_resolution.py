@@ -108,11 +108,12 @@ def model_limits(m: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def _limits(tc: TaskConfig, m: mujoco.MjModel):
+def _limits(tc: TaskConfig, m: mujoco.MjModel, base: dict):
     lo_m, hi_m = model_limits(m)
     out = []
     for name, model_b, sign in (("u_min", lo_m, -1.0), ("u_max", hi_m, 1.0)):
         b = getattr(tc, name)
+        b = base.get(name) if b is None else b  # the config's, else the preset's, else the model's
         if b is None:
             out.append(model_b)
             continue
@@ -202,7 +203,7 @@ def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
     zeros = {"Q": np.zeros((nx, nx)), "Q_f": np.zeros((nx, nx))} if (custom and tc.goals) else {}
     Q, Q_f = _matrix(tc, {**zeros, **base}, "Q", nx), _matrix(tc, {**zeros, **base}, "Q_f", nx)
     R = _matrix(tc, base, "R", nu)
-    u_min, u_max = _limits(tc, m)
+    u_min, u_max = _limits(tc, m, base)
     if tc.u_ref is not None:
         if len(tc.u_ref) != nu:
             raise ConfigError("task.u_ref", f"needs nu={nu} entries, got {len(tc.u_ref)}")
