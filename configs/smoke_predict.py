@@ -13,7 +13,7 @@ from mjx_surrogate.config import (
 )
 
 CONFIG = Config(
-    system=SystemConfig(name="pendulum"),
+    system=SystemConfig(name="pendulum", backend="native"),  # compiles in seconds
     task=TaskConfig(preset="pendulum_swingup", T=10),
     solver=SolverConfig(n_samples=6, max_iter=30, init="zeros"),
     experiment=ExperimentConfig(kind="predict", progress=False, x64=True),

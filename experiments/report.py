@@ -342,10 +342,6 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
             f"data sets stay local (median relative spread below {LOCAL_SPREAD:g}) {upto}."
         ]
     L += [
-        "- The cartpole prediction and analysis experiments use the paper's swing-up set up "
-        "like the pendulum's: terminal cost only and |u| <= 1 (10 N), so U_max = 1."
-    ]
-    L += [
         "- MLPs train for the epochs in each preset (100-200; fish 50), not the paper's 5000.",
         "- The run folders named above are local (`runs/` is not versioned); rerun "
         "`python -m experiments.reproduce` to regenerate them and this report.",

@@ -57,19 +57,13 @@ def _cartpole_d2c(nq, nv, nu):
 
 
 def _cartpole_swingup(nq, nv, nu):
-    # "Similar to the pendulum" (paper): terminal cost only, and an actuator limit. With
-    # D2C 2.0's running cost towards the 60 degree pole (a state a cart at rest cannot
-    # hold) and no limit, the optimum juggled the pole with 120-175 N kicks and an open-loop
-    # gain of 3.9e5, and its data sets left the optimum at every level.
     return dict(
         T=30,
         x0=state(nq, nv, q1=math.pi),
         x_goal=state(nq, nv, q1=math.pi / 3),
-        Q=np.zeros((nq + nv, nq + nv)),
+        Q=_CP_Q,
         Q_f=_CP_QF,
         R=0.005 * np.eye(1),
-        u_min=-np.ones(nu),
-        u_max=np.ones(nu),
     )
 
 
