@@ -68,6 +68,9 @@ def quick(cfg, name: str):
         cfg = r(cfg, task=r(cfg.task, T=60))
     if name in ("pendulum_predict", "cartpole_predict"):
         cfg = r(cfg, data=r(cfg.data, levels=(0.1, 0.6)))
+    if name.endswith("_predict"):  # one SINDy library of the preset's
+        sindy = cfg.surrogate.sindy
+        cfg = r(cfg, surrogate=r(cfg.surrogate, sindy=r(sindy, libraries=sindy.libraries[:1])))
     if name == "cartpole_control":  # the exact oracle's compile (~50 s) is left to full runs
         cfg = r(
             cfg,
