@@ -93,11 +93,12 @@ def map_batch(fn: Callable, mesh: Mesh | None, *batched: Any, rest: tuple = ()) 
 def sum_over_batch(fn: Callable, mesh: Mesh | None, batched: Any, rest: tuple = ()) -> Any:
     """sum_i fn(batched_i, weights_i, *rest) where ``fn(chunk, weights, *rest)`` returns
     weighted sums over its chunk of the batch (leading axis); each device sums its chunk
-    and one ``psum`` adds the devices' sums. Padding rows have weight 0."""
+    and one ``psum`` adds the devices' sums. Padding rows have weight 0; without a mesh
+    there is no padding and ``weights`` is None (all ones)."""
     B = jax.tree.leaves(batched)[0].shape[0]
     dtype = jax.tree.leaves(batched)[0].dtype
     if size(mesh) == 1:
-        return fn(batched, jnp.ones((B,), dtype), *rest)
+        return fn(batched, None, *rest)  # no padding: no weights
     n_pad = _padded(B, size(mesh))
     padded = jax.tree.map(
         lambda a: jnp.concatenate([a, jnp.zeros((n_pad - B,) + a.shape[1:], a.dtype)]), batched

@@ -52,10 +52,12 @@ class SysIdParams:
     n_samples: int = struct.field(pytree_node=False, default=20)
 
 
-def normal_equations(Z: jax.Array, Y: jax.Array, w: jax.Array) -> tuple[jax.Array, jax.Array]:
+def normal_equations(Z: jax.Array, Y: jax.Array, w: jax.Array | None) -> tuple[jax.Array, jax.Array]:
     """Weighted sufficient statistics of the regression, summed over samples:
-    Z [T, n, m], Y [T, n, nx], w [n] -> G = Z'WZ [T, m, m], F = Z'WY [T, m, nx].
-    A sample of weight 0 (padding) contributes nothing, even if non-finite."""
+    Z [T, n, m], Y [T, n, nx], w [n] (None: all ones) -> G = Z'WZ [T, m, m], F = Z'WY
+    [T, m, nx]. A sample of weight 0 (padding) contributes nothing, even if non-finite."""
+    if w is None:
+        return jnp.einsum("tni,tnj->tij", Z, Z), jnp.einsum("tni,tnj->tij", Z, Y)
     keep = (w > 0)[None, :, None]
     Zk, Yk = jnp.where(keep, Z, 0.0), jnp.where(keep, Y, 0.0)
     Zw = Zk * w[None, :, None]
@@ -76,10 +78,10 @@ def solve_normal_equations(G: jax.Array, F: jax.Array, nx: int) -> tuple[jax.Arr
 
 def lstsq_ltv(Z: jax.Array, Y: jax.Array, nx: int) -> tuple[jax.Array, jax.Array]:
     """Z [T, n, nx+nu], Y [T, n, nx] -> A [T, nx, nx], B [T, nx, nu]."""
-    return solve_normal_equations(*normal_equations(Z, Y, jnp.ones(Z.shape[1], Z.dtype)), nx)
+    return solve_normal_equations(*normal_equations(Z, Y, None), nx)
 
 
-def _trajectory_statistics(dX: jax.Array, dU: jax.Array, w: jax.Array) -> tuple[jax.Array, jax.Array]:
+def _trajectory_statistics(dX: jax.Array, dU: jax.Array, w: jax.Array | None) -> tuple[jax.Array, jax.Array]:
     """Statistics of the regression of dX[:, t+1] on [dX[:, t], dU[:, t]] (dX [n, T+1, nx],
     dU [n, T, nu], weights w [n])."""
     Z = jnp.swapaxes(jnp.concatenate([dX[:, :-1], dU], axis=-1), 0, 1)
@@ -88,7 +90,7 @@ def _trajectory_statistics(dX: jax.Array, dU: jax.Array, w: jax.Array) -> tuple[
 
 def fit_from_trajectories(dX: jax.Array, dU: jax.Array) -> tuple[jax.Array, jax.Array]:
     """Regress dX[:, t+1] on [dX[:, t], dU[:, t]]: dX [n, T+1, nx], dU [n, T, nu]."""
-    G, F = _trajectory_statistics(dX, dU, jnp.ones(dX.shape[0], dX.dtype))
+    G, F = _trajectory_statistics(dX, dU, None)
     return solve_normal_equations(G, F, dX.shape[-1])
 
 
