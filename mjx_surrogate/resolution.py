@@ -181,12 +181,8 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     process of a sweep runs alone)."""
     validate_static(cfg)
     pool = jax.local_devices() if local else jax.devices()
-    n_dev = cfg.parallel.devices or len(pool)
-    if n_dev > len(pool):
-        raise ConfigError(
-            "parallel.devices", f"must be between 1 and {len(pool)} (visible devices), got {n_dev}"
-        )
-    system = build_system_from_config(cfg.system, sharding.device_mesh(pool[:n_dev]))
+    mesh = sharding.device_mesh(cfg.parallel.devices, pool)
+    system = build_system_from_config(cfg.system, mesh)
     tc, task = resolve_task(cfg.task, system)
     kind = cfg.experiment.kind
     n_samples = cfg.solver.n_samples or default_n_samples(system.nx, system.nu)

@@ -32,10 +32,13 @@ from mjx_surrogate.errors import ConfigError
 AXIS = "batch"
 
 
-def device_mesh(devices: int | Sequence[jax.Device] | None = None) -> Mesh | None:
-    """A one-axis mesh over ``devices``: None = every visible device (of every process),
-    an int n = the first n of them, or explicit devices. One device gives None."""
-    available = jax.devices()
+def device_mesh(
+    devices: int | Sequence[jax.Device] | None = None, available: Sequence[jax.Device] | None = None
+) -> Mesh | None:
+    """A one-axis mesh over ``devices``: None = every device of ``available`` (default:
+    every visible device, of every process), an int n = the first n of them, or explicit
+    devices. One device gives None."""
+    available = jax.devices() if available is None else list(available)
     if devices is None:
         chosen = available
     elif isinstance(devices, int):
