@@ -6,6 +6,8 @@ Stages: ``optimum``, ``convergence``, ``ill_conditioning``, ``variance``; then f
 
 from __future__ import annotations
 
+import time
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -93,9 +95,12 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
                         mlp.targets(zt[..., : system.nx], xnt, spec_mlp.increment),
                     )
                     kk = jax.random.split(jax.random.fold_in(keys["conv"], 7 + j), a.n_datasets)
-                    trained = mlp.train_seeds(spec_mlp, kk, z, y, zt, yt, mesh=system.mesh)
+                    t0 = time.perf_counter()
+                    trained = jax.block_until_ready(
+                        mlp.train_seeds(spec_mlp, kk, z, y, zt, yt, mesh=system.mesh)
+                    )
                     steps = [mlp.unstack(trained, i).model.step for i in range(a.n_datasets)]
-                    extra = {"final_test_loss": np.asarray(trained.test_loss[:, -1]).tolist()}
+                    extra = _training(trained, time.perf_counter() - t0)
                 P = np.stack(
                     [np.asarray(step_models.predict(step_models.time_invariant(s), x0, U1))[0] for s in steps]
                 )
@@ -188,9 +193,9 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     var, a_var = record.stage("variance", variance)
     level = a.gram_mlp_levels[0]
     dirs = {}
-    for epoch in (0, spec_mlp.epochs):
-        G = a_var[f"mlp_descent_directions_epoch{epoch}"]
-        dirs[f"MLP {100 * level:g}%, epoch {epoch}: (1/R) H' Delta"] = G[:, :200] / np.linalg.norm(
+    for when in ("epoch0", "trained"):
+        G = a_var[f"mlp_descent_directions_{when}"]
+        dirs[f"MLP {100 * level:g}%, {when}: (1/R) H' Delta"] = G[:, :200] / np.linalg.norm(
             G, axis=1, keepdims=True
         )
     record.figure(
@@ -207,32 +212,48 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
 
 
 def _mlp_directions(cfg, system, task, X_star, U_star, key, spec_mlp, arrays) -> dict:
-    """(1/R) H' Delta at the first and last checkpoint, same initial weights, K data sets."""
+    """(1/R) H' Delta before training and once trained, same initial weights, K data sets."""
     a = cfg.analysis
     level = a.gram_mlp_levels[0]
     sets = _datasets(system, task, X_star, U_star, jax.random.fold_in(key, 99), cfg, level)
     z, xn = _common([tr for tr, _ in sets])
     y = mlp.targets(z[..., : system.nx], xn, spec_mlp.increment)
-    spec = spec_mlp._replace(checkpoints=(0, spec_mlp.epochs))
+    spec = spec_mlp._replace(checkpoints=(0,))
+    zt, xnt = _common([te for _, te in sets])
+    yt = mlp.targets(zt[..., : system.nx], xnt, spec_mlp.increment)
     same = jnp.stack([jax.random.fold_in(key, 5)] * a.n_datasets)  # same init and batches
-    trained = mlp.train_seeds(spec, same, z, y, z[:, :256], y[:, :256], mesh=system.mesh)
-    out = {}
-    for c, epoch in enumerate(spec.checkpoints):
+    t0 = time.perf_counter()
+    trained = jax.block_until_ready(mlp.train_seeds(spec, same, z, y, zt, yt, mesh=system.mesh))
+    out = {"_mlp_training": _training(trained, time.perf_counter() - t0)}
+    for when in ("epoch0", "trained"):
         G = []
         for i in range(a.n_datasets):
             r = mlp.unstack(trained, i)
-            model = r.model.replace(params=jax.tree.map(lambda p: p[c], r.checkpoints))
+            model = r.model
+            if when == "epoch0":
+                model = model.replace(params=jax.tree.map(lambda p: p[0], r.checkpoints))
             zs, ys = spectra.standardise(model, z[i, : a.gram_points], y[i, : a.gram_points])
             G.append(np.asarray(spectra.mlp_descent_direction(model, zs, ys)))
         G = np.stack(G)
         cos = spectra.cosine_matrix(G)
         off = cos[~np.eye(len(G), dtype=bool)]
-        out[f"MLP {100 * level:g}% epoch {epoch}"] = {
+        out[f"MLP {100 * level:g}% {'epoch 0' if when == 'epoch0' else 'trained'}"] = {
             "mean_pairwise_cosine": float(off.mean()),
             "min_pairwise_cosine": float(off.min()),
         }
-        arrays[f"mlp_descent_directions_epoch{epoch}"] = G
+        arrays[f"mlp_descent_directions_{when}"] = G
     return out
+
+
+def _training(trained, seconds: float) -> dict:
+    """Epochs, final losses and wall time of K networks trained together."""
+    n = np.asarray(trained.epochs_run)
+    te = np.asarray(trained.test_loss)
+    return {
+        "epochs": n.tolist(),
+        "final_test_loss": [float(te[i, k - 1]) for i, k in enumerate(n)],
+        "train_s": seconds,
+    }
 
 
 def _one(cfg):
@@ -252,5 +273,6 @@ def _table(m: dict) -> str:
     lines += [f"| {k} | {v['condition']:.3g} | {v['precision']} |" for k, v in m["ill_conditioning"].items()]
     lines += ["\n## Variance across data sets\n", "| quantity | value |", "|---|---|"]
     for k, v in m["variance"].items():
-        lines += [f"| {k}: {q} | {x:.3g} |" for q, x in v.items()]
+        if not k.startswith("_"):
+            lines += [f"| {k}: {q} | {x:.3g} |" for q, x in v.items()]
     return "\n".join(lines) + "\n"

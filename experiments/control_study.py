@@ -60,7 +60,9 @@ def _surrogate_stage(res, X_d2c, U_d2c, U0, J_d2c, level, seed, key, params):
             )
             rows.append(row)
             tag = f"{name.replace(' ', '_')}_{level:g}"
+            row["arrays"] = {k: f"control_{tag}_s{seed}_{k}" for k in ("U", "X", "K")}
             arrays[f"control_{tag}_s{seed}_U"] = sol.U
+            arrays[f"control_{tag}_s{seed}_X"] = sol.X  # the model's nominal: closed loop needs it
             arrays[f"control_{tag}_s{seed}_K"] = sol.K
             arrays[f"control_{tag}_s{seed}_X_closed"] = out.X_closed
         return {"rows": rows}, arrays
@@ -144,7 +146,7 @@ def _table(m: dict) -> str:
     f = lambda v: "diverged" if v is None else f"{v:.4g}"  # noqa: E731
     lines = [
         f"D2C (local LTV) true cost: {f(m['d2c']['cost'])}; exact oracle: "
-        f"{f(m.get('exact', {}).get('cost'))}\n",
+        f"{f(m['exact'].get('cost')) if 'exact' in m else 'not run'}\n",
         "| model | level (% U_max) | seed | cost on model | true cost open loop | "
         "true cost closed loop | true / D2C | reached goal |",
         "|---|---|---|---|---|---|---|---|",

@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import shutil
 
+from experiments import report_control
 from mjx_surrogate.results import read_json, versions
 
 
@@ -93,8 +94,30 @@ def _predict_claim(m: dict, scale: float | None = None) -> tuple[bool | None, st
     return held, text
 
 
+def _mlp_training_text(a: dict) -> str:
+    """How long the analysis' MLPs trained (the convergence and variance figures)."""
+    runs = {k: v for k, v in (a.get("convergence") or {}).items() if k.startswith("MLP") and "epochs" in v}
+    d = (a.get("variance") or {}).get("_mlp_training")
+    if d:
+        runs["MLP descent directions"] = d
+    if not runs:
+        return "The prediction and control presets train their MLPs for a fixed 50-200 epochs."
+    return (
+        "The convergence and variance MLPs train up to the paper's 5000 epochs with the "
+        "convergence test of `configs/cartpole_analysis.py` (`surrogate.mlp.stop_window`, "
+        "`stop_rel_tol`): "
+        + "; ".join(
+            f"{k}: {min(v['epochs'])}-{max(v['epochs'])} epochs, {_f(v['train_s'])} s for "
+            f"{len(v['epochs'])} networks together"
+            for k, v in runs.items()
+        )
+        + ". The prediction and control presets train theirs for a fixed 50-200 epochs."
+    )
+
+
 def _section(lines, title, caption, figures, measured, verdict, note=""):
-    lines += [f"### {title}", "", f'> Paper: "{caption}"', ""]
+    quote = f"> {caption[1:-1]}" if caption.startswith("(") else f'> Paper: "{caption}"'
+    lines += [f"### {title}", "", quote, ""]
     lines += [f"![{os.path.basename(f)}]({f})" for f in figures if f]
     lines += ["", f"**Measured.** {measured}", "", f"**Claim:** {verdict}. {note}".rstrip(), ""]
 
@@ -266,37 +289,7 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
         "Claim: different data sets give different descent directions.",
     )
 
-    c = _load(folders.get("cartpole_control"))
-    L += ["## Optimal control with the surrogates (cartpole to upright)", ""]
-    rows = c.get("surrogate_rows", [])
-    gap = c.get("d2c_vs_exact_relative_gap")
-    worse = [r for r in rows if r["true_cost_over_d2c"] is None or r["true_cost_over_d2c"] > 1.01]
-    exact_text = (
-        f"{_f(c['exact'].get('cost'), 5)} (gap {_f(None if gap is None else 100 * gap)} %)"
-        if "exact" in c
-        else "not run"
-    )
-    text = (
-        f"D2C true cost {_f(c.get('d2c', {}).get('cost'), 5)}, exact oracle {exact_text}. "
-        f"{len(worse)} of {len(rows)} surrogate-based controllers are more than 1 % worse than "
-        f"D2C on the black box.\n\n" + _read(folders.get("cartpole_control"), "control_table.md")
-    )
-    held = (bool(rows) and len(worse) == len(rows) and gap is not None and abs(gap) < 0.01) if c else None
-    _section(
-        L,
-        "Control (Fig. control)",
-        "Optimal control of the Cartpole system when using the LTV model as compared to the "
-        "MLP and SINDy models where the cartpole system needs to reach the upright position "
-        "at the origin.",
-        [
-            fig("cartpole_control", "ltv_trajectory_evolution.png"),
-            fig("cartpole_control", "surrogate_controls.png"),
-        ],
-        text,
-        _verdict(held),
-        "Claim: the LTV approach reaches the optimum from a random start; the surrogate-based "
-        "controllers do not.",
-    )
+    report_control.control_sections(L, folders, fig, _section, _verdict, _f, _read)
 
     t = _load(folders.get("theory"))
     L += ['## The theory, numerically (Section "Data Driven Solutions")', ""]
@@ -329,6 +322,7 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
         "normalised Legendre basis grows slowly (about 2.5x from N = 1 to 10): there the "
         "paper's claim of combinatorial-exponential sample complexity does not hold.",
     )
+    report_control.horizon_sections(L, folders, fig, _section, _verdict, _f)
     L += ["## Reading these results", ""]
     for name in ("pendulum_predict", "cartpole_predict", "fish_predict"):
         loc = _load(folders.get(name)).get("locality") or {}
@@ -342,7 +336,7 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
             f"data sets stay local (median relative spread below {LOCAL_SPREAD:g}) {upto}."
         ]
     L += [
-        "- MLPs train for the epochs in each preset (100-200; fish 50), not the paper's 5000.",
+        "- " + _mlp_training_text(a),
         "- The run folders named above are local (`runs/` is not versioned); rerun "
         "`python -m experiments.reproduce` to regenerate them and this report.",
         "",

@@ -31,7 +31,7 @@ from mjx_surrogate import distributed
 from mjx_surrogate.config import ParallelConfig
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.results import SUCCESS
-from mjx_surrogate.runtime import configure_runtime
+from mjx_surrogate.runtime import backend_started, configure_runtime
 
 EXPERIMENTS = (
     "pendulum_predict",
@@ -40,6 +40,10 @@ EXPERIMENTS = (
     "cartpole_analysis",
     "theory",
     "cartpole_control",
+    "pendulum_control",
+    "fish_control",
+    "cartpole_horizon",
+    "swimmer_horizon",
 )
 
 
@@ -52,7 +56,7 @@ def quick(cfg, name: str):
         cfg,
         system=r(cfg.system, backend="native"),
         solver=r(cfg.solver, max_iter=min(cfg.solver.max_iter, 40)),
-        data=r(cfg.data, n_traj=min(cfg.data.n_traj, 40 if name == "fish_predict" else 60), n_seeds=1),
+        data=r(cfg.data, n_traj=min(cfg.data.n_traj, 40 if name.startswith("fish") else 60), n_seeds=1),
         surrogate=r(cfg.surrogate, mlp=r(cfg.surrogate.mlp, epochs=2, batch_size=64, checkpoints=())),
         analysis=r(
             cfg.analysis,
@@ -64,19 +68,20 @@ def quick(cfg, name: str):
         ),
         experiment=r(cfg.experiment, progress=False),
     )
-    if name == "fish_predict":
+    if name.startswith("fish") or name == "swimmer_horizon":
         cfg = r(cfg, task=r(cfg.task, T=60))
     if name in ("pendulum_predict", "cartpole_predict"):
         cfg = r(cfg, data=r(cfg.data, levels=(0.1, 0.6)))
     if name.endswith("_predict"):  # one SINDy library of the preset's
         sindy = cfg.surrogate.sindy
         cfg = r(cfg, surrogate=r(cfg.surrogate, sindy=r(sindy, libraries=sindy.libraries[:1])))
-    if name == "cartpole_control":  # the exact oracle's compile (~50 s) is left to full runs
+    if name.endswith("_control"):  # the exact oracle's compile (~50 s) is left to full runs
+        sindy = cfg.surrogate.sindy
         cfg = r(
             cfg,
             data=r(cfg.data, levels=(0.05,)),
             experiment=r(cfg.experiment, exact_oracle=False),
-            surrogate=r(cfg.surrogate, sindy=r(cfg.surrogate.sindy, libraries=("cubic_trig",))),
+            surrogate=r(cfg.surrogate, sindy=r(sindy, libraries=sindy.libraries[:1])),
         )
     return cfg
 
@@ -128,7 +133,28 @@ def main(argv: list[str] | None = None) -> int:
         "(jax.distributed; rendezvous from JAX_COORDINATOR_ADDRESS, JAX_NUM_PROCESSES and\n"
         "JAX_PROCESS_ID, or the cluster's environment); process 0 writes the report",
     )
+    ap.add_argument(
+        "--cpu-devices",
+        type=int,
+        default=None,
+        metavar="N",
+        help="split the host CPU into N JAX devices (jax_num_cpu_devices), so that every\n"
+        "experiment spreads its batches over them (docs/scaling.md); a CPU device runs a\n"
+        "vmapped program mostly on one core. Must come before JAX starts its backend.",
+    )
     a = ap.parse_args(argv)
+    if a.cpu_devices is not None:
+        if a.cpu_devices < 1:
+            print(f"error: --cpu-devices: must be >= 1, got {a.cpu_devices}", file=sys.stderr)
+            return 2
+        if backend_started():
+            print(
+                "error: --cpu-devices: the JAX backend has already started in this process", file=sys.stderr
+            )
+            return 2
+        import jax
+
+        jax.config.update("jax_num_cpu_devices", a.cpu_devices)
     out = a.out or os.path.join("runs", "reproduce-quick" if a.quick else "reproduce")
     os.makedirs(out, exist_ok=True)
     names = a.only or list(EXPERIMENTS)

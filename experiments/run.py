@@ -166,6 +166,7 @@ def kinds():
         analysis_study,
         control_study,
         d2c_study,
+        horizon_study,
         predict_study,
         rollout_study,
         theory_study,
@@ -178,6 +179,7 @@ def kinds():
         "analysis": analysis_study.run,
         "theory": theory_study.run,
         "control": control_study.run,
+        "horizon": horizon_study.run,
     }
 
 

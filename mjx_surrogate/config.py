@@ -170,7 +170,9 @@ class SindyConfig:
 class MLPConfig:
     """Flax MLPs (surrogate kind "mlp"); the paper's by default: 32 -> ReLU -> 64 -> ReLU,
     Adam 1e-4, weight decay 1e-6, minibatches of 256. checkpoints: epochs whose
-    parameters are kept (analysis)."""
+    parameters are kept (analysis). epochs: the most epochs; with stop_window > 0 training
+    stops earlier once the best test loss fell by less than stop_rel_tol (relative) over the
+    last stop_window epochs (the convergence test)."""
 
     widths: Tuple[int, ...] = (32, 64)
     learning_rate: float = 1e-4
@@ -178,6 +180,8 @@ class MLPConfig:
     batch_size: int = 256
     epochs: int = 200
     checkpoints: Tuple[int, ...] = ()
+    stop_window: int = 0
+    stop_rel_tol: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -235,7 +239,9 @@ class ExperimentConfig:
     "predict" (D2C optimum, data sets per level, SINDy / MLP / LTV predictions),
     "analysis" (convergence across seeds, Gram conditioning, variance; section analysis)
     "theory" (exact moments against Monte Carlo and the paper's formulas) or "control"
-    (iLQR on each surrogate, judged on the black box against D2C and the exact oracle).
+    (iLQR on each surrogate, judged on the black box against D2C and the exact oracle) or
+    "horizon" (identification error against the rollout length, open against closed loop;
+    data.levels, data.n_traj rollouts).
     x64: run in float64.
     exact_oracle: also solve from the same start with exact Jacobians (None: on for the
       registered systems, off for a user's MJCF, whose jacfwd oracle can take minutes to
@@ -245,7 +251,7 @@ class ExperimentConfig:
       every backend).
     """
 
-    kind: Literal["rollout", "d2c", "predict", "analysis", "theory", "control"] = "d2c"
+    kind: Literal["rollout", "d2c", "predict", "analysis", "theory", "control", "horizon"] = "d2c"
     seed: int = 0
     out_dir: str = "runs"
     name: Optional[str] = None
@@ -518,6 +524,12 @@ def validate_static(cfg: Config) -> None:
     }.items():
         if not (math.isfinite(v) and v >= 0):
             raise ConfigError(field, f"must be a finite number >= 0, got {v}")
+    if mp.stop_window < 0:
+        raise ConfigError(
+            "surrogate.mlp.stop_window", f"must be >= 0 (0: no stopping test), got {mp.stop_window}"
+        )
+    if not (math.isfinite(mp.stop_rel_tol) and 0 <= mp.stop_rel_tol < 1):
+        raise ConfigError("surrogate.mlp.stop_rel_tol", f"must be in [0, 1), got {mp.stop_rel_tol}")
     if not (math.isfinite(mp.learning_rate) and mp.learning_rate > 0):
         raise ConfigError("surrogate.mlp.learning_rate", f"must be > 0, got {mp.learning_rate}")
     if not mp.widths or any(w < 1 for w in mp.widths):

@@ -257,3 +257,34 @@ def cost_vs_simulations(curves: dict[str, tuple[np.ndarray, np.ndarray]], title:
     ax.legend(fontsize=8)
     fig.tight_layout()
     return fig
+
+
+def horizon_errors(
+    t: np.ndarray,
+    errors: dict[str, np.ndarray],
+    cl_errors: dict[str, np.ndarray],
+    spreads: dict[str, np.ndarray],
+    title: str = "",
+):
+    """Against t: the relative error of the identified [A_t B_t], of A_t + B_t K_t, and the
+    rollouts' median relative deviation from the nominal. Open loop dashed, closed solid."""
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.6))
+    for ax, curves, ts, ylabel in (
+        (axes[0], errors, t[:-1], "||[A B] - [A* B*]||_F / ||[A* B*]||_F"),
+        (axes[1], cl_errors, t[:-1], "||(A + B K) - (A* + B* K)||_F / ||A* + B* K||_F"),
+        (axes[2], spreads, t, "median ||x_t - X_t|| / RMS ||X||"),
+    ):
+        colours: dict[str, str] = {}
+        for name, v in curves.items():
+            level = name.split(", ")[-1]
+            c = colours.setdefault(level, f"C{len(colours)}")
+            v = np.where(np.isfinite(np.asarray(v, float)) & (np.asarray(v, float) > 0), v, np.nan)
+            ax.plot(ts, v, "--" if name.startswith("open") else "-", color=c, label=name)
+        ax.set_yscale("log")
+        ax.set_xlabel("time step t (rollout length)")
+        ax.set_ylabel(ylabel, fontsize=8)
+        ax.grid(alpha=0.3, which="both")
+    axes[0].legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig

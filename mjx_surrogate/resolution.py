@@ -186,7 +186,13 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     tc, task = resolve_task(cfg.task, system)
     kind = cfg.experiment.kind
     n_samples = cfg.solver.n_samples or default_n_samples(system.nx, system.nu)
-    if kind in ("d2c", "control", "predict", "analysis"):
+    if kind == "horizon" and cfg.data.n_traj < system.nx + system.nu:
+        raise ConfigError(
+            "data.n_traj",
+            f"must be >= nx + nu = {system.nx + system.nu} for the per-step least squares, "
+            f"got {cfg.data.n_traj}",
+        )
+    if kind in ("d2c", "control", "predict", "analysis", "horizon"):
         if n_samples < system.nx + system.nu:
             raise ConfigError(
                 "solver.n_samples",

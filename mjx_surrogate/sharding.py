@@ -54,6 +54,22 @@ def device_mesh(
     return Mesh(np.asarray(chosen), (AXIS,))
 
 
+def one_device_per_process(mesh: Mesh | None) -> Mesh | None:
+    """The mesh narrowed to the first of its devices in each process (None if one remains).
+
+    For host callbacks (the native backend): JAX hands a callback its arguments on the
+    process's first CPU device, so callbacks of two devices of one process wait on the same
+    device, and in a reproduction this deadlocked (both callbacks idle, 0 % CPU). One
+    device per process keeps the spread across hosts; MuJoCo's own threads use the cores.
+    """
+    if mesh is None:
+        return None
+    firsts: dict[int, jax.Device] = {}
+    for d in mesh.devices.flat:
+        firsts.setdefault(d.process_index, d)
+    return device_mesh(list(firsts.values()))
+
+
 def size(mesh: Mesh | None) -> int:
     """Number of devices the batch axes are spread over (1 without a mesh)."""
     return 1 if mesh is None else int(mesh.shape[AXIS])

@@ -8,9 +8,10 @@ is fixed when JAX starts). Each workload is computed once without a mesh (the
 reference) and once on a mesh:
 
 * "local": the process's own 2 devices (process 0: the MJX backend's sharded blocks of a
-  D2C solve; process 1: the native backend's whole solves and the MLP seeds; the two
-  work in parallel);
-* "global": all 4 devices of both processes (native backend, a solve and a data set).
+  D2C solve; process 1: the MLP seeds; the two work in parallel);
+* "global": all 4 devices of both processes; the native backend (a solve, a multi-start
+  solve and a data set) narrows it to one device per process
+  (:func:`mjx_surrogate.sharding.one_device_per_process`).
 
 Then, optionally, a small D2C experiment through the CLI's ``run`` over the global mesh
 (process 0 writes the run folder) and a two-experiment sweep through
@@ -75,10 +76,10 @@ def main() -> None:
     if a.process_id == 0:  # this process's devices only: the processes need not agree
         r["mjx/local"] = mjx_blocks(local)
     else:
-        r["native/local"] = workloads("native", local, list(PARTS))
         r["mlp/local"] = mlp_workload(local)
     stamp("local workloads done")
-    r["native/global"] = workloads("native", every, ["solve", "data"])  # every process, in step
+    # every process, in step; the native backend keeps one device per process
+    r["native/global"] = workloads("native", every, list(PARTS))
     stamp("global workloads done")
     if a.run_dir:
         out["run_cost"] = run_experiment(a.run_dir, True)
@@ -181,6 +182,7 @@ def workloads(backend: str, mesh, parts: list[str]) -> dict:
     return {
         "reference_cost": float(ref["d2c_cost"]),
         "reference_iterations": int(ref["d2c_iterations"]),
+        "mesh_devices": size(make_system("pendulum", backend, mesh=mesh).mesh),
     } | diffs
 
 

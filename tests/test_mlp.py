@@ -62,3 +62,26 @@ def test_increment_target_and_no_recompile():
     n = mlp.train._cache_size()
     mlp.train(spec, jax.random.key(1), z, y, z, y)
     assert mlp.train._cache_size() == n
+
+
+def test_stopping_test_ends_training_where_the_rule_first_holds():
+    """The run stops at the first epoch e >= W where the best test loss fell by less than
+    tol over W epochs (checked on the stored losses in NumPy); vmapped seeds stop alone."""
+    spec = SPEC._replace(epochs=400, checkpoints=(), stop_window=10, stop_rel_tol=0.05)
+    z, y = _data(jax.random.key(8), 512)
+    keys = jax.random.split(jax.random.key(9), 2)
+    both = mlp.train_seeds(
+        spec, keys, jnp.stack([z, z]), jnp.stack([y, y]), jnp.stack([z, z]), jnp.stack([y, y])
+    )
+    for i in range(2):
+        r = mlp.unstack(both, i)
+        n = int(r.epochs_run)
+        te = np.asarray(r.test_loss)
+        assert 10 < n < 400 and np.isfinite(te[:n]).all() and np.isnan(te[n:]).all()
+        best = np.minimum.accumulate(te[:n])
+        holds = [e >= 10 and best[e] > 0.95 * best[e - 10] for e in range(n)]
+        assert holds.index(True) == n - 1
+        one = mlp.train(spec, keys[i], z, y, z, y)  # alone: the same stop
+        assert int(one.epochs_run) == n
+    full = mlp.train(SPEC._replace(epochs=30, checkpoints=()), keys[0], z, y, z, y)
+    assert int(full.epochs_run) == 30 and np.isfinite(np.asarray(full.test_loss)).all()

@@ -4,8 +4,9 @@ The paper's network is [x, u] -> 32 -> ReLU -> 64 -> ReLU -> x_next, trained wit
 (lr 1e-4, weight decay 1e-6 as an L2 term added to the gradient, as PyTorch's Adam does),
 minibatches of 256 and the mean-squared error. Inputs and targets are standardised with
 the training set's mean and standard deviation; the loss is the MSE of standardised
-targets. Training is one jitted ``lax.scan`` over epochs, each a ``lax.scan`` over
-minibatches of a fresh permutation drawn from the key; parameters are kept at chosen
+targets. Training is one jitted ``lax.while_loop`` over epochs (all of them, or until the
+stopping test of ``MLPSpec`` holds), each a ``lax.scan`` over minibatches of a fresh
+permutation drawn from the key; parameters are kept at chosen
 checkpoint epochs for the analysis. ``train_seeds`` vmaps training over K (key, data set)
 pairs, so K networks train in one program (spread over a device mesh if given).
 """
@@ -30,8 +31,10 @@ class MLPSpec(NamedTuple):
     learning_rate: float = 1e-4
     weight_decay: float = 1e-6
     batch_size: int = 256
-    epochs: int = 200
+    epochs: int = 200  # the most epochs; all of them unless the stopping test below ends earlier
     checkpoints: Tuple[int, ...] = ()  # epochs (0 = before training) whose params are kept
+    stop_window: int = 0  # > 0: stop once the best test loss fell by less than
+    stop_rel_tol: float = 0.0  # stop_rel_tol (relative) over the last stop_window epochs
 
 
 class Net(nnx.Module):
@@ -69,9 +72,10 @@ class MLPModel:
 
 class TrainResult(NamedTuple):
     model: MLPModel
-    train_loss: jax.Array  # [epochs] mean minibatch loss per epoch (standardised MSE)
-    test_loss: jax.Array  # [epochs] full test-set loss after each epoch
+    train_loss: jax.Array  # [epochs] mean minibatch loss per epoch (standardised MSE); NaN after a stop
+    test_loss: jax.Array  # [epochs] full test-set loss after each epoch; NaN after a stop
     checkpoints: nnx.State  # params with a leading [n_checkpoints] axis
+    epochs_run: jax.Array  # [] epochs trained (spec.epochs unless the stopping test ended earlier)
 
 
 def graphdef(spec: MLPSpec, nz: int, nx: int) -> nnx.GraphDef:
@@ -132,21 +136,28 @@ def train(
         upd, s = opt.update(g, s, p)
         return (optax.apply_updates(p, upd), s), loss
 
-    def epoch(carry, inp):
-        p, s, saved = carry
-        e, k = inp
-        perm = jax.random.permutation(k, M)[: n_steps * spec.batch_size]
+    keys = jax.random.split(k_epochs, spec.epochs)
+    W = spec.stop_window
+
+    def epoch(c):
+        e, p, s, saved, tr, te, best, _ = c
+        perm = jax.random.permutation(keys[e], M)[: n_steps * spec.batch_size]
         (p, s), losses = jax.lax.scan(sgd_step, (p, s), perm.reshape(n_steps, spec.batch_size))
         saved = _keep(saved, p, ckpt, e + 1)
-        return (p, s, saved), (losses.mean(), loss_fn(p, zt, yt))
+        test = loss_fn(p, zt, yt)
+        best = best.at[e].set(jnp.minimum(test, best[e - 1]))  # best[-1] is inf until the end
+        # the stopping test: the best test loss fell by less than stop_rel_tol in W epochs
+        stop = (W > 0) & (e >= W) & (best[e] > (1.0 - spec.stop_rel_tol) * best[jnp.maximum(e - W, 0)])
+        return e + 1, p, s, saved, tr.at[e].set(losses.mean()), te.at[e].set(test), best, stop
 
     saved = jax.tree.map(lambda a: jnp.zeros((ckpt.shape[0],) + a.shape, a.dtype), params)
     saved = _keep(saved, params, ckpt, 0)
-    keys = jax.random.split(k_epochs, spec.epochs)
-    (params, _, saved), (tr, te) = jax.lax.scan(
-        epoch, (params, opt.init(params), saved), (jnp.arange(spec.epochs), keys)
+    nan = jnp.full((spec.epochs,), jnp.nan, jnp.float32)
+    init = (jnp.int32(0), params, opt.init(params), saved, nan, nan, jnp.full_like(nan, jnp.inf), False)
+    e, params, _, saved, tr, te, _, _ = jax.lax.while_loop(
+        lambda c: (c[0] < spec.epochs) & ~c[-1], epoch, init
     )
-    return TrainResult(MLPModel(params, norm, gdef, spec.increment), tr, te, saved)
+    return TrainResult(MLPModel(params, norm, gdef, spec.increment), tr, te, saved, e)
 
 
 def _keep(saved, params, ckpt: jax.Array, epoch: jax.Array):
@@ -181,4 +192,6 @@ def unstack(result: TrainResult, i: int) -> TrainResult:
     m = result.model
     take = lambda t: jax.tree.map(lambda a: a[i], t)  # noqa: E731
     model = MLPModel(take(m.params), take(m.norm), m.graphdef, m.increment)
-    return TrainResult(model, result.train_loss[i], result.test_loss[i], take(result.checkpoints))
+    return TrainResult(
+        model, result.train_loss[i], result.test_loss[i], take(result.checkpoints), result.epochs_run[i]
+    )

@@ -148,6 +148,8 @@ def mlp_spec(config):
         batch_size=m.batch_size,
         epochs=m.epochs,
         checkpoints=tuple(m.checkpoints),
+        stop_window=m.stop_window,
+        stop_rel_tol=m.stop_rel_tol,
     )
 
 
@@ -163,10 +165,11 @@ def _fit_mlp(ctx: FitContext, train, test, key) -> dict[str, Fitted]:
         jnp.concatenate([test.x, test.u], -1),
         mlp.targets(test.x, test.x_next, spec.increment),
     )
+    last = int(r.epochs_run) - 1
     info = {
-        "epochs": spec.epochs,
-        "final_train_loss": float(r.train_loss[-1]),
-        "final_test_loss": float(r.test_loss[-1]),
+        "epochs": int(r.epochs_run),
+        "final_train_loss": float(r.train_loss[last]),
+        "final_test_loss": float(r.test_loss[last]),
     }
     return {"MLP": Fitted(r.model, info, {"train_loss": r.train_loss, "test_loss": r.test_loss})}
 

@@ -11,6 +11,7 @@ import jax
 import mujoco
 from jax.sharding import Mesh
 
+from mjx_surrogate import sharding
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.systems import backend_mjx, backend_native
 
@@ -154,6 +155,8 @@ def build_system(
         step = backend_native.make_native_step(sim)
         rollout = backend_native.make_native_rollout(sim)
     closed = backend_native.make_native_closed_loop(sim) if backend == "native" else None
+    if backend == "native":
+        mesh = sharding.one_device_per_process(mesh)
     system = System(name, exact_xml, model, substeps, backend, threads, step, rollout, closed, mesh)
     if backend == "native":
         system.__dict__["native"] = sim  # share the one pool
