@@ -40,6 +40,9 @@ def _surrogate_stage(res, X_d2c, U_d2c, U0, J_d2c, level, seed, key, params):
         rows, arrays = [], {}
         for name, f in fitted.items():
             sol = solve_on_model(f.model, task, U0, params)
+            # on the host: the surrogate's arrays may live on the data set's device mesh,
+            # the black box's model on one device
+            sol = jax.tree.map(np.asarray, sol)
             out = replay(system, task, sol.X, sol.U, sol.K)
             row = {
                 "model": name,

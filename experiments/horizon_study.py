@@ -73,6 +73,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
                     "error_last_quarter": last,
                     "growth": last / first if first and last is not None else None,
                     "A_plus_BK_error_last_quarter": _quarter_median(ec[j], True),
+                    "spread_first": float(s[j, 0]) if np.isfinite(s[j, 0]) else None,
                     "spread_last": float(s[j, -1]) if np.isfinite(s[j, -1]) else None,
                 }
             return m, {f"errors_{level:g}": e, f"cl_errors_{level:g}": ec, f"spreads_{level:g}": s}
