@@ -165,6 +165,7 @@ def main(argv: list[str] | None = None) -> int:
         except ConfigError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2
+    configure_runtime()  # the report records the runtime flags, even when nothing is run
     mine = distributed.my_share(names) if a.distributed else names
     t_start = time.perf_counter()
     suffix = f"-p{distributed.process_index()}" if a.distributed and distributed.process_count() > 1 else ""

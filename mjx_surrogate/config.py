@@ -111,6 +111,8 @@ class SolverConfig:
     accurate), "rollout" (the paper's open-loop perturbed rollouts), "closed_loop"
     (perturbed rollouts under the current feedback gains), or one registered with
     ``mjx_surrogate.sysid.register_scheme``.
+    sysid_every: with a one-step scheme, identify only every k-th time step (and the
+    last) and interpolate linearly between (``mjx_surrogate.sysid_knots``).
     """
 
     # Defaults come from the solver's own parameter types (one source of truth).
@@ -124,6 +126,7 @@ class SolverConfig:
     n_alphas: int = _ILQR.n_alphas
     accept_ratio: float = _ILQR.accept_ratio
     sysid: str = "central_difference"  # a registered scheme (mjx_surrogate.sysid.SCHEMES)
+    sysid_every: int = 1  # one-step schemes: identify every k-th step, interpolate between
     n_samples: Optional[int] = None  # None: max(20, 2 (nx + nu))
     sigma_x: Optional[float] = None  # None: resolution.default_sigma
     sigma_u: Optional[float] = None
@@ -571,9 +574,17 @@ def validate_static(cfg: Config) -> None:
 def _check_registered(cfg: Config) -> None:
     """Names that select a registered extension: identification scheme, surrogate kinds."""
     from mjx_surrogate.surrogates.registry import get_surrogate
-    from mjx_surrogate.sysid import get_scheme
+    from mjx_surrogate.sysid import SCHEMES, get_scheme
 
-    get_scheme(cfg.solver.sysid, "solver.sysid")
+    scheme = get_scheme(cfg.solver.sysid, "solver.sysid")
+    if cfg.solver.sysid_every < 1:
+        raise ConfigError("solver.sysid_every", f"must be >= 1, got {cfg.solver.sysid_every}")
+    if cfg.solver.sysid_every > 1 and not scheme.one_step:
+        one_step = ", ".join(n for n, s in SCHEMES.items() if s.one_step)
+        raise ConfigError(
+            "solver.sysid_every",
+            f"> 1 needs a one-step scheme ({one_step}); {cfg.solver.sysid!r} identifies from rollouts",
+        )
     if not cfg.surrogate.kinds:
         raise ConfigError("surrogate.kinds", "give one or more surrogate kinds")
     for i, name in enumerate(cfg.surrogate.kinds):

@@ -55,7 +55,7 @@ def simulation_metrics(result: ILQRResult, T: int, n_alphas: int, sysid: sid.Sys
     """``simulated_steps`` of a D2C solve and ``simulations_to_optimum``: the control steps
     simulated until the cost first came within 1 % and 0.1 % of the solve's final cost
     (machine-independent effort; None if the final cost is not finite)."""
-    per_id = sid.get_scheme(sysid.scheme).simulated_steps(T, sysid.n_samples)
+    per_id = sid.steps_per_identification(sysid, T)
     curve = simulation_curve(result.cost_history, result.iterations, T, n_alphas, per_id)
     J = np.asarray(result.cost_history)[: curve.size]
     to = {}

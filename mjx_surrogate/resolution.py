@@ -169,7 +169,7 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
     n = s.n_samples or SysIdParams().n_samples  # resolve() sets it from nx + nu
     sx = SysIdParams().sigma_x if s.sigma_x is None else s.sigma_x  # resolve() sets both
     su = SysIdParams().sigma_u if s.sigma_u is None else s.sigma_u
-    sysid = SysIdParams(sigma_x=sx, sigma_u=su, scheme=s.sysid, n_samples=n)
+    sysid = SysIdParams(sigma_x=sx, sigma_u=su, scheme=s.sysid, n_samples=n, every=s.sysid_every)
     return ilqr, sysid
 
 

@@ -33,13 +33,12 @@ import jax.numpy as jnp
 from flax import struct
 from jax.sharding import Mesh
 
-from mjx_surrogate import sharding
+from mjx_surrogate import sharding, sysid_knots
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.linalg import spd_solve
 from mjx_surrogate.trajectory import feedback_rollout
 
-# linearize(X [T+1, nx], U [T, nu], K [T, nu, nx], key) -> (A [T, nx, nx], B [T, nx, nu])
-LinearizeFn = Callable[[jax.Array, jax.Array, jax.Array, jax.Array], tuple[jax.Array, jax.Array]]
+LinearizeFn = sysid_knots.LinearizeFn  # (X [T+1, nx], U [T, nu], K [T, nu, nx], key) -> (A, B)
 
 
 @struct.dataclass
@@ -50,6 +49,7 @@ class SysIdParams:
     sigma_u: float = 1e-3
     scheme: str = struct.field(pytree_node=False, default="central_difference")
     n_samples: int = struct.field(pytree_node=False, default=20)
+    every: int = struct.field(pytree_node=False, default=1)  # identify every k-th step (sysid_knots)
 
 
 def normal_equations(Z: jax.Array, Y: jax.Array, w: jax.Array | None) -> tuple[jax.Array, jax.Array]:
@@ -222,11 +222,14 @@ class IdentificationScheme(NamedTuple):
     make_linearize(system, params) -> linearize(X, U, K, key) -> (A, B): the iLQR's
       ``linearize`` hook; ``system`` offers ``step`` (batched under vmap) and ``rollout``.
     simulated_steps(T, n_samples) -> control steps simulated by one identification.
+    one_step: identifies each t from one-step simulations alone (then ``every`` > 1 may
+      skip steps, :mod:`mjx_surrogate.sysid_knots`).
     """
 
     make_linearize: Callable[[Any, SysIdParams], LinearizeFn]
     simulated_steps: Callable[[int, int], int]
     description: str = ""
+    one_step: bool = False
 
 
 SCHEMES: dict[str, IdentificationScheme] = {}
@@ -249,8 +252,16 @@ def _mesh(system) -> Mesh | None:
 
 
 def ltv_linearize(system, p: SysIdParams) -> LinearizeFn:
-    """The linearize hook of scheme ``p.scheme`` on ``system``'s black-box step."""
-    return get_scheme(p.scheme).make_linearize(system, p)
+    """The linearize hook of scheme ``p.scheme`` on ``system``'s black-box step, at every
+    ``p.every``-th step and interpolated between (one-step schemes)."""
+    return sysid_knots.at_knots(get_scheme(p.scheme).make_linearize(system, p), p.every)
+
+
+def steps_per_identification(p: SysIdParams, T: int) -> int:
+    """Control steps one identification of scheme ``p.scheme`` simulates on a horizon T."""
+    return get_scheme(p.scheme).simulated_steps(
+        sysid_knots.identifications_per_iteration(T, p.every), p.n_samples
+    )
 
 
 register_scheme(
@@ -259,6 +270,7 @@ register_scheme(
         lambda system, p: lambda X, U, K, key: central_difference(system.step, X, U, key, p, _mesh(system)),
         lambda T, n: 2 * n * T,
         "D2C 2.0: one step from (x_t +- dx, u_t +- du) at every t",
+        one_step=True,
     ),
 )
 register_scheme(
@@ -267,6 +279,7 @@ register_scheme(
         lambda system, p: lambda X, U, K, key: forward_difference(system.step, X, U, key, p, _mesh(system)),
         lambda T, n: (n + 1) * T,
         "one step from (x_t + dx, u_t + du) and from (x_t, u_t)",
+        one_step=True,
     ),
 )
 register_scheme(
