@@ -5,31 +5,13 @@ prediction preset's sizes) drive iLQR from the same start, and every controller 
 black box. The exact oracle (MJX jacfwd through 600 steps of a contact-free 3-D body) is
 left to a GPU: --experiment.exact_oracle."""
 
-from mjx_surrogate.config import (
-    Config,
-    DataConfig,
-    ExperimentConfig,
-    MLPConfig,
-    SindyConfig,
-    SolverConfig,
-    SurrogateConfig,
-    SystemConfig,
-    TaskConfig,
-)
+import dataclasses
 
-CONFIG = Config(
-    system=SystemConfig(name="fish", timestep=0.005, substeps=5),
-    task=TaskConfig(preset="fish_d2c"),
-    solver=SolverConfig(
-        sysid="central_difference",
-        n_samples=40,
-        init="random",
-        init_scale=0.1,
-        max_iter=300,
-        rel_tol=1e-5,
-        sigma_x=1e-5,
-        sigma_u=1e-5,
-    ),
+from configs.fish_predict import CONFIG as _PREDICT  # the same system, task and solver
+from mjx_surrogate.config import DataConfig, ExperimentConfig, MLPConfig, SindyConfig, SurrogateConfig
+
+CONFIG = dataclasses.replace(
+    _PREDICT,
     experiment=ExperimentConfig(kind="control", exact_oracle=False, x64=True),
     data=DataConfig(n_traj=200, levels=(0.05,), n_seeds=1),
     surrogate=SurrogateConfig(sindy=SindyConfig(libraries=("poly2",)), mlp=MLPConfig(epochs=50)),

@@ -14,6 +14,10 @@ CASES = [
     (["smoke_d2c", "--solver.accept_ratio", "nan"], "solver.accept_ratio"),
     (["smoke_d2c", "--solver.accept_ratio", "1.5"], "solver.accept_ratio"),
     (["smoke_predict", "--solver.n_samples", "2"], "solver.n_samples"),
+    (["smoke_d2c", "--solver.sysid", "rollout", "--solver.sysid_every", "2"], "solver.sysid_every"),
+    (["smoke_predict", "--surrogate.mlp.stop_rel_tol", "1.5"], "surrogate.mlp.stop_rel_tol"),
+    (["smoke_predict", "--surrogate.mlp.stop_window", "-1"], "surrogate.mlp.stop_window"),
+    (["cartpole_horizon", "--data.n_traj", "3"], "data.n_traj"),
     (["smoke_analysis", "--solver.n_samples", "2"], "solver.n_samples"),
     (["smoke_d2c", "--task.x0", "1e13", "0"], "task.x0"),  # sigma_x is below the resolution at 1e13
     (["smoke_d2c", "--task.T", "1000000000"], "task.T"),
@@ -147,3 +151,16 @@ def test_config_json_from_an_older_schema_is_reported(tmp_path, capsys):
     p.write_text(json.dumps(data))
     code, err = _run([str(p)], capsys, tmp_path)
     assert code == 2 and "missing field(s) goals" in err[0], err
+
+
+def test_reproduce_cpu_devices_is_checked_before_anything_runs(tmp_path, capsys):
+    import jax
+
+    from experiments import reproduce
+
+    jax.devices()  # in this process JAX has started: a device count can no longer be set
+    for n, said in (("0", "must be >= 1"), ("2", "already started")):
+        assert reproduce.main(["--cpu-devices", n, "--out", str(tmp_path)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("error: --cpu-devices:") and said in err and "\n" not in err
+    assert not any(tmp_path.iterdir())  # nothing ran
