@@ -40,6 +40,7 @@ def main() -> None:
     from configs import load as load_config
     from mjx_surrogate.d2c import exact_linearize, solve_d2c, solve_exact
     from mjx_surrogate.ilqr import StopReason
+    from mjx_surrogate.linalg import ltv_relative_error
     from mjx_surrogate.pipeline import initial_controls
     from mjx_surrogate.resolution import resolve, solver_params
     from mjx_surrogate.sysid import SCHEMES, ltv_linearize
@@ -55,14 +56,12 @@ def main() -> None:
         U0 = initial_controls(jax.random.key(0), task.T, system.nu, cfg.solver.init, cfg.solver.init_scale)
         ex = solve_exact(system, task, U0, params)
         Ae, Be = jax.jit(exact_linearize(system))(ex.X, ex.U, ex.K, jax.random.key(0))
-        ref = np.concatenate([np.asarray(Ae), np.asarray(Be)], -1)
         for scheme in SCHEMES:
             sid = dataclasses.replace(
                 solver_params(cfg)[1], scheme=scheme, n_samples=a.n_samples, sigma_x=a.sigma, sigma_u=a.sigma
             )
             A, B = jax.jit(ltv_linearize(system, sid))(ex.X, ex.U, ex.K, jax.random.key(1))
-            est = np.concatenate([np.asarray(A), np.asarray(B)], -1)
-            rel = np.linalg.norm(est - ref, axis=(1, 2)) / np.linalg.norm(ref, axis=(1, 2))
+            rel = np.asarray(ltv_relative_error(A, B, Ae, Be))
             r = solve_d2c(system, task, U0, jax.random.key(2), params, sid)
             gap = 100 * (float(r.cost) - float(ex.cost)) / abs(float(ex.cost))
             print(

@@ -14,6 +14,7 @@ import numpy as np
 from mjx_surrogate import pipeline, plots, progress, sysid
 from mjx_surrogate.d2c import exact_linearize, solve_d2c, solve_exact, solve_multistart
 from mjx_surrogate.evaluation import evaluate_feedback
+from mjx_surrogate.linalg import ltv_relative_error
 from mjx_surrogate.resolution import Resolved, solver_params
 from mjx_surrogate.results import Run
 from mjx_surrogate.systems.system import actuated_state_indices, state_labels
@@ -25,9 +26,7 @@ def ltv_error(system, X, U, K, key, sid_params, jacobians: str = "jacfwd") -> di
     (jacfwd through MJX, or coordinate central differences), per t."""
     A, B = jax.jit(sysid.ltv_linearize(system, sid_params))(X, U, K, key)
     Ae, Be = jax.jit(exact_linearize(system, jacobians))(X, U, K, key)
-    est = np.concatenate([np.asarray(A), np.asarray(B)], axis=-1)
-    ex = np.concatenate([np.asarray(Ae), np.asarray(Be)], axis=-1)
-    rel = np.linalg.norm(est - ex, axis=(1, 2)) / np.maximum(np.linalg.norm(ex, axis=(1, 2)), 1e-12)
+    rel = np.asarray(ltv_relative_error(A, B, Ae, Be))
     return {"median": float(np.median(rel)), "max": float(np.max(rel)), "scheme": sid_params.scheme}
 
 

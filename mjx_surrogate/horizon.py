@@ -22,6 +22,7 @@ import jax
 import jax.numpy as jnp
 
 from mjx_surrogate import sharding, sysid
+from mjx_surrogate.linalg import ltv_relative_error, relative_frobenius
 from mjx_surrogate.trajectory import feedback_rollout
 
 
@@ -31,13 +32,6 @@ class HorizonErrors(NamedTuple):
     error: jax.Array  # [2, T] relative Frobenius error of [A_t B_t]: open loop, closed loop
     closed_loop_error: jax.Array  # [2, T] relative error of A_t + B_t K_t (the loop the gains close)
     spread: jax.Array  # [2, T+1] median over rollouts of ||x_t - X_t|| / RMS ||X||
-
-
-def relative_errors(A, B, A_ref, B_ref) -> jax.Array:
-    """||[A_t B_t] - [A*_t B*_t]||_F / ||[A*_t B*_t]||_F: [T]."""
-    J = jnp.concatenate([A, B], -1)
-    J_ref = jnp.concatenate([A_ref, B_ref], -1)
-    return jnp.linalg.norm(J - J_ref, axis=(1, 2)) / jnp.linalg.norm(J_ref, axis=(1, 2))
 
 
 @functools.partial(jax.jit, static_argnames=("system", "n"))
@@ -72,11 +66,8 @@ def identification_errors(
         Xp, Up = sharding.map_batch(roll, system.mesh, dx0, dU, rest=(X, U, gains))
         A, B = sysid.fit_from_trajectories(Xp - X[None], Up - U[None])
         spread = jnp.nanmedian(jnp.linalg.norm(Xp - X[None], axis=-1), axis=0) / scale
-        cl = lambda A, B: A + B @ K  # noqa: E731
-        e_cl = jnp.linalg.norm(cl(A, B) - cl(A_ref, B_ref), axis=(1, 2)) / jnp.linalg.norm(
-            cl(A_ref, B_ref), axis=(1, 2)
-        )
-        return relative_errors(A, B, A_ref, B_ref), e_cl, spread
+        e_cl = relative_frobenius(A + B @ K, A_ref + B_ref @ K)
+        return ltv_relative_error(A, B, A_ref, B_ref), e_cl, spread
 
     o, c = one(jnp.zeros_like(K)), one(K)
     return HorizonErrors(*(jnp.stack([a, b]) for a, b in zip(o, c)))

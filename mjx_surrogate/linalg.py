@@ -35,3 +35,15 @@ def spd_solve(A: jax.Array, B: jax.Array) -> tuple[jax.Array, jax.Array]:
     M, ok = jax.lax.fori_loop(0, n, body, (M, jnp.array(True)))
     X = M[:, n:]
     return (X[:, 0] if vec else X), ok & jnp.all(jnp.isfinite(X))
+
+
+def relative_frobenius(M: jax.Array, M_ref: jax.Array) -> jax.Array:
+    """||M_t - M_ref_t||_F / ||M_ref_t||_F per leading index: [T, a, b] -> [T]
+    (the denominator floored at 1e-12)."""
+    ref = jnp.linalg.norm(M_ref, axis=(-2, -1))
+    return jnp.linalg.norm(M - M_ref, axis=(-2, -1)) / jnp.maximum(ref, 1e-12)
+
+
+def ltv_relative_error(A: jax.Array, B: jax.Array, A_ref: jax.Array, B_ref: jax.Array) -> jax.Array:
+    """||[A_t B_t] - [A*_t B*_t]||_F / ||[A*_t B*_t]||_F: A [T, nx, nx], B [T, nx, nu] -> [T]."""
+    return relative_frobenius(jnp.concatenate([A, B], -1), jnp.concatenate([A_ref, B_ref], -1))
