@@ -1,12 +1,17 @@
-"""Black-box simulations to the optimum against the identification's time-step skipping.
+"""Black-box simulations to the optimum: the D2C 2.0 scheme against sample-efficient variants.
 
-For each system's D2C 2.0 preset and each ``solver.sysid_every`` k, one D2C solve from the
-preset's initial controls (same key for all k): final cost, iterations, simulated control
-steps, and the steps until the cost first came within 1 % and 0.1 % of the k = 1 solve's
-final cost (machine-independent). Wall time is printed too (compile apart).
+For each system's D2C 2.0 preset (``{system}_d2c``) and each variant (solver settings
+over the preset's), one D2C solve from the preset's initial controls, same key for all:
+final cost, iterations, identifications, simulated control steps, and the steps until the
+cost first came within 1 % and 0.1 % of the first variant's final cost (machine
+independent). Wall time is printed too (compile apart).
 
-    python benchmarks/sample_efficiency.py [--systems cartpole fish swimmer6] [--every 1 2 4 8]
-                                           [--figure PATH]
+A variant is ``base`` (the preset as it is) or comma-separated ``solver`` fields, e.g.
+``sysid_every=2`` or ``reuse_tol=0.2,reuse_max=4`` or
+``sysid=forward_difference,sysid_design=orthogonal,n_samples=0`` (0: nx + nu).
+
+    python benchmarks/sample_efficiency.py [--systems cartpole fish swimmer6]
+        [--variants base sysid_every=2 ...] [--keys 1 2 3] [--figure PATH]
 """
 
 from __future__ import annotations
@@ -22,7 +27,19 @@ import dataclasses
 import numpy as np
 
 
-def solve(name: str, every: int) -> dict:
+def _overrides(variant: str, solver, nx_nu: int) -> dict:
+    if variant == "base":
+        return {}
+    out = {}
+    for item in variant.split(","):
+        name, value = item.split("=")
+        kind = type(getattr(solver, name)) if getattr(solver, name) is not None else int
+        v = kind(value) if kind is not bool else value == "true"
+        out[name] = nx_nu if (name == "n_samples" and v == 0) else v
+    return out
+
+
+def solve(name: str, variant: str, key: int = 1) -> dict:
     import jax
 
     from configs import load as load_config
@@ -34,18 +51,21 @@ def solve(name: str, every: int) -> dict:
 
     cfg = load_config(f"{name}_d2c")
     jax.config.update("jax_enable_x64", cfg.experiment.x64)
-    cfg = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, sysid_every=every))
+    _, system, _ = resolve(cfg)
+    over = _overrides(variant, cfg.solver, system.nx + system.nu)
+    cfg = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, **over))
     _, system, task = resolve(cfg)
     params, sid = solver_params(cfg)
     U0 = initial_controls(jax.random.key(0), task.T, system.nu, cfg.solver.init, cfg.solver.init_scale)
-    t = compile_then_run(solve_d2c, (system,), (task, U0, jax.random.key(1), params, sid))
+    t = compile_then_run(solve_d2c, (system,), (task, U0, jax.random.key(key), params, sid))
     r = t.out
     per_id = sysid.steps_per_identification(sid, task.T)
-    curve = simulation_curve(r.cost_history, r.iterations, task.T, params.n_alphas, per_id)
+    curve = simulation_curve(r.identified, r.iterations, task.T, params.n_alphas, per_id)
     return {
         "cost": float(r.cost),
         "iterations": int(r.iterations),
-        "converged": bool(r.converged),
+        "identifications": int(np.asarray(r.identified).sum()),
+        "stop": int(r.stop_reason),
         "curve": curve,
         "costs": np.asarray(r.cost_history)[: curve.size],
         "compile_s": t.compile_s,
@@ -61,33 +81,38 @@ def steps_to(res: dict, target: float, rel: float) -> int | None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--systems", nargs="+", default=["cartpole", "fish", "swimmer6"])
-    ap.add_argument("--every", nargs="+", type=int, default=[1, 2, 4, 8])
+    ap.add_argument("--variants", nargs="+", default=["base", "sysid_every=2"])
+    ap.add_argument("--keys", nargs="+", type=int, default=[1], help="identification keys (a row each)")
     ap.add_argument("--figure", default=None, help="write cost against simulated steps here")
     a = ap.parse_args()
+    from mjx_surrogate.ilqr import StopReason
     from mjx_surrogate.runtime import configure_runtime
 
     configure_runtime()
     print(
-        "| system | every k | cost | vs k=1 | iterations | simulated steps | to 1 % of k=1's | "
-        "to 0.1 % | x fewer (0.1 %) | run s |"
+        "| system | variant | cost | vs first | stop | iterations | identifications | simulated steps | "
+        "to 1 % of first's | to 0.1 % | x fewer (0.1 %) | run s |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     curves = {}
-    for name in a.systems:
+    for name, key in [(n, k) for n in a.systems for k in a.keys]:
         base = None
-        for k in a.every:
-            r = solve(name, k)
+        for v in a.variants:
+            r = solve(name, v, key)
             base = base or r
             J = base["cost"]
             s1, s01 = steps_to(r, J, 1e-2), steps_to(r, J, 1e-3)
             b01 = steps_to(base, J, 1e-3)
             ratio = f"{b01 / s01:.2f}" if s01 and b01 else "-"
+            label = v if len(a.keys) == 1 else f"{v} (key {key})"
             print(
-                f"| {name} | {k} | {r['cost']:.6g} | {(r['cost'] - J) / abs(J):+.2e} | {r['iterations']} | "
+                f"| {name} | {label} | {r['cost']:.6g} | {(r['cost'] - J) / abs(J):+.2e} | "
+                f"{StopReason(r['stop']).verdict} | {r['iterations']} | {r['identifications']} | "
                 f"{int(r['curve'][-1])} | {s1} | {s01} | {ratio} | {r['run_s']:.1f} |",
                 flush=True,
             )
-            curves[(name, k)] = (r["curve"], r["costs"])
+            if key == a.keys[0]:
+                curves[(name, v)] = (r["curve"], r["costs"])
     if a.figure:
         import matplotlib
 
@@ -97,16 +122,16 @@ def main() -> None:
         fig, axes = plt.subplots(1, len(a.systems), figsize=(4.6 * len(a.systems), 3.6), squeeze=False)
         for ax, name in zip(axes[0], a.systems):
             J = min(np.nanmin(c[1]) for (n, _), c in curves.items() if n == name)
-            for (n, k), (x, y) in curves.items():
+            for (n, v), (x, y) in curves.items():
                 if n == name:
-                    ax.plot(x, np.maximum(y - J, 1e-12 * abs(J)) / abs(J), label=f"every {k}")
+                    ax.plot(x, np.maximum(y - J, 1e-12 * abs(J)) / abs(J), label=v)
             ax.set_xscale("log")
             ax.set_yscale("log")
             ax.set_title(name)
             ax.set_xlabel("simulated control steps")
             ax.set_ylabel("(J - J_best) / |J_best|")
             ax.grid(alpha=0.3, which="both")
-            ax.legend(fontsize=8)
+            ax.legend(fontsize=7)
         fig.tight_layout()
         fig.savefig(a.figure, dpi=110)
 

@@ -17,15 +17,17 @@ from mjx_surrogate.config import (
 CONFIG = Config(
     system=SystemConfig(name="fish", timestep=0.005, substeps=5),
     task=TaskConfig(preset="fish_d2c"),
-    solver=SolverConfig(
-        sysid="central_difference",
-        n_samples=40,
+    solver=SolverConfig(  # the sample-efficient identification of fish_d2c
+        sysid="forward_difference",
+        sysid_design="orthogonal",
+        n_samples=32,
+        sysid_every=2,
         init="random",
         init_scale=0.1,
         max_iter=300,
         rel_tol=1e-5,
-        sigma_x=1e-5,
-        sigma_u=1e-5,
+        sigma_x=1e-7,
+        sigma_u=1e-7,
     ),
     experiment=ExperimentConfig(kind="predict", x64=True),
     data=DataConfig(n_traj=200, levels=(0.05, 0.30)),

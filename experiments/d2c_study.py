@@ -40,11 +40,20 @@ def _solve_arrays(prefix: str, result, X_bb) -> dict:
         f"{prefix}_X": X_bb,
         f"{prefix}_K": result.K,
         f"{prefix}_cost_history": result.cost_history,
+        f"{prefix}_identified": result.identified,
     }
     if result.X_history.ndim == 3:
         out[f"{prefix}_X_history"] = result.X_history
         out[f"{prefix}_alpha_history"] = result.alpha_history
     return out
+
+
+def _shown_states(task, mj_model) -> list[int] | None:
+    """The state coordinates of the trajectory figure: those the cost weighs, then the
+    actuated ones; at most 16."""
+    w = np.diagonal(np.asarray(task.Q)) + np.diagonal(np.asarray(task.Q_f))
+    weighted = [int(i) for i in np.nonzero(w > 0)[0][:8]]
+    return list(dict.fromkeys(weighted + list(actuated_state_indices(mj_model))))[:16] or None
 
 
 def run(res: Resolved, record: Run, key: jax.Array) -> str:
@@ -151,7 +160,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     record.figure("cost_history.png", lambda: plots.cost_history(hist, f"{system.name}: {cfg.task.preset}"))
     per_id = sysid.steps_per_identification(sid_params, task.T)
     n_it = m_d2c["iterations"]
-    curve = pipeline.simulation_curve(a_d2c["d2c_cost_history"], n_it, task.T, sc.n_alphas, per_id)
+    curve = pipeline.simulation_curve(a_d2c["d2c_identified"], n_it, task.T, sc.n_alphas, per_id)
     record.figure(
         "cost_vs_simulations.png",
         lambda: plots.cost_vs_simulations(
@@ -169,7 +178,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             np.asarray(task.x_goal),
             state_labels(system.mj_model),
             f"D2C on {system.name} from {cfg.solver.init} controls",
-            actuated_state_indices(system.mj_model)[:16] or None,
+            _shown_states(task, system.mj_model),
         ),
     )
     record.figure(

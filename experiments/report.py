@@ -305,6 +305,7 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
     )
 
     report_control.control_sections(L, folders, fig, _section, _verdict, _f, _read)
+    report_control.swimmer15_section(L, folders, fig, _section, _verdict, _f)
 
     t = _load(folders.get("theory"))
     L += ['## The theory, numerically (Section "Data Driven Solutions")', ""]

@@ -44,6 +44,7 @@ EXPERIMENTS = (
     "fish_control",
     "cartpole_horizon",
     "swimmer_horizon",
+    "swimmer15_d2c",
 )
 
 
@@ -68,7 +69,7 @@ def quick(cfg, name: str):
         ),
         experiment=r(cfg.experiment, progress=False),
     )
-    if name.startswith("fish") or name == "swimmer_horizon":
+    if name.startswith("fish") or name in ("swimmer_horizon", "swimmer15_d2c"):
         cfg = r(cfg, task=r(cfg.task, T=60))
     if name in ("pendulum_predict", "cartpole_predict"):
         cfg = r(cfg, data=r(cfg.data, levels=(0.1, 0.6)))

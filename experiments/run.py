@@ -150,8 +150,8 @@ def _one_line_tyro_error(text: str) -> ConfigError:
     lines = [ln for ln in lines if ln and "helptext" not in ln.lower() and not re.fullmatch(r"[-─\s]+", ln)]
     lines = [re.sub(r"\s*-{3,}\s*", "", ln) for ln in lines]
     body = " ".join(lines[1:4] if len(lines) > 1 else lines)
-    fields = re.findall(r"--[\w.]+", body)
-    field = fields[0] if fields else "overrides"
+    fields = re.findall(r"--[\w.-]*\w", body)  # tyro writes snake_case fields with hyphens
+    field = "--" + fields[0][2:].replace("-", "_") if fields else "overrides"
     if "Unrecognized" in body:
         joined = " ".join(lines)
         after = joined.split("Perhaps you meant", 1)[1] if "Perhaps you meant" in joined else ""

@@ -113,6 +113,12 @@ class SolverConfig:
     ``mjx_surrogate.sysid.register_scheme``.
     sysid_every: with a one-step scheme, identify only every k-th time step (and the
     last) and interpolate linearly between (``mjx_surrogate.sysid_knots``).
+    sysid_design: a one-step scheme's perturbations: "gaussian" (D2C 2.0: i.i.d.
+    N(0, sigma^2)) or "orthogonal" (blocks of nx + nu orthogonal rows: with n_samples =
+    nx + nu the fewest samples, perfectly conditioned).
+    reuse_tol, reuse_max: after an accepted step whose actual decrease was within reuse_tol
+    of the model's promise, carry the model over (secant update) instead of identifying,
+    at most reuse_max iterations in a row (``mjx_surrogate.ilqr``); 0: always identify.
     """
 
     # Defaults come from the solver's own parameter types (one source of truth).
@@ -125,8 +131,12 @@ class SolverConfig:
     mu_factor: float = _ILQR.mu_factor
     n_alphas: int = _ILQR.n_alphas
     accept_ratio: float = _ILQR.accept_ratio
+    alpha_factor: float = _ILQR.alpha_factor  # step sizes alpha_factor ** (0 .. n_alphas - 1)
     sysid: str = "central_difference"  # a registered scheme (mjx_surrogate.sysid.SCHEMES)
     sysid_every: int = 1  # one-step schemes: identify every k-th step, interpolate between
+    sysid_design: Literal["gaussian", "orthogonal"] = "gaussian"  # one-step perturbations
+    reuse_tol: float = _ILQR.reuse_tol  # carry the model over when |ratio - 1| <= this
+    reuse_max: int = _ILQR.reuse_max  # ... at most this many iterations in a row
     n_samples: Optional[int] = None  # None: max(20, 2 (nx + nu))
     sigma_x: Optional[float] = None  # None: resolution.default_sigma
     sigma_u: Optional[float] = None
@@ -442,6 +452,12 @@ def validate_static(cfg: Config) -> None:
     _check_parallel(cfg.parallel)
     if not (math.isfinite(s.accept_ratio) and 0 < s.accept_ratio < 1):
         raise ConfigError("solver.accept_ratio", f"must be in (0, 1), got {s.accept_ratio}")
+    if not (math.isfinite(s.alpha_factor) and 0 < s.alpha_factor < 1):
+        raise ConfigError("solver.alpha_factor", f"must be in (0, 1), got {s.alpha_factor}")
+    if not (math.isfinite(s.reuse_tol) and s.reuse_tol >= 0):
+        raise ConfigError("solver.reuse_tol", f"must be a finite number >= 0, got {s.reuse_tol}")
+    if s.reuse_max < 0:
+        raise ConfigError("solver.reuse_max", f"must be >= 0, got {s.reuse_max}")
     if s.n_samples is not None and s.n_samples < 1:
         raise ConfigError("solver.n_samples", f"must be >= 1 (or unset), got {s.n_samples}")
     positive_int = {
@@ -584,6 +600,12 @@ def _check_registered(cfg: Config) -> None:
         raise ConfigError(
             "solver.sysid_every",
             f"> 1 needs a one-step scheme ({one_step}); {cfg.solver.sysid!r} identifies from rollouts",
+        )
+    if cfg.solver.sysid_design != "gaussian" and not scheme.one_step:
+        raise ConfigError(
+            "solver.sysid_design",
+            f"{cfg.solver.sysid_design!r} needs a one-step scheme; "
+            f"{cfg.solver.sysid!r} draws its own perturbations",
         )
     if not cfg.surrogate.kinds:
         raise ConfigError("surrogate.kinds", "give one or more surrogate kinds")

@@ -23,8 +23,16 @@ the regularised terms there, V_xx tends to -mu A'B (B'B)^-1 B'A as mu grows, goe
 indefinite and makes every later Q~_uu fail (seen on swimmer6, where B is small).
 
 Forward pass: u_t = clip(u_bar_t + alpha k_t + K_t (x_t - x_bar_t)), for ``n_alphas`` step
-sizes at once (vmap); a trial is accepted when its cost is finite and
-(J - J_alpha) / (-(alpha dV1 + alpha^2 dV2)) > accept_ratio; the best accepted trial wins.
+sizes alpha = alpha_factor^i, i = 0 .. n_alphas - 1, at once (vmap); a trial is accepted
+when its cost is finite and (J - J_alpha) / (-(alpha dV1 + alpha^2 dV2)) > accept_ratio;
+the best accepted trial wins.
+
+Model reuse (``reuse_tol`` > 0, ``reuse_max`` > 0): when the accepted step's decrease was
+within ``reuse_tol`` of the model's promise, |ratio - 1| <= reuse_tol, the next iteration
+skips ``linearize`` and carries the model over with a secant update from the step just
+taken (:func:`secant_update`: the accepted trial is a sample too), at most ``reuse_max``
+iterations in a row; a rejected step on a carried-over model is retried on a freshly
+identified one, and no minimum is declared on a carried-over model.
 
 Stopping rules (checked in this order after every iteration; :class:`StopReason`):
 relative cost decrease <= rel_tol; max|k| <= k_tol (1 + max|U|); no trial accepted while
@@ -122,6 +130,9 @@ class ILQRParams:
     mu_max: float = 1e10
     mu_factor: float = 4.0
     accept_ratio: float = 1e-4
+    alpha_factor: float = 0.5  # the line search's step sizes: alpha_factor ** (0 .. n_alphas - 1)
+    reuse_tol: float = 0.0  # reuse the model when |actual/expected decrease - 1| <= this
+    reuse_max: int = 0  # at most this many iterations in a row on a reused model
     max_iter: int = struct.field(pytree_node=False, default=100)
     n_alphas: int = struct.field(pytree_node=False, default=8)
     record_trajectories: bool = struct.field(pytree_node=False, default=False)
@@ -144,6 +155,7 @@ class ILQRResult(NamedTuple):
     mu: jax.Array
     X_history: jax.Array
     alpha_history: jax.Array  # [max_iter] accepted step size per iteration (0: rejected)
+    identified: jax.Array  # [max_iter] bool: the iteration called ``linearize``
 
 
 def closed_loop(
@@ -261,10 +273,31 @@ class _State(NamedTuple):
     it: jax.Array
     reason: jax.Array
     fresh: jax.Array  # nominal changed since the last linearisation
+    stale: jax.Array  # the model was carried over (secant update), not identified here
+    reuse_ok: jax.Array  # the last accepted step passed the reuse test
+    reused: jax.Array  # iterations in a row on a carried-over model
+    X_model: jax.Array  # the nominal the model belongs to (for the secant update)
+    U_model: jax.Array
     key: jax.Array
     history: jax.Array  # [max_iter+1] cost after each iteration
     X_history: jax.Array
     alphas: jax.Array  # [max_iter] accepted step sizes
+    identified: jax.Array  # [max_iter] bool
+
+
+def secant_update(A: jax.Array, B: jax.Array, dX: jax.Array, dU: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Broyden's rank-one update of each W_t = [A_t B_t] to the nominal's own step:
+    W_t += (dx_{t+1} - W_t s_t) s_t' / (s_t' s_t), s_t = [dx_t; du_t], so that W_t s_t =
+    dx_{t+1} afterwards and W_t is unchanged on directions orthogonal to s_t. A [T, nx, nx],
+    B [T, nx, nu], dX [T+1, nx], dU [T, nu]; a step below round-off leaves W_t as it is."""
+    nx = A.shape[-1]
+    W = jnp.concatenate([A, B], axis=-1)  # [T, nx, nx+nu]
+    S = jnp.concatenate([dX[:-1], dU], axis=-1)  # [T, nx+nu]
+    r = dX[1:] - jnp.einsum("tij,tj->ti", W, S)
+    ss = jnp.sum(S * S, axis=-1)
+    ok = ss > (1e3 * jnp.finfo(A.dtype).eps) ** 2
+    W = W + jnp.where(ok, 1.0 / jnp.where(ok, ss, 1.0), 0.0)[:, None, None] * r[:, :, None] * S[:, None, :]
+    return W[..., :nx], W[..., nx:]
 
 
 def ilqr(
@@ -314,7 +347,7 @@ def ilqr(
         if params.record_trajectories
         else jnp.zeros((0,), dtype)
     )
-    alphas = 0.5 ** jnp.arange(params.n_alphas, dtype=dtype)
+    alphas = jnp.asarray(params.alpha_factor, dtype) ** jnp.arange(params.n_alphas, dtype=dtype)
     p = params
 
     def cond(s: _State):
@@ -322,7 +355,20 @@ def ilqr(
 
     def body(s: _State) -> _State:
         key, sub = jax.random.split(s.key)
-        A, B = jax.lax.cond(s.fresh, lambda: linearize(s.X, s.U, s.K, sub), lambda: (s.A, s.B))
+        # A new nominal is identified afresh unless the last step passed the reuse test;
+        # then the model is carried over with a secant update, and identified afresh as
+        # soon as a step is rejected on it.
+        identify = (s.fresh & ~s.reuse_ok) | (~s.fresh & s.stale)
+        update = s.fresh & s.reuse_ok
+        A, B = jax.lax.cond(
+            identify,
+            lambda: linearize(s.X, s.U, s.K, sub),
+            lambda: jax.lax.cond(
+                update, lambda: secant_update(s.A, s.B, s.X - s.X_model, s.U - s.U_model), lambda: (s.A, s.B)
+            ),
+        )
+        stale = ~identify & (update | s.stale)
+        reused = jnp.where(identify, 0, s.reused + update)
         derivs = cost_derivatives(cost, s.X, s.U)
         k, K, dV, ok, reg = backward_pass(A, B, *derivs, s.U, u_min, u_max, s.mu)
         if trial_rollouts is None:
@@ -351,9 +397,14 @@ def ilqr(
         # No trial accepted although the model promises almost nothing: a minimum, up to
         # the noise of the black box / the LTV estimate.
         floor = ok & ~any_acc & (unreg * jnp.abs(dV[0] + dV[1]) <= p.rel_tol * jnp.abs(s.J))
+        # A minimum is declared on an identified model only; on a carried-over one the
+        # next iteration identifies instead.
+        done = (small_dJ | small_k | floor) & ~stale
+        near = jnp.abs(ratio[best] - 1.0) <= p.reuse_tol
+        reuse_ok = any_acc & near & (reused < p.reuse_max) & ~(small_dJ | small_k | floor)
         stop = progress_lib.poll(progress, it, J, mu)
         reason = jnp.select(
-            [small_dJ, small_k, floor, mu > p.mu_max, it >= p.max_iter, stop],
+            [done & small_dJ, done & small_k, done & floor, mu > p.mu_max, it >= p.max_iter, stop],
             [
                 StopReason.COST_CHANGE,
                 StopReason.SMALL_STEP,
@@ -376,10 +427,16 @@ def ilqr(
             it=it,
             reason=reason,
             fresh=any_acc,
+            stale=stale,
+            reuse_ok=reuse_ok,
+            reused=reused,
+            X_model=s.X,
+            U_model=s.U,
             key=key,
             history=s.history.at[it].set(J),
             X_history=s.X_history.at[it].set(X) if p.record_trajectories else s.X_history,
             alphas=s.alphas.at[it - 1].set(jnp.where(any_acc, alphas[best], 0.0)),
+            identified=s.identified.at[it - 1].set(identify),
         )
 
     init = _State(
@@ -394,10 +451,16 @@ def ilqr(
         it=jnp.asarray(0),
         reason=jnp.where(jnp.isfinite(J0), StopReason.RUNNING, StopReason.NOT_FINITE),
         fresh=jnp.array(True),
+        stale=jnp.array(False),
+        reuse_ok=jnp.array(False),
+        reused=jnp.asarray(0),
+        X_model=X0,
+        U_model=U0,
         key=key,
         history=jnp.full((n_hist,), jnp.nan, dtype).at[0].set(J0),
         X_history=X_hist,
         alphas=jnp.zeros((p.max_iter,), dtype),
+        identified=jnp.zeros((p.max_iter,), bool),
     )
     s = jax.lax.while_loop(cond, body, init)
     converged = jnp.isin(s.reason, jnp.asarray([int(r) for r in CONVERGED]))
@@ -414,4 +477,5 @@ def ilqr(
         mu=s.mu,
         X_history=s.X_history,
         alpha_history=s.alphas,
+        identified=s.identified,
     )

@@ -39,16 +39,14 @@ def initial_controls(
 
 
 def simulation_curve(
-    cost_history: np.ndarray, iterations: int, T: int, n_alphas: int, per_identification: int
+    identified: np.ndarray, iterations: int, T: int, n_alphas: int, per_identification: int
 ) -> np.ndarray:
     """Black-box control steps simulated up to each iteration, [iterations + 1]: the
-    initial rollout, then per iteration the line search (n_alphas T) and an identification
-    where the nominal changed (the first iteration, and after every accepted one)."""
-    h = np.asarray(cost_history)
+    initial rollout, then per iteration the line search (n_alphas T) and, where the solver
+    called ``linearize`` (``ILQRResult.identified`` [max_iter]), an identification."""
     it = int(iterations)
-    accepted = h[1 : it + 1] < h[:it]
-    identified = np.concatenate([[True], accepted[:-1]])[:it]
-    return T + np.concatenate([[0], np.cumsum(n_alphas * T + identified * per_identification)])
+    ident = np.asarray(identified, bool)[:it]
+    return T + np.concatenate([[0], np.cumsum(n_alphas * T + ident * per_identification)])
 
 
 def simulation_metrics(result: ILQRResult, T: int, n_alphas: int, sysid: sid.SysIdParams) -> dict:
@@ -56,7 +54,7 @@ def simulation_metrics(result: ILQRResult, T: int, n_alphas: int, sysid: sid.Sys
     simulated until the cost first came within 1 % and 0.1 % of the solve's final cost
     (machine-independent effort; None if the final cost is not finite)."""
     per_id = sid.steps_per_identification(sysid, T)
-    curve = simulation_curve(result.cost_history, result.iterations, T, n_alphas, per_id)
+    curve = simulation_curve(result.identified, result.iterations, T, n_alphas, per_id)
     J = np.asarray(result.cost_history)[: curve.size]
     to = {}
     for label, rel in (("1%", 1e-2), ("0.1%", 1e-3)):

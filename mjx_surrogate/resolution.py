@@ -162,14 +162,19 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
         mu_max=s.mu_max,
         mu_factor=s.mu_factor,
         accept_ratio=s.accept_ratio,
+        alpha_factor=s.alpha_factor,
         max_iter=s.max_iter,
         n_alphas=s.n_alphas,
+        reuse_tol=s.reuse_tol,
+        reuse_max=s.reuse_max,
         record_trajectories=record_trajectories,
     )
     n = s.n_samples or SysIdParams().n_samples  # resolve() sets it from nx + nu
     sx = SysIdParams().sigma_x if s.sigma_x is None else s.sigma_x  # resolve() sets both
     su = SysIdParams().sigma_u if s.sigma_u is None else s.sigma_u
-    sysid = SysIdParams(sigma_x=sx, sigma_u=su, scheme=s.sysid, n_samples=n, every=s.sysid_every)
+    sysid = SysIdParams(
+        sigma_x=sx, sigma_u=su, scheme=s.sysid, n_samples=n, every=s.sysid_every, design=s.sysid_design
+    )
     return ilqr, sysid
 
 

@@ -50,6 +50,7 @@ class SysIdParams:
     scheme: str = struct.field(pytree_node=False, default="central_difference")
     n_samples: int = struct.field(pytree_node=False, default=20)
     every: int = struct.field(pytree_node=False, default=1)  # identify every k-th step (sysid_knots)
+    design: str = struct.field(pytree_node=False, default="gaussian")  # or "orthogonal"
 
 
 def normal_equations(Z: jax.Array, Y: jax.Array, w: jax.Array | None) -> tuple[jax.Array, jax.Array]:
@@ -100,10 +101,27 @@ def _one_step_perturbations(
     """dx [n, T, nx] ~ N(0, sigma_x^2), du [n, T, nu] ~ N(0, sigma_u^2); drawn [T, n, .]
     (the layout of earlier versions, so a key gives the same samples) and returned with
     the sample axis leading, the axis that is spread over devices."""
-    kx, ku = jax.random.split(key)
-    dx = p.sigma_x * jax.random.normal(kx, (T, p.n_samples, nx), dtype)
-    du = p.sigma_u * jax.random.normal(ku, (T, p.n_samples, nu), dtype)
+    if p.design == "orthogonal":
+        scale = jnp.concatenate([jnp.full(nx, p.sigma_x, dtype), jnp.full(nu, p.sigma_u, dtype)])
+        z = orthogonal_design(key, T, p.n_samples, nx + nu, dtype) * scale  # [T, n, nx+nu]
+        dx, du = z[..., :nx], z[..., nx:]
+    else:
+        kx, ku = jax.random.split(key)
+        dx = p.sigma_x * jax.random.normal(kx, (T, p.n_samples, nx), dtype)
+        du = p.sigma_u * jax.random.normal(ku, (T, p.n_samples, nu), dtype)
     return jnp.swapaxes(dx, 0, 1), jnp.swapaxes(du, 0, 1)
+
+
+def orthogonal_design(key: jax.Array, T: int, n: int, m: int, dtype) -> jax.Array:
+    """[T, n, m]: for each t, the rows of ceil(n / m) random Householder reflections
+    I - 2 v v' / (v'v) of R^m, cut to n rows. Each block of m rows is orthonormal, so with
+    n = m the scaled regression's Gram matrix is the identity: the fewest samples that
+    determine [A_t B_t], perfectly conditioned."""
+    blocks = -(-n // m)
+    v = jax.random.normal(key, (T, blocks, m), dtype)
+    v = v / jnp.linalg.norm(v, axis=-1, keepdims=True)
+    H = jnp.eye(m, dtype=dtype) - 2.0 * v[..., :, None] * v[..., None, :]
+    return H.reshape(T, blocks * m, m)[:, :n]
 
 
 def central_difference(

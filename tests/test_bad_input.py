@@ -15,6 +15,15 @@ CASES = [
     (["smoke_d2c", "--solver.accept_ratio", "1.5"], "solver.accept_ratio"),
     (["smoke_predict", "--solver.n_samples", "2"], "solver.n_samples"),
     (["smoke_d2c", "--solver.sysid", "rollout", "--solver.sysid_every", "2"], "solver.sysid_every"),
+    (
+        ["smoke_d2c", "--solver.sysid", "rollout", "--solver.sysid_design", "orthogonal"],
+        "solver.sysid_design",
+    ),  # noqa: E501
+    (["smoke_d2c", "--solver.sysid_design", "sobol"], "--solver.sysid_design"),
+    (["smoke_d2c", "--solver.alpha_factor", "1"], "solver.alpha_factor"),
+    (["smoke_d2c", "--solver.reuse_tol", "nan"], "solver.reuse_tol"),
+    (["smoke_d2c", "--solver.reuse_tol", "-0.1"], "solver.reuse_tol"),
+    (["smoke_d2c", "--solver.reuse_max", "-1"], "solver.reuse_max"),
     (["smoke_predict", "--surrogate.mlp.stop_rel_tol", "1.5"], "surrogate.mlp.stop_rel_tol"),
     (["smoke_predict", "--surrogate.mlp.stop_window", "-1"], "surrogate.mlp.stop_window"),
     (["cartpole_horizon", "--data.n_traj", "3"], "data.n_traj"),

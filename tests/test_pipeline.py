@@ -14,8 +14,10 @@ A = np.array([[1.0, 0.1], [-0.3, 1.0]])
 B = np.array([[0.0], [0.1]])
 
 
-@pytest.mark.parametrize("scheme", ["central_difference", "forward_difference"])
-def test_simulation_curve_counts_every_black_box_step(scheme):
+@pytest.mark.parametrize(
+    "scheme, reuse", [("central_difference", 0), ("forward_difference", 0), ("forward_difference", 3)]
+)
+def test_simulation_curve_counts_every_black_box_step(scheme, reuse):
     calls = {"n": 0}
 
     def host_step(x, u):
@@ -30,16 +32,20 @@ def test_simulation_curve_counts_every_black_box_step(scheme):
     p = sysid.SysIdParams(sigma_x=1e-4, sigma_u=1e-4, scheme=scheme, n_samples=6)
     linearize = sysid.ltv_linearize(types.SimpleNamespace(step=step), p)
     cost = Cost(lambda x, u: 0.5 * x @ x + 0.05 * u @ u, lambda x: 5.0 * x @ x)
-    params = ILQRParams(max_iter=12, n_alphas=n_alphas, rel_tol=0.0, k_tol=0.0)
+    params = ILQRParams(
+        max_iter=12, n_alphas=n_alphas, rel_tol=0.0, k_tol=0.0, reuse_tol=0.5, reuse_max=reuse
+    )
     inf = jnp.full(1, jnp.inf)
     res = ilqr(
         step, linearize, cost, jnp.array([1.0, 0.0]), jnp.zeros((T, 1)), -inf, inf, params, jax.random.key(0)
     )
     it = int(res.iterations)
     h = np.asarray(res.cost_history)[: it + 1]
-    assert it >= 5 and np.any(h[1:] == h[:-1])  # some rejected iterations: no re-identification
+    ident = np.asarray(res.identified)[:it]
+    assert it >= 5 and not ident.all()  # iterations without an identification (rejected, reused)
+    assert ident.any() and (np.any(h[1:] == h[:-1]) or reuse)
     per_id = sysid.get_scheme(scheme).simulated_steps(T, p.n_samples)
-    curve = pipeline.simulation_curve(res.cost_history, it, T, n_alphas, per_id)
+    curve = pipeline.simulation_curve(res.identified, it, T, n_alphas, per_id)
     assert curve.shape == (it + 1,) and curve[0] == T
     assert curve[-1] == calls["n"]
     m = pipeline.simulation_metrics(res, T, n_alphas, p)

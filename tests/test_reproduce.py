@@ -37,6 +37,7 @@ FIGURES = {
     "fish_control": ["ltv_trajectory_evolution.png", "surrogate_controls.png"],
     "cartpole_horizon": ["horizon.png"],
     "swimmer_horizon": ["horizon.png"],
+    "swimmer15_d2c": ["cost_history.png", "trajectory_evolution.png", "cost_vs_simulations.png"],
 }
 
 
@@ -64,6 +65,7 @@ def test_quick_reproduction_produces_every_figure_and_resumes(tmp_path, capsys):
         "Pendulum to upright",
         "Fish to its target",
         "Six-link swimmer: open-loop against closed-loop identification",
+        "D2C on the 15-link swimmer",
         "convergence test of `configs/cartpole_analysis.py`",
         "order N",
         "Locality (docs/method.md): median relative spread",

@@ -40,6 +40,19 @@ def test_linear_system_recovered_to_roundoff(scheme):
     np.testing.assert_allclose(B, np.broadcast_to(B_TRUE, B.shape), atol=1e-10)
 
 
+@pytest.mark.parametrize("scheme", ["central_difference", "forward_difference"])
+def test_orthogonal_minimal_design_recovers_a_linear_system(scheme):
+    # nx + nu = 5 samples per time step: the fewest that determine [A_t B_t]
+    T = 6
+    U = jnp.asarray(rng.standard_normal((T, 2)))
+    X = simulate(linear_step, jnp.ones(3), U)
+    p = sysid.SysIdParams(sigma_x=0.1, sigma_u=0.1, scheme=scheme, n_samples=5, design="orthogonal")
+    fn = sysid.central_difference if scheme == "central_difference" else sysid.forward_difference
+    A, B = fn(linear_step, X, U, jax.random.key(5), p)
+    np.testing.assert_allclose(A, np.broadcast_to(A_TRUE, A.shape), atol=1e-10)
+    np.testing.assert_allclose(B, np.broadcast_to(B_TRUE, B.shape), atol=1e-10)
+
+
 def test_lstsq_matches_float64_numpy():
     Z = rng.standard_normal((4, 30, 5)) * np.array([1e-3, 1e-3, 1e-3, 1.0, 10.0])
     Y = rng.standard_normal((4, 30, 3))
