@@ -22,6 +22,7 @@ CONFIG = Config(
         sysid_design="orthogonal",
         n_samples=32,
         sysid_every=2,
+        sysid_refine_tol=1e-3,
         init="random",
         init_scale=0.1,
         max_iter=300,

@@ -158,9 +158,9 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     if exact_hist is not None:
         hist["exact Jacobians"] = exact_hist
     record.figure("cost_history.png", lambda: plots.cost_history(hist, f"{system.name}: {cfg.task.preset}"))
-    per_id = sysid.steps_per_identification(sid_params, task.T)
+    per_id = pipeline.steps_per_identification(sid_params, task.T)
     n_it = m_d2c["iterations"]
-    curve = pipeline.simulation_curve(a_d2c["d2c_identified"], n_it, task.T, sc.n_alphas, per_id)
+    curve = pipeline.simulation_curve(a_d2c["d2c_identified"], n_it, task.T, sc.n_alphas, *per_id)
     record.figure(
         "cost_vs_simulations.png",
         lambda: plots.cost_vs_simulations(

@@ -116,6 +116,9 @@ class SolverConfig:
     sysid_design: a one-step scheme's perturbations: "gaussian" (D2C 2.0: i.i.d.
     N(0, sigma^2)) or "orthogonal" (blocks of nx + nu orthogonal rows: with n_samples =
     nx + nu the fewest samples, perfectly conditioned).
+    sysid_refine_tol: with sysid_every > 1, identify at every step from the first accepted
+    step that gains at most this fraction of the cost, or where the solver would have
+    stopped (0: only there); minima are declared on every-step models only.
     reuse_tol, reuse_max: after an accepted step whose actual decrease was within reuse_tol
     of the model's promise, carry the model over (secant update) instead of identifying,
     at most reuse_max iterations in a row (``mjx_surrogate.ilqr``); 0: always identify.
@@ -135,6 +138,7 @@ class SolverConfig:
     sysid: str = "central_difference"  # a registered scheme (mjx_surrogate.sysid.SCHEMES)
     sysid_every: int = 1  # one-step schemes: identify every k-th step, interpolate between
     sysid_design: Literal["gaussian", "orthogonal"] = "gaussian"  # one-step perturbations
+    sysid_refine_tol: float = _ILQR.refine_tol  # sysid_every > 1: every step once a step gains <= this
     reuse_tol: float = _ILQR.reuse_tol  # carry the model over when |ratio - 1| <= this
     reuse_max: int = _ILQR.reuse_max  # ... at most this many iterations in a row
     n_samples: Optional[int] = None  # None: max(20, 2 (nx + nu))
@@ -454,6 +458,8 @@ def validate_static(cfg: Config) -> None:
         raise ConfigError("solver.accept_ratio", f"must be in (0, 1), got {s.accept_ratio}")
     if not (math.isfinite(s.alpha_factor) and 0 < s.alpha_factor < 1):
         raise ConfigError("solver.alpha_factor", f"must be in (0, 1), got {s.alpha_factor}")
+    if not (math.isfinite(s.sysid_refine_tol) and s.sysid_refine_tol >= 0):
+        raise ConfigError("solver.sysid_refine_tol", f"must be finite and >= 0, got {s.sysid_refine_tol}")
     if not (math.isfinite(s.reuse_tol) and s.reuse_tol >= 0):
         raise ConfigError("solver.reuse_tol", f"must be a finite number >= 0, got {s.reuse_tol}")
     if s.reuse_max < 0:

@@ -50,8 +50,11 @@ def _solve(
     """One iLQR solve: "d2c" on the black box (LTV models, the backend's own line-search
     rollouts), "exact" on the MJX step with ``jax.jacfwd`` Jacobians, or
     "finite_difference" on the black box with coordinate central differences."""
+    fine = None
     if method == "d2c":
         step, linearize, closed = system.step, sid.ltv_linearize(system, sysid), system.closed_loop
+        if sysid.every > 1:  # coarse (every k-th step), then fine (every step) near the end
+            fine = sid.ltv_linearize(system, sysid.replace(every=1))
     elif method == "finite_difference":
         step, linearize, closed = system.step, exact_linearize(system, method), system.closed_loop
     else:
@@ -70,6 +73,7 @@ def _solve(
         key,
         closed,
         progress,
+        linearize_fine=fine,
     )
 
 

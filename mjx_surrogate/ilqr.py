@@ -34,6 +34,12 @@ taken (:func:`secant_update`: the accepted trial is a sample too), at most ``reu
 iterations in a row; a rejected step on a carried-over model is retried on a freshly
 identified one, and no minimum is declared on a carried-over model.
 
+Coarse then fine (``linearize_fine`` given, e.g. identification at every k-th step and
+then at every step): iterations identify with ``linearize`` until a step gains at most
+``refine_tol`` |J|, or a stopping rule would fire on its model; from then on with
+``linearize_fine`` (mu restarts at mu_init). No minimum is declared, and no stall, on the
+coarse model.
+
 Stopping rules (checked in this order after every iteration; :class:`StopReason`):
 relative cost decrease <= rel_tol; max|k| <= k_tol (1 + max|U|); no trial accepted while
 the model promises |dV| <= rel_tol |J| (the noise floor of the black box); in the last two
@@ -133,6 +139,7 @@ class ILQRParams:
     alpha_factor: float = 0.5  # the line search's step sizes: alpha_factor ** (0 .. n_alphas - 1)
     reuse_tol: float = 0.0  # reuse the model when |actual/expected decrease - 1| <= this
     reuse_max: int = 0  # at most this many iterations in a row on a reused model
+    refine_tol: float = 0.0  # with linearize_fine: switch to it once a step gains <= this
     max_iter: int = struct.field(pytree_node=False, default=100)
     n_alphas: int = struct.field(pytree_node=False, default=8)
     record_trajectories: bool = struct.field(pytree_node=False, default=False)
@@ -155,7 +162,7 @@ class ILQRResult(NamedTuple):
     mu: jax.Array
     X_history: jax.Array
     alpha_history: jax.Array  # [max_iter] accepted step size per iteration (0: rejected)
-    identified: jax.Array  # [max_iter] bool: the iteration called ``linearize``
+    identified: jax.Array  # [max_iter] int8: 0 none, 1 ``linearize``, 2 ``linearize_fine``
 
 
 def closed_loop(
@@ -274,6 +281,8 @@ class _State(NamedTuple):
     reason: jax.Array
     fresh: jax.Array  # nominal changed since the last linearisation
     stale: jax.Array  # the model was carried over (secant update), not identified here
+    fine: jax.Array  # identify with linearize_fine from now on
+    fine_model: jax.Array  # the model came from linearize_fine
     reuse_ok: jax.Array  # the last accepted step passed the reuse test
     reused: jax.Array  # iterations in a row on a carried-over model
     X_model: jax.Array  # the nominal the model belongs to (for the secant update)
@@ -282,7 +291,7 @@ class _State(NamedTuple):
     history: jax.Array  # [max_iter+1] cost after each iteration
     X_history: jax.Array
     alphas: jax.Array  # [max_iter] accepted step sizes
-    identified: jax.Array  # [max_iter] bool
+    identified: jax.Array  # [max_iter] int8
 
 
 def secant_update(A: jax.Array, B: jax.Array, dX: jax.Array, dU: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -312,6 +321,7 @@ def ilqr(
     key: jax.Array,
     trial_rollouts: ClosedLoopFn | None = None,
     progress: progress_lib.ProgressMeter = progress_lib.NO_PROGRESS,
+    linearize_fine: LinearizeFn | None = None,
 ) -> ILQRResult:
     """Solve min_U J(x0, U) s.t. u_min <= u_t <= u_max. x0 [nx], U0 [T, nu].
 
@@ -358,16 +368,25 @@ def ilqr(
         # A new nominal is identified afresh unless the last step passed the reuse test;
         # then the model is carried over with a secant update, and identified afresh as
         # soon as a step is rejected on it.
-        identify = (s.fresh & ~s.reuse_ok) | (~s.fresh & s.stale)
-        update = s.fresh & s.reuse_ok
+        identify = (s.fresh & ~s.reuse_ok) | (~s.fresh & s.stale) | (s.fine & ~s.fine_model)
+        update = s.fresh & s.reuse_ok & ~identify
+
+        def identified_model():
+            if linearize_fine is None:
+                return linearize(s.X, s.U, s.K, sub)
+            return jax.lax.cond(
+                s.fine, lambda: linearize_fine(s.X, s.U, s.K, sub), lambda: linearize(s.X, s.U, s.K, sub)
+            )
+
         A, B = jax.lax.cond(
             identify,
-            lambda: linearize(s.X, s.U, s.K, sub),
+            identified_model,
             lambda: jax.lax.cond(
                 update, lambda: secant_update(s.A, s.B, s.X - s.X_model, s.U - s.U_model), lambda: (s.A, s.B)
             ),
         )
         stale = ~identify & (update | s.stale)
+        fine_model = jnp.where(identify, s.fine, s.fine_model)
         reused = jnp.where(identify, 0, s.reused + update)
         derivs = cost_derivatives(cost, s.X, s.U)
         k, K, dV, ok, reg = backward_pass(A, B, *derivs, s.U, u_min, u_max, s.mu)
@@ -399,12 +418,26 @@ def ilqr(
         floor = ok & ~any_acc & (unreg * jnp.abs(dV[0] + dV[1]) <= p.rel_tol * jnp.abs(s.J))
         # A minimum is declared on an identified model only; on a carried-over one the
         # next iteration identifies instead.
-        done = (small_dJ | small_k | floor) & ~stale
+        # A coarse model (``linearize``, when a fine one is given) hands over to the fine
+        # one once a step gains at most refine_tol, or where it would have stopped.
+        at_min = small_dJ | small_k | floor
+        gain_small = any_acc & (s.J - J <= p.refine_tol * jnp.abs(s.J))
+        coarse_end = ~fine_model & (at_min | (mu > p.mu_max) | gain_small)
+        fine = s.fine | coarse_end
+        mu = jnp.where(coarse_end, jnp.asarray(p.mu_init, mu.dtype), mu)  # a new model, a new schedule
+        done = at_min & ~stale & fine_model
         near = jnp.abs(ratio[best] - 1.0) <= p.reuse_tol
-        reuse_ok = any_acc & near & (reused < p.reuse_max) & ~(small_dJ | small_k | floor)
+        reuse_ok = any_acc & near & (reused < p.reuse_max) & ~at_min
         stop = progress_lib.poll(progress, it, J, mu)
         reason = jnp.select(
-            [done & small_dJ, done & small_k, done & floor, mu > p.mu_max, it >= p.max_iter, stop],
+            [
+                done & small_dJ,
+                done & small_k,
+                done & floor,
+                fine_model & (mu > p.mu_max),
+                it >= p.max_iter,
+                stop,
+            ],
             [
                 StopReason.COST_CHANGE,
                 StopReason.SMALL_STEP,
@@ -428,6 +461,8 @@ def ilqr(
             reason=reason,
             fresh=any_acc,
             stale=stale,
+            fine=fine,
+            fine_model=fine_model,
             reuse_ok=reuse_ok,
             reused=reused,
             X_model=s.X,
@@ -436,7 +471,9 @@ def ilqr(
             history=s.history.at[it].set(J),
             X_history=s.X_history.at[it].set(X) if p.record_trajectories else s.X_history,
             alphas=s.alphas.at[it - 1].set(jnp.where(any_acc, alphas[best], 0.0)),
-            identified=s.identified.at[it - 1].set(identify),
+            identified=s.identified.at[it - 1].set(
+                jnp.where(identify, 1 + (fine_model & (linearize_fine is not None)), 0).astype(jnp.int8)
+            ),
         )
 
     init = _State(
@@ -452,6 +489,8 @@ def ilqr(
         reason=jnp.where(jnp.isfinite(J0), StopReason.RUNNING, StopReason.NOT_FINITE),
         fresh=jnp.array(True),
         stale=jnp.array(False),
+        fine=jnp.array(linearize_fine is None),
+        fine_model=jnp.array(linearize_fine is None),
         reuse_ok=jnp.array(False),
         reused=jnp.asarray(0),
         X_model=X0,
@@ -460,7 +499,7 @@ def ilqr(
         history=jnp.full((n_hist,), jnp.nan, dtype).at[0].set(J0),
         X_history=X_hist,
         alphas=jnp.zeros((p.max_iter,), dtype),
-        identified=jnp.zeros((p.max_iter,), bool),
+        identified=jnp.zeros((p.max_iter,), jnp.int8),
     )
     s = jax.lax.while_loop(cond, body, init)
     converged = jnp.isin(s.reason, jnp.asarray([int(r) for r in CONVERGED]))

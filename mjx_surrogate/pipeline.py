@@ -39,22 +39,37 @@ def initial_controls(
 
 
 def simulation_curve(
-    identified: np.ndarray, iterations: int, T: int, n_alphas: int, per_identification: int
+    identified: np.ndarray,
+    iterations: int,
+    T: int,
+    n_alphas: int,
+    per_identification: int,
+    per_fine_identification: int | None = None,
 ) -> np.ndarray:
     """Black-box control steps simulated up to each iteration, [iterations + 1]: the
-    initial rollout, then per iteration the line search (n_alphas T) and, where the solver
-    called ``linearize`` (``ILQRResult.identified`` [max_iter]), an identification."""
+    initial rollout, then per iteration the line search (n_alphas T) and an identification
+    where the solver made one (``ILQRResult.identified`` [max_iter]: 1 ``linearize``,
+    ``per_identification`` steps; 2 ``linearize_fine``, ``per_fine_identification``)."""
     it = int(iterations)
-    ident = np.asarray(identified, bool)[:it]
-    return T + np.concatenate([[0], np.cumsum(n_alphas * T + ident * per_identification)])
+    ident = np.asarray(identified)[:it]
+    fine = per_identification if per_fine_identification is None else per_fine_identification
+    per = np.where(ident == 2, fine, np.where(ident == 1, per_identification, 0))
+    return T + np.concatenate([[0], np.cumsum(n_alphas * T + per)])
+
+
+def steps_per_identification(sysid: sid.SysIdParams, T: int) -> tuple[int, int]:
+    """Control steps of one identification of the D2C solve's coarse and fine models
+    (equal unless ``sysid.every`` > 1: then every k-th step first, every step near the end)."""
+    return sid.steps_per_identification(sysid, T), sid.steps_per_identification(sysid.replace(every=1), T)
 
 
 def simulation_metrics(result: ILQRResult, T: int, n_alphas: int, sysid: sid.SysIdParams) -> dict:
     """``simulated_steps`` of a D2C solve and ``simulations_to_optimum``: the control steps
     simulated until the cost first came within 1 % and 0.1 % of the solve's final cost
     (machine-independent effort; None if the final cost is not finite)."""
-    per_id = sid.steps_per_identification(sysid, T)
-    curve = simulation_curve(result.identified, result.iterations, T, n_alphas, per_id)
+    curve = simulation_curve(
+        result.identified, result.iterations, T, n_alphas, *steps_per_identification(sysid, T)
+    )
     J = np.asarray(result.cost_history)[: curve.size]
     to = {}
     for label, rel in (("1%", 1e-2), ("0.1%", 1e-3)):

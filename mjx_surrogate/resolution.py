@@ -167,6 +167,7 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
         n_alphas=s.n_alphas,
         reuse_tol=s.reuse_tol,
         reuse_max=s.reuse_max,
+        refine_tol=s.sysid_refine_tol,
         record_trajectories=record_trajectories,
     )
     n = s.n_samples or SysIdParams().n_samples  # resolve() sets it from nx + nu

@@ -21,6 +21,7 @@ CASES = [
     ),  # noqa: E501
     (["smoke_d2c", "--solver.sysid_design", "sobol"], "--solver.sysid_design"),
     (["smoke_d2c", "--solver.alpha_factor", "1"], "solver.alpha_factor"),
+    (["smoke_d2c", "--solver.sysid_refine_tol", "-1"], "solver.sysid_refine_tol"),
     (["smoke_d2c", "--solver.reuse_tol", "nan"], "solver.reuse_tol"),
     (["smoke_d2c", "--solver.reuse_tol", "-0.1"], "solver.reuse_tol"),
     (["smoke_d2c", "--solver.reuse_max", "-1"], "solver.reuse_max"),
