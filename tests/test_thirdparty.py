@@ -163,7 +163,7 @@ def tk_goal_bound(task, X, tol):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["reacher", "acrobot"])
+@pytest.mark.parametrize("name", ["acrobot"])
 def test_sample_efficient_identification_on_third_party_models(name):
     """An orthogonal minimal design (nx + nu forward differences) with model reuse reaches
     the default scheme's cost within 1 % on models we did not write, with fewer simulations."""
