@@ -1,26 +1,21 @@
 """The 15-link swimmer of the paper's first figure: nose -> (0.5, -0.6) in 8 s (T 800 at 0.01 s, as
-D2C 2.0 ran swimmer6).
+D2C 2.0 ran swimmer6), with swimmer6_d2c's solver settings except the identification design.
 nx 34, nu 14: central differences with an orthogonal design of exactly nx + nu = 48
 perturbations per time step (the fewest that determine [A_t B_t], perfectly conditioned),
 float64 and sigma 1e-5 as for swimmer6, on the native backend (MJX walks a 15-link chain
 level by level and is far slower on CPU cores: docs/performance.md).
 """
 
-from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+import dataclasses
 
-CONFIG = Config(
+from configs.swimmer6_d2c import CONFIG as SWIMMER6
+from mjx_surrogate.config import SystemConfig, TaskConfig
+
+CONFIG = dataclasses.replace(
+    SWIMMER6,
     system=SystemConfig(name="swimmer15", timestep=0.01, substeps=1, backend="native"),
     task=TaskConfig(preset="swimmer_nose", T=800),
-    solver=SolverConfig(
-        sysid="central_difference",
-        sysid_design="orthogonal",
-        n_samples=48,
-        init="random",
-        init_scale=0.1,
-        max_iter=400,
-        rel_tol=1e-5,
-        sigma_x=1e-5,
-        sigma_u=1e-5,
+    solver=dataclasses.replace(
+        SWIMMER6.solver, sysid_design="orthogonal", n_samples=48, max_iter=400, rel_tol=1e-5
     ),
-    experiment=ExperimentConfig(kind="d2c", exact_oracle=False, x64=True),
 )
