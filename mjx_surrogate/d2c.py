@@ -53,8 +53,8 @@ def _solve(
     fine = None
     if method == "d2c":
         step, linearize, closed = system.step, sid.ltv_linearize(system, sysid), system.closed_loop
-        if sysid.every > 1:  # coarse (every k-th step), then fine (every step) near the end
-            fine = sid.ltv_linearize(system, sysid.replace(every=1))
+        if (fine_sysid := sid.fine_params(sysid)) is not None:  # every k-th step, then every step
+            fine = sid.ltv_linearize(system, fine_sysid)
     elif method == "finite_difference":
         step, linearize, closed = system.step, exact_linearize(system, method), system.closed_loop
     else:

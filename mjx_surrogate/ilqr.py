@@ -416,10 +416,10 @@ def ilqr(
         # No trial accepted although the model promises almost nothing: a minimum, up to
         # the noise of the black box / the LTV estimate.
         floor = ok & ~any_acc & (unreg * jnp.abs(dV[0] + dV[1]) <= p.rel_tol * jnp.abs(s.J))
-        # A minimum is declared on an identified model only; on a carried-over one the
-        # next iteration identifies instead.
-        # A coarse model (``linearize``, when a fine one is given) hands over to the fine
-        # one once a step gains at most refine_tol, or where it would have stopped.
+        # Minima are declared on identified, fine models only: on a carried-over model the
+        # next iteration identifies; a coarse one (``linearize`` when a fine one is given)
+        # hands over to the fine one where it would have stopped, or once a step gains at
+        # most refine_tol.
         at_min = small_dJ | small_k | floor
         gain_small = any_acc & (s.J - J <= p.refine_tol * jnp.abs(s.J))
         coarse_end = ~fine_model & (at_min | (mu > p.mu_max) | gain_small)

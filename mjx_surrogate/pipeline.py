@@ -60,7 +60,8 @@ def simulation_curve(
 def steps_per_identification(sysid: sid.SysIdParams, T: int) -> tuple[int, int]:
     """Control steps of one identification of the D2C solve's coarse and fine models
     (equal unless ``sysid.every`` > 1: then every k-th step first, every step near the end)."""
-    return sid.steps_per_identification(sysid, T), sid.steps_per_identification(sysid.replace(every=1), T)
+    fine = sid.fine_params(sysid) or sysid
+    return sid.steps_per_identification(sysid, T), sid.steps_per_identification(fine, T)
 
 
 def simulation_metrics(result: ILQRResult, T: int, n_alphas: int, sysid: sid.SysIdParams) -> dict:

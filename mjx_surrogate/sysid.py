@@ -275,6 +275,12 @@ def ltv_linearize(system, p: SysIdParams) -> LinearizeFn:
     return sysid_knots.at_knots(get_scheme(p.scheme).make_linearize(system, p), p.every)
 
 
+def fine_params(p: SysIdParams) -> SysIdParams | None:
+    """The every-step identification a knotted one (``p.every`` > 1) hands over to near the
+    optimum (:func:`mjx_surrogate.ilqr.ilqr`'s ``linearize_fine``); None when p.every = 1."""
+    return p.replace(every=1) if p.every > 1 else None
+
+
 def steps_per_identification(p: SysIdParams, T: int) -> int:
     """Control steps one identification of scheme ``p.scheme`` simulates on a horizon T."""
     return get_scheme(p.scheme).simulated_steps(
