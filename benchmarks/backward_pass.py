@@ -35,7 +35,7 @@ def main() -> None:
     import jax
     import jax.numpy as jnp
 
-    from mjx_surrogate.ilqr import backward_pass
+    from mjx_surrogate.riccati import backward_pass
 
     spec = importlib.util.spec_from_file_location("ilqr_before", sys.argv[1])
     before = importlib.util.module_from_spec(spec)

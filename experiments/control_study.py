@@ -12,8 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import data, pipeline, plots, progress
-from mjx_surrogate.d2c import solve_exact
+from mjx_surrogate import chunked, data, pipeline, plots, progress
 from mjx_surrogate.evaluation import finite_or_none, replay
 from mjx_surrogate.resolution import Resolved, solver_params
 from mjx_surrogate.results import Run
@@ -94,7 +93,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
 
         def exact_stage():
             with progress.meter("exact-Jacobian iLQR (oracle)", sc.max_iter, ex.progress) as pm:
-                exact = jax.block_until_ready(solve_exact(system, task, U0, params, pm, jacobians=ex.oracle))
+                exact = chunked.solve_exact(system, task, U0, params, pm, ex.oracle).out
             names = ("exact_U", "exact_X", "exact_K")
             m, X_ex = pipeline.summary(exact, system, task, cfg.task.goal_tolerance, names)
             return m, {"exact_U": exact.U, "exact_X": X_ex, "exact_K": exact.K}

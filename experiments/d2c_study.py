@@ -11,14 +11,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import pipeline, plots, progress, sysid
-from mjx_surrogate.d2c import exact_linearize, solve_d2c, solve_exact, solve_multistart
+from mjx_surrogate import chunked, pipeline, plots, progress, sysid
+from mjx_surrogate.d2c import exact_linearize
 from mjx_surrogate.evaluation import evaluate_feedback
 from mjx_surrogate.linalg import ltv_relative_error
 from mjx_surrogate.resolution import Resolved, solver_params
 from mjx_surrogate.results import Run
 from mjx_surrogate.systems.system import actuated_state_indices, state_labels
-from mjx_surrogate.timing import compile_then_run
 
 
 def ltv_error(system, X, U, K, key, sid_params, jacobians: str = "jacfwd") -> dict:
@@ -74,19 +73,13 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
                 k_init, task.T, system.nu, sc.init, sc.init_scale, sc.n_starts, dtype
             )
             with progress.meter(f"D2C multi-start x{sc.n_starts}", sc.max_iter, ex.progress) as pm:
-                timed = compile_then_run(
-                    solve_multistart,
-                    (system,),
-                    (task, U0s, k_d2c, params, sid_params),
-                    static_kwargs={"method": "d2c"},
-                    dynamic_kwargs={"progress": pm},
-                )
+                timed = chunked.solve(system, task, U0s, k_d2c, params, sid_params, "d2c", pm)
             result, U0 = timed.out.best, U0s[int(timed.out.best_index)]
             extra = {"multistart_costs": np.asarray(timed.out.costs).tolist()}
         else:
             U0 = pipeline.initial_controls(k_init, task.T, system.nu, sc.init, sc.init_scale, None, dtype)
             with progress.meter("D2C (LTV identification + iLQR)", sc.max_iter, ex.progress) as pm:
-                timed = compile_then_run(solve_d2c, (system,), (task, U0, k_d2c, params, sid_params, pm))
+                timed = chunked.solve(system, task, U0, k_d2c, params, sid_params, "d2c", pm)
             result, extra = timed.out, {}
         m, X_bb = pipeline.summary(result, system, task, cfg.task.goal_tolerance, _names("d2c"))
         m.update(
@@ -109,12 +102,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
 
         def exact_stage():
             with progress.meter("exact-Jacobian iLQR (oracle)", sc.max_iter, ex.progress) as pm:
-                timed = compile_then_run(
-                    solve_exact,
-                    (system,),
-                    (task, U0, params, pm),
-                    static_kwargs={"jacobians": ex.oracle},
-                )
+                timed = chunked.solve_exact(system, task, U0, params, pm, ex.oracle)
             m, X_bb = pipeline.summary(timed.out, system, task, cfg.task.goal_tolerance, _names("exact"))
             m.update(compile_s=timed.compile_s, run_s=timed.run_s)
             return m, _solve_arrays("exact", timed.out, X_bb)

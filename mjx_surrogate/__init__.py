@@ -7,9 +7,10 @@ The public API, importable from here. Importing changes no global state; call
     ms.configure_runtime()
     cfg, system, task = ms.resolve(ms.Config(system=ms.SystemConfig(name="pendulum")))
     result = ms.solve_d2c(system, task, U0, jax.random.key(0))
+    timed = ms.chunked.solve(system, task, U0, jax.random.key(0))  # host-driven, cacheable
 """
 
-from mjx_surrogate import progress
+from mjx_surrogate import chunked, progress
 from mjx_surrogate.config import (
     AnalysisConfig,
     Config,
@@ -64,6 +65,7 @@ __all__ = [
     "ilqr",
     "make_system",
     "make_task",
+    "chunked",
     "progress",
     "register_scheme",
     "register_surrogate",

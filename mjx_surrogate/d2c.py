@@ -7,7 +7,8 @@ and the line-searched forward pass on the black box, all inside one jitted ``whi
 (``jacobians="jacfwd"``), or central differences of the black-box step along every
 coordinate (``"finite_difference"``: a cheaper reference, no autodiff to compile).
 Every solve takes a :class:`~mjx_surrogate.progress.ProgressMeter` (traced: switching it
-never recompiles).
+never recompiles). The same solves driven from the host in chunks, with no callback and so
+kept in the persistent compilation cache: :mod:`mjx_surrogate.chunked`.
 """
 
 from __future__ import annotations
@@ -20,7 +21,15 @@ import jax.numpy as jnp
 
 from mjx_surrogate import sharding
 from mjx_surrogate import sysid as sid
-from mjx_surrogate.ilqr import ClosedLoopFn, ILQRParams, ILQRResult, ilqr
+from mjx_surrogate.ilqr import (
+    ClosedLoopFn,
+    ILQRParams,
+    ILQRResult,
+    Problem,
+    ilqr_advance,
+    ilqr_init,
+    ilqr_result,
+)
 from mjx_surrogate.ilqr import closed_loop as ilqr_closed_loop
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.systems import System
@@ -37,18 +46,9 @@ def exact_linearize(system: System, jacobians: str = "jacfwd") -> sid.LinearizeF
     return lambda X, U, K, key: sid.exact_jacobians(system.mjx_step, X, U)
 
 
-def _solve(
-    system: System,
-    task: Task,
-    U0: jax.Array,
-    key: jax.Array,
-    params: ILQRParams,
-    sysid: sid.SysIdParams,
-    method: str,
-    progress: ProgressMeter,
-) -> ILQRResult:
-    """One iLQR solve: "d2c" on the black box (LTV models, the backend's own line-search
-    rollouts), "exact" on the MJX step with ``jax.jacfwd`` Jacobians, or
+def problem(system: System, task: Task, sysid: sid.SysIdParams, method: str) -> Problem:
+    """The iLQR problem of one solve: "d2c" on the black box (LTV models, the backend's own
+    line-search rollouts), "exact" on the MJX step with ``jax.jacfwd`` Jacobians, or
     "finite_difference" on the black box with coordinate central differences."""
     fine = None
     if method == "d2c":
@@ -61,20 +61,23 @@ def _solve(
         step, linearize, closed = system.mjx_step, exact_linearize(system), None
     if system.mesh is not None:
         closed = sharded_trials(step, closed, system.mesh)
-    return ilqr(
-        step,
-        linearize,
-        task_cost(task),
-        task.x0,
-        U0,
-        task.u_min,
-        task.u_max,
-        params,
-        key,
-        closed,
-        progress,
-        linearize_fine=fine,
-    )
+    return Problem(step, linearize, task_cost(task), task.x0, task.u_min, task.u_max, closed, fine)
+
+
+def _solve(
+    system: System,
+    task: Task,
+    U0: jax.Array,
+    key: jax.Array,
+    params: ILQRParams,
+    sysid: sid.SysIdParams,
+    method: str,
+    progress: ProgressMeter,
+) -> ILQRResult:
+    """One solve of :func:`problem` from U0 [T, nu], as one program."""
+    prob = problem(system, task, sysid, method)
+    state = ilqr_init(prob, U0, params, key)
+    return ilqr_result(ilqr_advance(prob, state, params, progress=progress))
 
 
 def sharded_trials(step, closed_loop, mesh) -> ClosedLoopFn:
@@ -117,8 +120,13 @@ def solve_exact(
 ) -> ILQRResult:
     """iLQR from U0 [T, nu] with exact Jacobians (the oracle): ``jacobians`` is "jacfwd"
     (through the MJX step) or "finite_difference" (of the black-box step)."""
-    method = "exact" if jacobians == "jacfwd" else "finite_difference"
+    method = oracle_method(jacobians)
     return _solve(system, task, U0, jax.random.key(0), params, sid.SysIdParams(), method, progress)
+
+
+def oracle_method(jacobians: str) -> str:
+    """The :func:`problem` method of an oracle's ``jacobians`` ("jacfwd" or "finite_difference")."""
+    return "exact" if jacobians == "jacfwd" else "finite_difference"
 
 
 class MultiStart(NamedTuple):

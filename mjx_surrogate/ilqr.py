@@ -7,20 +7,8 @@ The solver sees only functions:
   the local LTV model of the nominal (exact Jacobians, LTV least squares, a surrogate...);
 * ``cost``: :class:`Cost`, running ``l(x, u)`` and terminal ``l_f(x)``.
 
-Backward pass (Tassa-style regularisation mu on V_xx; Q_uu positive definite at every t):
-
-    Q_x  = l_x + A' V_x            Q_u  = l_u + B' V_x
-    Q_xx = l_xx + A' V_xx A        Q_uu = l_uu + B' V_xx B        Q_ux = l_ux + B' V_xx A
-    Q~_uu = Q_uu + mu B'B          Q~_ux = Q_ux + mu B'A          (regularised: the step only)
-    k = argmin_{lo <= k <= hi} 1/2 k' Q~_uu k + Q_u' k   (box QP, projected Newton)
-    K = -Q~_uu^-1 Q~_ux on the free controls, 0 on clamped ones
-    V_x  = Q_x + K' Q_uu k + K' Q_u + Q_ux' k
-    V_xx = Q_xx + K' Q_uu K + K' Q_ux + Q_ux' K
-    dV   = (sum k' Q_u, sum 1/2 k' Q_uu k)
-
-V and dV use the plain Q terms: the value of the regularised policy under the model. With
-the regularised terms there, V_xx tends to -mu A'B (B'B)^-1 B'A as mu grows, goes
-indefinite and makes every later Q~_uu fail (seen on swimmer6, where B is small).
+Backward pass: :func:`mjx_surrogate.riccati.backward_pass` (the Riccati sweep on the LTV
+model, box-constrained k, regularisation mu).
 
 Forward pass: u_t = clip(u_bar_t + alpha k_t + K_t (x_t - x_bar_t)), for ``n_alphas`` step
 sizes alpha = alpha_factor^i, i = 0 .. n_alphas - 1, at once (vmap); a trial is accepted
@@ -46,6 +34,13 @@ the model promises |dV| <= rel_tol |J| (the noise floor of the black box); in th
 k and dV are first multiplied by 1 + reg (:func:`backward_pass`), as a heavily regularised
 step is small without being optimal; mu > mu_max
 (no descent found: stalled); max_iter; a stop requested through the progress meter.
+
+One solve, one trace: :func:`ilqr`. The same loop in pieces, for a host that drives it:
+:func:`ilqr_init` (the initial rollout), :func:`ilqr_advance` (iterate up to a given
+iteration count, or mark the solve interrupted) and :func:`ilqr_result`; the functions and
+fixed data of the problem travel together as a :class:`Problem`. A loop driven from the
+host needs no host callback for its progress and stop requests, so its programs can be
+kept in JAX's persistent compilation cache (:mod:`mjx_surrogate.chunked`).
 """
 
 from __future__ import annotations
@@ -59,15 +54,27 @@ from flax import struct
 
 from mjx_surrogate import progress as progress_lib
 from mjx_surrogate.cost import Cost, trajectory_cost
-from mjx_surrogate.linalg import spd_solve
-from mjx_surrogate.trajectory import feedback_rollout
+from mjx_surrogate.riccati import backward_pass, cost_derivatives
+from mjx_surrogate.trajectory import feedback_rollout, feedback_rollouts
 
 StepFn = Callable[[jax.Array, jax.Array], jax.Array]
 LinearizeFn = Callable[[jax.Array, jax.Array, jax.Array, jax.Array], tuple[jax.Array, jax.Array]]
 # (x0, X_bar, U_bar, k, K, alphas [A], lo, hi) -> (X [A, T+1, nx], U [A, T, nu])
 ClosedLoopFn = Callable[..., tuple[jax.Array, jax.Array]]
 
-__all__ = ["Cost", "ILQRParams", "ILQRResult", "StopReason", "ilqr", "trajectory_cost"]
+__all__ = [
+    "Cost",
+    "ILQRParams",
+    "ILQRResult",
+    "ILQRState",
+    "Problem",
+    "StopReason",
+    "ilqr",
+    "ilqr_advance",
+    "ilqr_init",
+    "ilqr_result",
+    "trajectory_cost",
+]
 
 
 class StopReason(enum.IntEnum):
@@ -181,94 +188,26 @@ def closed_loop(
     return feedback_rollout(step, x0, X_bar, U_bar, K, alpha * k, lo, hi)
 
 
-def box_qp(
-    Quu: jax.Array, Qu: jax.Array, lo: jax.Array, hi: jax.Array, iters: int = 6
-) -> tuple[jax.Array, jax.Array, jax.Array]:
-    """min 1/2 k'Quu k + Qu'k s.t. lo <= k <= hi by projected Newton; returns (k, free mask,
-    ok), ok = Quu positive definite (from the unconstrained solve that starts the search)."""
-    n = Qu.shape[0]
-    eye = jnp.eye(n, dtype=Qu.dtype)
-    obj = lambda x: 0.5 * x @ Quu @ x + Qu @ x  # noqa: E731
-    steps = 0.5 ** jnp.arange(6, dtype=Qu.dtype)
+class Problem(NamedTuple):
+    """What the solver sees: functions (module docstring) and the fixed data of one problem.
+    x0 [nx]; u_min, u_max [nu]. ``trial_rollouts`` replaces the default line-search
+    forward pass (``closed_loop`` over ``step``, vmapped over the step sizes) with one call
+    for all step sizes: the native backend makes one host call per iteration with it instead
+    of one per time step. ``linearize_fine``: the every-step model a coarse one hands over to."""
 
-    def free_set(x):
-        g = Qu + Quu @ x
-        clamped = ((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0))
-        return ~clamped, g
-
-    def body(_, x):
-        free, g = free_set(x)
-        H = jnp.where(free[:, None] & free[None, :], Quu, eye)
-        d, _ = spd_solve(H, jnp.where(free, -g, 0.0))
-        cands = jnp.clip(x[None] + steps[:, None] * d[None], lo, hi)
-        vals = jax.vmap(obj)(cands)
-        best = cands[jnp.argmin(vals)]
-        return jnp.where(jnp.min(vals) < obj(x), best, x)
-
-    x0, ok = spd_solve(Quu, Qu)
-    x = jax.lax.fori_loop(0, iters, body, jnp.clip(-x0, lo, hi))
-    return x, free_set(x)[0], ok
+    step: StepFn
+    linearize: LinearizeFn
+    cost: Cost
+    x0: jax.Array
+    u_min: jax.Array
+    u_max: jax.Array
+    trial_rollouts: ClosedLoopFn | None = None
+    linearize_fine: LinearizeFn | None = None
 
 
-def backward_pass(A, B, lx, lu, lxx, luu, lux, VxT, VxxT, U, lo, hi, mu):
-    """Riccati sweep. Returns k [T, nu], K [T, nu, nx], dV = (sum k'Q_u, sum 1/2 k'Q_uu k),
-    ok (the regularised Q~_uu positive definite at every t) and reg, the largest share of
-    the regularisation in the step's curvature, max_t ||mu B'B|| / ||Q_uu|| (Frobenius;
-    reg <= 1: the step is within a factor of about 2 of the Newton step). Without any finite limit
-    the box QP is skipped: one solve per t gives k and K."""
-    bounded = jnp.any(jnp.isfinite(lo) | jnp.isfinite(hi))
+class ILQRState(NamedTuple):
+    """The loop's carry: nominal X [T+1, nx], U [T, nu], gains, model [A B], schedules."""
 
-    def body(carry, inp):
-        Vx, Vxx, ok = carry
-        At, Bt, lxt, lut, lxxt, luut, luxt, ut = inp
-        Qx = lxt + At.T @ Vx
-        Qu = lut + Bt.T @ Vx
-        Qxx = lxxt + At.T @ Vxx @ At
-        Quu = luut + Bt.T @ Vxx @ Bt
-        Qux = luxt + Bt.T @ Vxx @ At
-        Quu = 0.5 * (Quu + Quu.T)
-        # The regularised pair only shapes the step (k, K); V and dV use the plain Q terms.
-        Quu_r = Quu + mu * Bt.T @ Bt
-        Qux_r = Qux + mu * Bt.T @ At
-
-        def boxed():
-            kt, free, ok = box_qp(Quu_r, Qu, lo - ut, hi - ut)
-            Hf = jnp.where(free[:, None] & free[None, :], Quu_r, jnp.eye(Qu.shape[0], dtype=Qu.dtype))
-            return kt, -spd_solve(Hf, jnp.where(free[:, None], Qux_r, 0.0))[0], ok
-
-        def unbounded():  # no finite limit: one solve gives k, K and the definiteness test
-            sol, ok = spd_solve(Quu_r, jnp.concatenate([Qu[:, None], Qux_r], axis=1))
-            return -sol[:, 0], -sol[:, 1:], ok
-
-        kt, Kt, ok_t = jax.lax.cond(bounded, boxed, unbounded)
-        Vx_new = Qx + Kt.T @ Quu @ kt + Kt.T @ Qu + Qux.T @ kt
-        Vxx_new = Qxx + Kt.T @ Quu @ Kt + Kt.T @ Qux + Qux.T @ Kt
-        Vxx_new = 0.5 * (Vxx_new + Vxx_new.T)
-        dv = jnp.stack([kt @ Qu, 0.5 * kt @ Quu @ kt])
-        ok_t = ok_t & jnp.all(jnp.isfinite(Kt)) & jnp.all(jnp.isfinite(kt))
-        reg_t = mu * jnp.linalg.norm(Bt.T @ Bt) / jnp.maximum(jnp.linalg.norm(Quu), jnp.finfo(Quu.dtype).tiny)
-        return (Vx_new, Vxx_new, ok & ok_t), (kt, Kt, dv, reg_t)
-
-    (_, _, ok), (k, K, dv, reg) = jax.lax.scan(
-        body, (VxT, VxxT, jnp.array(True)), (A, B, lx, lu, lxx, luu, lux, U), reverse=True
-    )
-    return k, K, dv.sum(0), ok, jnp.max(reg)
-
-
-def cost_derivatives(cost: Cost, X: jax.Array, U: jax.Array):
-    """l_x [T, nx], l_u [T, nu], l_xx, l_uu, l_ux and terminal V_x, V_xx by autodiff (or
-    the cost's own ``derivatives``)."""
-    if cost.derivatives is not None:
-        return cost.derivatives(X, U)
-    lx, lu = jax.vmap(jax.grad(cost.running, argnums=(0, 1)))(X[:-1], U)
-    hess = jax.vmap(jax.hessian(cost.running, argnums=(0, 1)))(X[:-1], U)
-    (lxx, _), (lux, luu) = hess
-    VxT = jax.grad(cost.terminal)(X[-1])
-    VxxT = jax.hessian(cost.terminal)(X[-1])
-    return lx, lu, lxx, luu, lux, VxT, VxxT
-
-
-class _State(NamedTuple):
     X: jax.Array
     U: jax.Array
     K: jax.Array
@@ -309,174 +248,25 @@ def secant_update(A: jax.Array, B: jax.Array, dX: jax.Array, dU: jax.Array) -> t
     return W[..., :nx], W[..., nx:]
 
 
-def ilqr(
-    step: StepFn,
-    linearize: LinearizeFn,
-    cost: Cost,
-    x0: jax.Array,
-    U0: jax.Array,
-    u_min: jax.Array,
-    u_max: jax.Array,
-    params: ILQRParams,
-    key: jax.Array,
-    trial_rollouts: ClosedLoopFn | None = None,
-    progress: progress_lib.ProgressMeter = progress_lib.NO_PROGRESS,
-    linearize_fine: LinearizeFn | None = None,
-) -> ILQRResult:
-    """Solve min_U J(x0, U) s.t. u_min <= u_t <= u_max. x0 [nx], U0 [T, nu].
-
-    ``trial_rollouts`` replaces the default line-search forward pass (``closed_loop`` over
-    ``step``, vmapped over the step sizes) with one call for all step sizes; the native
-    backend uses it to make one host call per iteration instead of one per time step.
-    ``progress`` is polled once per iteration (:mod:`mjx_surrogate.progress`); a stop
-    request ends the loop with ``StopReason.INTERRUPTED`` and the best iterate so far.
-
-    Pure and traceable: wrap in ``jax.jit`` (with step/linearize/cost fixed) or ``vmap``
-    over x0/U0/keys for multi-start solves.
-    """
+def ilqr_init(problem: Problem, U0: jax.Array, params: ILQRParams, key: jax.Array) -> ILQRState:
+    """The state before the first iteration: U0 [T, nu] clipped to the limits and rolled out."""
+    x0, u_min, u_max = problem.x0, problem.u_min, problem.u_max
     T, nu = U0.shape
     nx = x0.shape[0]
     dtype = x0.dtype
     U0 = jnp.clip(U0.astype(dtype), u_min, u_max)
     zeros_K = jnp.zeros((T, nu, nx), dtype)
-    X0, _ = closed_loop(
-        step,
-        x0,
-        jnp.zeros((T + 1, nx), dtype),
-        U0,
-        jnp.zeros((T, nu), dtype),
-        zeros_K,
-        jnp.zeros((), dtype),
-        u_min,
-        u_max,
-    )
-    J0 = trajectory_cost(cost, X0, U0)
+    zeros_x = jnp.zeros((T + 1, nx), dtype)
+    X0, _ = closed_loop(problem.step, x0, zeros_x, U0, jnp.zeros((T, nu), dtype), zeros_K, 0.0, u_min, u_max)
+    J0 = trajectory_cost(problem.cost, X0, U0)
     n_hist = params.max_iter + 1
     X_hist = (
         jnp.full((n_hist, T + 1, nx), jnp.nan, dtype).at[0].set(X0)
         if params.record_trajectories
         else jnp.zeros((0,), dtype)
     )
-    alphas = jnp.asarray(params.alpha_factor, dtype) ** jnp.arange(params.n_alphas, dtype=dtype)
-    p = params
-
-    def cond(s: _State):
-        return s.reason == StopReason.RUNNING
-
-    def body(s: _State) -> _State:
-        key, sub = jax.random.split(s.key)
-        # A new nominal is identified afresh unless the last step passed the reuse test;
-        # then the model is carried over with a secant update, and identified afresh as
-        # soon as a step is rejected on it.
-        identify = (s.fresh & ~s.reuse_ok) | (~s.fresh & s.stale) | (s.fine & ~s.fine_model)
-        update = s.fresh & s.reuse_ok & ~identify
-
-        def identified_model():
-            if linearize_fine is None:
-                return linearize(s.X, s.U, s.K, sub)
-            return jax.lax.cond(
-                s.fine, lambda: linearize_fine(s.X, s.U, s.K, sub), lambda: linearize(s.X, s.U, s.K, sub)
-            )
-
-        A, B = jax.lax.cond(
-            identify,
-            identified_model,
-            lambda: jax.lax.cond(
-                update, lambda: secant_update(s.A, s.B, s.X - s.X_model, s.U - s.U_model), lambda: (s.A, s.B)
-            ),
-        )
-        stale = ~identify & (update | s.stale)
-        fine_model = jnp.where(identify, s.fine, s.fine_model)
-        reused = jnp.where(identify, 0, s.reused + update)
-        derivs = cost_derivatives(cost, s.X, s.U)
-        k, K, dV, ok, reg = backward_pass(A, B, *derivs, s.U, u_min, u_max, s.mu)
-        if trial_rollouts is None:
-            trial = jax.vmap(closed_loop, in_axes=(None, None, None, None, None, None, 0, None, None))
-            Xa, Ua = trial(step, x0, s.X, s.U, k, K, alphas, u_min, u_max)
-        else:
-            Xa, Ua = trial_rollouts(x0, s.X, s.U, k, K, alphas, u_min, u_max)
-        Ja = jax.vmap(trajectory_cost, in_axes=(None, 0, 0))(cost, Xa, Ua)
-        expected = -(alphas * dV[0] + alphas**2 * dV[1])
-        ratio = (s.J - Ja) / jnp.where(expected > 0, expected, jnp.inf)
-        accept = ok & jnp.isfinite(Ja) & (Ja < s.J) & (ratio > p.accept_ratio)
-        any_acc = jnp.any(accept)
-        best = jnp.argmin(jnp.where(accept, Ja, jnp.inf))
-        J = jnp.where(any_acc, Ja[best], s.J)
-        X = jnp.where(any_acc, Xa[best], s.X)
-        mu = jnp.where(
-            any_acc, jnp.maximum(s.mu / p.mu_factor, p.mu_min), jnp.maximum(s.mu * p.mu_factor, p.mu_min)
-        )
-        it = s.it + 1
-        scale_u = 1.0 + jnp.max(jnp.abs(s.U))
-        # A small step or a small promise means a minimum only if the regularisation did
-        # not make it small: both scale like 1 / (1 + reg), so they are judged undone.
-        unreg = 1.0 + reg
-        small_k = ok & (unreg * jnp.max(jnp.abs(k)) < p.k_tol * scale_u)
-        small_dJ = any_acc & ((s.J - J) <= p.rel_tol * jnp.abs(s.J))
-        # No trial accepted although the model promises almost nothing: a minimum, up to
-        # the noise of the black box / the LTV estimate.
-        floor = ok & ~any_acc & (unreg * jnp.abs(dV[0] + dV[1]) <= p.rel_tol * jnp.abs(s.J))
-        # Minima are declared on identified, fine models only: on a carried-over model the
-        # next iteration identifies; a coarse one (``linearize`` when a fine one is given)
-        # hands over to the fine one where it would have stopped, or once a step gains at
-        # most refine_tol.
-        at_min = small_dJ | small_k | floor
-        gain_small = any_acc & (s.J - J <= p.refine_tol * jnp.abs(s.J))
-        coarse_end = ~fine_model & (at_min | (mu > p.mu_max) | gain_small)
-        fine = s.fine | coarse_end
-        mu = jnp.where(coarse_end, jnp.asarray(p.mu_init, mu.dtype), mu)  # a new model, a new schedule
-        done = at_min & ~stale & fine_model
-        near = jnp.abs(ratio[best] - 1.0) <= p.reuse_tol
-        reuse_ok = any_acc & near & (reused < p.reuse_max) & ~at_min
-        stop = progress_lib.poll(progress, it, J, mu)
-        reason = jnp.select(
-            [
-                done & small_dJ,
-                done & small_k,
-                done & floor,
-                fine_model & (mu > p.mu_max),
-                it >= p.max_iter,
-                stop,
-            ],
-            [
-                StopReason.COST_CHANGE,
-                StopReason.SMALL_STEP,
-                StopReason.NOISE_FLOOR,
-                StopReason.NO_DESCENT,
-                StopReason.MAX_ITER,
-                StopReason.INTERRUPTED,
-            ],
-            StopReason.RUNNING,
-        )
-        return _State(
-            X=X,
-            U=jnp.where(any_acc, Ua[best], s.U),
-            K=jnp.where(any_acc, K, s.K),
-            k=jnp.where(any_acc, k, s.k),
-            A=A,
-            B=B,
-            J=J,
-            mu=mu,
-            it=it,
-            reason=reason,
-            fresh=any_acc,
-            stale=stale,
-            fine=fine,
-            fine_model=fine_model,
-            reuse_ok=reuse_ok,
-            reused=reused,
-            X_model=s.X,
-            U_model=s.U,
-            key=key,
-            history=s.history.at[it].set(J),
-            X_history=s.X_history.at[it].set(X) if p.record_trajectories else s.X_history,
-            alphas=s.alphas.at[it - 1].set(jnp.where(any_acc, alphas[best], 0.0)),
-            identified=s.identified.at[it - 1].set(
-                jnp.where(identify, 1 + (fine_model & (linearize_fine is not None)), 0).astype(jnp.int8)
-            ),
-        )
-
-    init = _State(
+    coarse = problem.linearize_fine is not None
+    return ILQRState(
         X=X0,
         U=U0,
         K=zeros_K,
@@ -484,13 +274,13 @@ def ilqr(
         A=jnp.zeros((T, nx, nx), dtype),
         B=jnp.zeros((T, nx, nu), dtype),
         J=J0,
-        mu=jnp.asarray(p.mu_init, dtype),
+        mu=jnp.asarray(params.mu_init, dtype),
         it=jnp.asarray(0),
         reason=jnp.where(jnp.isfinite(J0), StopReason.RUNNING, StopReason.NOT_FINITE),
         fresh=jnp.array(True),
         stale=jnp.array(False),
-        fine=jnp.array(linearize_fine is None),
-        fine_model=jnp.array(linearize_fine is None),
+        fine=jnp.array(not coarse),
+        fine_model=jnp.array(not coarse),
         reuse_ok=jnp.array(False),
         reused=jnp.asarray(0),
         X_model=X0,
@@ -498,10 +288,154 @@ def ilqr(
         key=key,
         history=jnp.full((n_hist,), jnp.nan, dtype).at[0].set(J0),
         X_history=X_hist,
-        alphas=jnp.zeros((p.max_iter,), dtype),
-        identified=jnp.zeros((p.max_iter,), jnp.int8),
+        alphas=jnp.zeros((params.max_iter,), dtype),
+        identified=jnp.zeros((params.max_iter,), jnp.int8),
     )
-    s = jax.lax.while_loop(cond, body, init)
+
+
+def _iteration(problem: Problem, p: ILQRParams, progress, s: ILQRState) -> ILQRState:
+    """One iLQR iteration: model, backward pass, line search, stopping rules."""
+    step, linearize, cost, x0, u_min, u_max = problem[:6]
+    linearize_fine = problem.linearize_fine
+    dtype = x0.dtype
+    alphas = jnp.asarray(p.alpha_factor, dtype) ** jnp.arange(p.n_alphas, dtype=dtype)
+    key, sub = jax.random.split(s.key)
+    # A new nominal is identified afresh unless the last step passed the reuse test;
+    # then the model is carried over with a secant update, and identified afresh as
+    # soon as a step is rejected on it.
+    identify = (s.fresh & ~s.reuse_ok) | (~s.fresh & s.stale) | (s.fine & ~s.fine_model)
+    update = s.fresh & s.reuse_ok & ~identify
+
+    def identified_model():
+        if linearize_fine is None:
+            return linearize(s.X, s.U, s.K, sub)
+        return jax.lax.cond(
+            s.fine, lambda: linearize_fine(s.X, s.U, s.K, sub), lambda: linearize(s.X, s.U, s.K, sub)
+        )
+
+    A, B = jax.lax.cond(
+        identify,
+        identified_model,
+        lambda: jax.lax.cond(
+            update, lambda: secant_update(s.A, s.B, s.X - s.X_model, s.U - s.U_model), lambda: (s.A, s.B)
+        ),
+    )
+    stale = ~identify & (update | s.stale)
+    fine_model = jnp.where(identify, s.fine, s.fine_model)
+    reused = jnp.where(identify, 0, s.reused + update)
+    derivs = cost_derivatives(cost, s.X, s.U)
+    k, K, dV, ok, reg = backward_pass(A, B, *derivs, s.U, u_min, u_max, s.mu)
+    if problem.trial_rollouts is None:
+        Xa, Ua = feedback_rollouts(step, x0, s.X, s.U, K, alphas[:, None, None] * k[None], u_min, u_max)
+    else:
+        Xa, Ua = problem.trial_rollouts(x0, s.X, s.U, k, K, alphas, u_min, u_max)
+    Ja = jax.vmap(trajectory_cost, in_axes=(None, 0, 0))(cost, Xa, Ua)
+    expected = -(alphas * dV[0] + alphas**2 * dV[1])
+    ratio = (s.J - Ja) / jnp.where(expected > 0, expected, jnp.inf)
+    accept = ok & jnp.isfinite(Ja) & (Ja < s.J) & (ratio > p.accept_ratio)
+    any_acc = jnp.any(accept)
+    best = jnp.argmin(jnp.where(accept, Ja, jnp.inf))
+    J = jnp.where(any_acc, Ja[best], s.J)
+    X = jnp.where(any_acc, Xa[best], s.X)
+    mu = jnp.where(
+        any_acc, jnp.maximum(s.mu / p.mu_factor, p.mu_min), jnp.maximum(s.mu * p.mu_factor, p.mu_min)
+    )
+    it = s.it + 1
+    scale_u = 1.0 + jnp.max(jnp.abs(s.U))
+    # A small step or a small promise means a minimum only if the regularisation did
+    # not make it small: both scale like 1 / (1 + reg), so they are judged undone.
+    unreg = 1.0 + reg
+    small_k = ok & (unreg * jnp.max(jnp.abs(k)) < p.k_tol * scale_u)
+    small_dJ = any_acc & ((s.J - J) <= p.rel_tol * jnp.abs(s.J))
+    # No trial accepted although the model promises almost nothing: a minimum, up to
+    # the noise of the black box / the LTV estimate.
+    floor = ok & ~any_acc & (unreg * jnp.abs(dV[0] + dV[1]) <= p.rel_tol * jnp.abs(s.J))
+    # Minima are declared on identified, fine models only: on a carried-over model the
+    # next iteration identifies; a coarse one (``linearize`` when a fine one is given)
+    # hands over to the fine one where it would have stopped, or once a step gains at
+    # most refine_tol.
+    at_min = small_dJ | small_k | floor
+    gain_small = any_acc & (s.J - J <= p.refine_tol * jnp.abs(s.J))
+    coarse_end = ~fine_model & (at_min | (mu > p.mu_max) | gain_small)
+    fine = s.fine | coarse_end
+    mu = jnp.where(coarse_end, jnp.asarray(p.mu_init, mu.dtype), mu)  # a new model, a new schedule
+    done = at_min & ~stale & fine_model
+    near = jnp.abs(ratio[best] - 1.0) <= p.reuse_tol
+    reuse_ok = any_acc & near & (reused < p.reuse_max) & ~at_min
+    stop = progress_lib.poll(progress, it, J, mu) if progress is not None else jnp.array(False)
+    reason = jnp.select(
+        [
+            done & small_dJ,
+            done & small_k,
+            done & floor,
+            fine_model & (mu > p.mu_max),
+            it >= p.max_iter,
+            stop,
+        ],
+        [
+            StopReason.COST_CHANGE,
+            StopReason.SMALL_STEP,
+            StopReason.NOISE_FLOOR,
+            StopReason.NO_DESCENT,
+            StopReason.MAX_ITER,
+            StopReason.INTERRUPTED,
+        ],
+        StopReason.RUNNING,
+    )
+    return ILQRState(
+        X=X,
+        U=jnp.where(any_acc, Ua[best], s.U),
+        K=jnp.where(any_acc, K, s.K),
+        k=jnp.where(any_acc, k, s.k),
+        A=A,
+        B=B,
+        J=J,
+        mu=mu,
+        it=it,
+        reason=reason,
+        fresh=any_acc,
+        stale=stale,
+        fine=fine,
+        fine_model=fine_model,
+        reuse_ok=reuse_ok,
+        reused=reused,
+        X_model=s.X,
+        U_model=s.U,
+        key=key,
+        history=s.history.at[it].set(J),
+        X_history=s.X_history.at[it].set(X) if p.record_trajectories else s.X_history,
+        alphas=s.alphas.at[it - 1].set(jnp.where(any_acc, alphas[best], 0.0)),
+        identified=s.identified.at[it - 1].set(
+            jnp.where(identify, 1 + (fine_model & (linearize_fine is not None)), 0).astype(jnp.int8)
+        ),
+    )
+
+
+def ilqr_advance(
+    problem: Problem,
+    state: ILQRState,
+    params: ILQRParams,
+    until: jax.Array | int | None = None,
+    stop: jax.Array | bool = False,
+    progress: progress_lib.ProgressMeter | None = None,
+) -> ILQRState:
+    """Iterate while the solve runs and fewer than ``until`` iterations are done (None:
+    max_iter). ``stop`` True marks a running solve interrupted and iterates no more.
+    ``progress``, if given, is polled from inside the loop once per iteration (a host
+    callback); a host that drives the loop itself reports between calls instead."""
+    until = params.max_iter if until is None else until
+    interrupted = jnp.asarray(stop) & (state.reason == StopReason.RUNNING)
+    state = state._replace(reason=jnp.where(interrupted, StopReason.INTERRUPTED, state.reason))
+    return jax.lax.while_loop(
+        lambda s: (s.reason == StopReason.RUNNING) & (s.it < until),
+        lambda s: _iteration(problem, params, progress, s),
+        state,
+    )
+
+
+def ilqr_result(state: ILQRState) -> ILQRResult:
+    """The result of a solve's state (its best iterate; ``stop_reason`` RUNNING if unfinished)."""
+    s = state
     converged = jnp.isin(s.reason, jnp.asarray([int(r) for r in CONVERGED]))
     return ILQRResult(
         X=s.X,
@@ -518,3 +452,30 @@ def ilqr(
         alpha_history=s.alphas,
         identified=s.identified,
     )
+
+
+def ilqr(
+    step: StepFn,
+    linearize: LinearizeFn,
+    cost: Cost,
+    x0: jax.Array,
+    U0: jax.Array,
+    u_min: jax.Array,
+    u_max: jax.Array,
+    params: ILQRParams,
+    key: jax.Array,
+    trial_rollouts: ClosedLoopFn | None = None,
+    progress: progress_lib.ProgressMeter | None = progress_lib.NO_PROGRESS,
+    linearize_fine: LinearizeFn | None = None,
+) -> ILQRResult:
+    """Solve min_U J(x0, U) s.t. u_min <= u_t <= u_max. x0 [nx], U0 [T, nu] (the fields of
+    :class:`Problem` for the rest). ``progress`` is polled once per iteration
+    (:mod:`mjx_surrogate.progress`); a stop request ends the loop with
+    ``StopReason.INTERRUPTED`` and the best iterate so far. None: no callback at all.
+
+    Pure and traceable: wrap in ``jax.jit`` (with step/linearize/cost fixed) or ``vmap``
+    over x0/U0/keys for multi-start solves.
+    """
+    problem = Problem(step, linearize, cost, x0, u_min, u_max, trial_rollouts, linearize_fine)
+    state = ilqr_init(problem, U0, params, key)
+    return ilqr_result(ilqr_advance(problem, state, params, progress=progress))

@@ -15,9 +15,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import data, native_replay, progress
+from mjx_surrogate import chunked, data, native_replay, progress
 from mjx_surrogate import sysid as sid
-from mjx_surrogate.d2c import solve_d2c
 from mjx_surrogate.evaluation import finite_or_none
 from mjx_surrogate.ilqr import ILQRParams, ILQRResult, StopReason, verdict
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
@@ -174,8 +173,9 @@ def d2c_optimum(
     goal_tolerance: float = 0.01,
     names: tuple[str, str, str] | None = None,
 ) -> Optimum:
-    """Solve by D2C from U0 and summarise on the black box (``names``: :func:`summary`)."""
-    result = jax.block_until_ready(solve_d2c(system, task, U0, key, params, sysid, progress))
+    """Solve by D2C from U0 and summarise on the black box (``names``: :func:`summary`);
+    driven from the host (:mod:`mjx_surrogate.chunked`: cacheable programs)."""
+    result = chunked.solve(system, task, U0, key, params, sysid, "d2c", progress).out
     metrics, X = summary(result, system, task, goal_tolerance, names)
     return Optimum(result, X, metrics)
 

@@ -71,7 +71,8 @@ def trajectory_evolution(
         ax.axhline(x_goal[i], color="r", ls="--", lw=0.8)
         ax.set_title(labels[i], fontsize=9)
         ax.set_xlabel("time [s]")
-    fig.suptitle(title + " (purple: early iterations, yellow: final; red dashed: goal)", fontsize=10)
+    legend = "purple: early iterations, yellow: final" if K > 1 else "the final iterate only"
+    fig.suptitle(f"{title} ({legend}; red dashed: goal)", fontsize=10)
     fig.tight_layout()
     return fig
 

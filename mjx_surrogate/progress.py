@@ -12,8 +12,9 @@ and returns its best iterate, so nothing it computed is lost.
     with progress.meter("D2C", total=100) as pm:
         result = solve_d2c(system, task, U0, key, progress=pm)
 
-Any meter passed explicitly (``NO_PROGRESS`` included) shares one compiled program; a solve
-called without the argument is compiled without the callback at all (benchmarks).
+Any meter passed explicitly (``NO_PROGRESS`` included) shares one compiled program. A loop
+driven from the host (:mod:`mjx_surrogate.chunked`) calls :func:`report` and
+:func:`stop_polled` between its compiled chunks instead: no callback in the program.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ NO_PROGRESS = ProgressMeter(np.int32(-1))
 
 
 def request_stop() -> None:
-    """Ask every polling solver to stop after its current iteration (signal-safe)."""
+    """Ask every polling solver to stop after its current iteration, or chunk (signal-safe)."""
     _STOP.set()
 
 
@@ -74,20 +75,35 @@ def meter(desc: str, total: int, display: bool = True):
             bar.close()
 
 
+def _update_bar(meter_id: int, iteration, cost, mu) -> None:
+    bar = _BARS.get(meter_id)
+    if bar is None:
+        return
+    finite = np.asarray(cost)[np.isfinite(np.asarray(cost))]
+    bar.n = int(np.max(np.asarray(iteration)))
+    bar.set_postfix(
+        J=f"{finite.min():.5g}" if finite.size else "inf",
+        mu=f"{float(np.min(np.asarray(mu))):.1e}",
+        refresh=False,
+    )
+    bar.refresh()
+
+
 def _host_poll(meter_id, iteration, cost, mu) -> np.ndarray:
     """Host side: advance the bar (batched calls show the best cost), answer the stop flag."""
-    ids = np.atleast_1d(np.asarray(meter_id))
-    bar = _BARS.get(int(ids.ravel()[0]))
-    if bar is not None:
-        finite = np.asarray(cost)[np.isfinite(np.asarray(cost))]
-        bar.n = int(np.max(np.asarray(iteration)))
-        bar.set_postfix(
-            J=f"{finite.min():.5g}" if finite.size else "inf",
-            mu=f"{float(np.min(np.asarray(mu))):.1e}",
-            refresh=False,
-        )
-        bar.refresh()
+    _update_bar(int(np.atleast_1d(np.asarray(meter_id)).ravel()[0]), iteration, cost, mu)
     return np.full(np.shape(meter_id), stop_requested(), dtype=bool)
+
+
+def report(progress: ProgressMeter, iteration, cost, mu) -> None:
+    """Host side, for a loop driven from the host (:mod:`mjx_surrogate.chunked`): advance
+    ``progress``'s bar to ``iteration`` (cost and mu: the best of a batch)."""
+    _update_bar(int(np.asarray(progress.meter_id)), iteration, cost, mu)
+
+
+def stop_polled(progress: ProgressMeter) -> bool:
+    """Host side: whether a stop was requested, for a meter that is on (False when off)."""
+    return int(np.asarray(progress.meter_id)) >= 0 and stop_requested()
 
 
 def poll(progress: ProgressMeter, iteration: jax.Array, cost: jax.Array, mu: jax.Array) -> jax.Array:

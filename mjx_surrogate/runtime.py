@@ -16,9 +16,10 @@ should too, before its first JAX computation:
 * JAX's persistent compilation cache in ``$MJX_SURROGATE_CACHE`` (default
   ``~/.cache/mjx_surrogate/jax``): a program compiled once (by any process) is loaded, not
   recompiled. ``MJX_SURROGATE_CACHE=off`` (or ``compile_cache=False``) switches it off.
-  Programs with host callbacks are not cached by JAX: the native backend's, and every
-  solve run with a progress meter (its poll carries the stop request), i.e. the CLI's
-  solves (docs/performance.md, "Compile times").
+  Programs with host callbacks are not cached by JAX: the native backend's simulator is
+  one, and so is a progress meter polled from inside a solve; the CLI drives its solves
+  from the host instead (:mod:`mjx_surrogate.chunked`), so its MJX programs are cached.
+  Tracing is not cached (docs/performance.md, "Compile times").
 """
 
 from __future__ import annotations

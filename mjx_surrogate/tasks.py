@@ -114,7 +114,7 @@ def task_cost(task: Task) -> cost_lib.Cost:
 
 
 def point_goal_derivatives(task: Task, X: jax.Array, U: jax.Array):
-    """Cost derivatives (the shapes of ``ilqr.cost_derivatives``) with the point terms
+    """Cost derivatives (the shapes of ``riccati.cost_derivatives``) with the point terms
     1/2 w |p(x) - target|^2 taken to Gauss-Newton's order: gradient J'W r, Hessian J'W J
     with J = dp/dx [k, 3, nx] (one ``jacfwd`` of the kinematics). The exact Hessian adds
     sum_k w_k r_k . d2p_k/dx2, which vanishes at the target, and needs second derivatives

@@ -115,7 +115,8 @@ def test_regularised_step_keeps_an_exact_value_model(mu):
     policy changes J by exactly dV1 + dV2 for every mu, and Q~_uu stays positive definite:
     V and dV are the plain (unregularised) value of that policy. A small B (as on swimmer6)
     made the regularised value update go indefinite at large mu."""
-    from mjx_surrogate.ilqr import backward_pass, closed_loop, cost_derivatives, trajectory_cost
+    from mjx_surrogate.ilqr import closed_loop, trajectory_cost
+    from mjx_surrogate.riccati import backward_pass, cost_derivatives
 
     Bs = 1e-2 * B
     step, lin, cost = linear_problem(B=Bs)
@@ -166,7 +167,7 @@ def test_absurd_weights_reported_not_nan():
 
 
 def test_spd_solve_matches_numpy_and_detects_indefinite():
-    from mjx_surrogate.ilqr import spd_solve
+    from mjx_surrogate.linalg import spd_solve
 
     rng = np.random.default_rng(0)
     M = rng.standard_normal((6, 6))
@@ -217,3 +218,21 @@ def test_a_wrong_model_stalls_instead_of_converging_on_regularised_steps():
     assert int(res.iterations) > 1
     assert StopReason(int(res.stop_reason)) == StopReason.NO_DESCENT
     assert not bool(res.converged)
+
+
+def test_batched_feedback_rollouts_equal_the_vmapped_rollout():
+    from mjx_surrogate.trajectory import feedback_rollout, feedback_rollouts
+
+    rng = np.random.default_rng(0)
+    T, nx, nu, n = 12, 3, 2, 4
+    step = lambda x, u: jnp.sin(x) + 0.1 * jnp.concatenate([u, u[:1]]) * x  # noqa: E731
+    X_bar, U_bar = jnp.asarray(rng.normal(size=(T + 1, nx))), jnp.asarray(rng.normal(size=(T, nu)))
+    K, V = jnp.asarray(rng.normal(size=(T, nu, nx))), jnp.asarray(rng.normal(size=(n, T, nu)))
+    x0, lo, hi = X_bar[0] + 0.1, jnp.array([-0.5, -1.0]), jnp.array([0.5, jnp.inf])
+    X, U = feedback_rollouts(step, x0, X_bar, U_bar, K, V, lo, hi)
+    one = jax.vmap(feedback_rollout, in_axes=(None, None, None, None, None, 0, None, None))
+    X1, U1 = one(step, x0, X_bar, U_bar, K, V, lo, hi)
+    assert X.shape == (n, T + 1, nx) and U.shape == (n, T, nu)
+    np.testing.assert_allclose(np.asarray(X), np.asarray(X1), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(np.asarray(U), np.asarray(U1), rtol=0, atol=1e-13)
+    assert float(jnp.max(U[..., 0])) <= 0.5 and float(jnp.min(U[..., 1])) >= -1.0

@@ -71,7 +71,7 @@ def test_signal_mid_solve_ends_the_run_interrupted_and_keeps_its_results(tmp_pat
         if proc.poll() is None:
             proc.kill()
     assert code == 130, seen.decode(errors="replace")[-2000:]
-    assert stop_s < 60  # prompt: after the current iteration, then the writing
+    assert stop_s < 60  # prompt: after the current chunk of iterations, then the writing
     assert not glob.glob(str(tmp_path / ".*")), "a .partial folder was left behind"
     (path,) = glob.glob(str(tmp_path / "*smoke_d2c"))
     metrics, arrays = load_run(path)

@@ -69,7 +69,7 @@ def make_mjx_step(mj_model: mujoco.MjModel, substeps: int):
         parts = [data.qpos, data.qvel] + ([data.act] if na else [])
         return jnp.concatenate(parts)
 
-    return step
+    return jax.jit(step)
 
 
 def make_mjx_rollout(step):

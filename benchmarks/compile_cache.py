@@ -1,0 +1,62 @@
+"""Compile times of the CLI's solves, cold and from JAX's persistent compilation cache.
+
+Each preset runs twice through ``python -m experiments.run PRESET --solver.max_iter 3``
+(progress off), both runs with one new, empty ``MJX_SURROGATE_CACHE`` folder; the D2C and
+exact-oracle ``compile_s`` (tracing + compiling, or loading, both programs of the chunked
+solve) are read from each run's ``metrics.json``. Run on an idle machine:
+
+    python benchmarks/compile_cache.py [--presets default pendulum_d2c cartpole_d2c ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PRESETS = ["default", "pendulum_d2c", "cartpole_d2c", "fish_d2c", "swimmer6_d2c", "swimmer15_d2c"]
+
+
+def _run(preset: str, cache: str, out: str) -> tuple[dict, float]:
+    env = dict(os.environ, MJX_SURROGATE_CACHE=cache)
+    cmd = [sys.executable, "-m", "experiments.run"] + ([preset] if preset != "default" else [])
+    cmd += ["--solver.max_iter", "3", "--experiment.no-progress", "--experiment.out-dir", out]
+    t0 = time.perf_counter()
+    subprocess.run(cmd, cwd=ROOT, env=env, check=True, capture_output=True)
+    wall = time.perf_counter() - t0
+    (path,) = sorted(glob.glob(os.path.join(out, "*", "metrics.json")))[-1:]
+    return json.load(open(path)), wall
+
+
+def _compile(metrics: dict, stage: str) -> str:
+    value = (metrics.get(stage) or {}).get("compile_s")
+    return "off" if value is None else f"{value:.1f}"
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--presets", nargs="+", default=PRESETS)
+    a = ap.parse_args(argv)
+    print(
+        "| preset | D2C compile, cold / cached (s) | exact oracle compile, cold / cached (s) "
+        "| run wall, cold / cached (s) |"
+    )
+    print("|---|---|---|---|")
+    for preset in a.presets:
+        with tempfile.TemporaryDirectory() as tmp:
+            cache = os.path.join(tmp, "cache")
+            cold, w0 = _run(preset, cache, os.path.join(tmp, "a"))
+            warm, w1 = _run(preset, cache, os.path.join(tmp, "b"))
+        d2c = f"{_compile(cold, 'd2c')} / {_compile(warm, 'd2c')}"
+        exact = f"{_compile(cold, 'exact')} / {_compile(warm, 'exact')}"
+        print(f"| `{preset}` | {d2c} | {exact} | {w0:.1f} / {w1:.1f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()

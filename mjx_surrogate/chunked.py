@@ -1,0 +1,177 @@
+"""Solves driven from the host in compiled chunks of iterations, with no host callback.
+
+:func:`mjx_surrogate.d2c.solve_d2c` runs a whole solve as one program; its progress meter
+is a host callback inside the loop, and JAX keeps no program with a host callback in its
+persistent compilation cache. Here the same solve is two programs, ``start`` (the initial
+rollout) and ``advance`` (iterate up to a given iteration count), and the host loops over
+``advance`` in chunks of about ``chunk_s`` seconds: between chunks it updates the progress
+bar and checks for a stop request (SIGINT/SIGTERM), which ends the solve with
+``StopReason.INTERRUPTED`` and its best iterate. On the MJX backend neither program holds a
+callback, so a second run of the same problem loads both from the cache
+(:mod:`mjx_surrogate.runtime`); the native backend's simulator is a callback and is
+compiled afresh every time (quickly: docs/performance.md, "Compile times").
+
+The iterates are the ones of the one-program solve with the same inputs: the loop body is
+the same function. ``U0`` [T, nu] gives one solve (an :class:`~mjx_surrogate.ilqr.ILQRResult`),
+``U0`` [S, T, nu] a multi-start solve (a :class:`~mjx_surrogate.d2c.MultiStart`, starts
+spread over ``system.mesh`` as in :func:`~mjx_surrogate.d2c.solve_multistart`).
+
+Over several processes (:mod:`jax.distributed`) every process runs the same host loop: the
+chunk length and the stop request are agreed on before each chunk (process 0's length; a
+stop if any process was asked to stop).
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mjx_surrogate import progress as progress_lib
+from mjx_surrogate import sharding
+from mjx_surrogate import sysid as sid
+from mjx_surrogate.d2c import MultiStart, oracle_method, problem
+from mjx_surrogate.ilqr import ILQRParams, ILQRState, StopReason, ilqr_advance, ilqr_init, ilqr_result
+from mjx_surrogate.systems import System
+from mjx_surrogate.tasks import Task
+from mjx_surrogate.timing import Timed
+
+
+def _init_one(system, task, U0, key, params, sysid, method) -> ILQRState:
+    return ilqr_init(problem(system, task, sysid, method), U0, params, key)
+
+
+@functools.partial(jax.jit, static_argnames=("system", "method"))
+def start(
+    system: System,
+    task: Task,
+    U0: jax.Array,
+    key: jax.Array,
+    params: ILQRParams,
+    sysid: sid.SysIdParams,
+    method: str,
+) -> tuple[ILQRState, jax.Array]:
+    """The state before the first iteration and its :func:`_summary`; U0 [S, T, nu] gives S
+    states (batch axis first)."""
+    if U0.ndim == 2:
+        state = _init_one(system, task, U0, key, params, sysid, method)
+        return state, _summary(state)
+    keys = jax.random.split(key, U0.shape[0])  # as solve_multistart
+    single = system.on_one_device()
+
+    def starts(U0s, keys, task, params, sysid):
+        return jax.vmap(lambda u, k: _init_one(single, task, u, k, params, sysid, method))(U0s, keys)
+
+    state = sharding.map_batch(starts, system.mesh, U0, keys, rest=(task, params, sysid))
+    return state, _summary(state)
+
+
+def _summary(state: ILQRState) -> jax.Array:
+    """[4]: any solve running, the most iterations done, the lowest cost, the lowest mu."""
+    J = jnp.where(jnp.isfinite(state.J), state.J, jnp.inf)
+    running = jnp.any(state.reason == StopReason.RUNNING)
+    it = jnp.max(state.it).astype(J.dtype)
+    return jnp.stack([running.astype(J.dtype), it, jnp.min(J), jnp.min(state.mu)])
+
+
+@functools.partial(jax.jit, static_argnames=("system", "method"), donate_argnames=("state",))
+def advance(
+    system: System,
+    task: Task,
+    state: ILQRState,
+    until: jax.Array,
+    stop: jax.Array,
+    params: ILQRParams,
+    sysid: sid.SysIdParams,
+    method: str,
+) -> tuple[ILQRState, jax.Array]:
+    """Iterate every running solve until it stops or has done ``until`` iterations (``stop``:
+    mark them interrupted instead); returns the new state and its :func:`_summary`."""
+    if state.X.ndim == 2:
+        new = ilqr_advance(problem(system, task, sysid, method), state, params, until, stop)
+        return new, _summary(new)
+    single = system.on_one_device()
+
+    def steps(states, task, until, stop, params, sysid):
+        prob = problem(single, task, sysid, method)
+        return jax.vmap(lambda s: ilqr_advance(prob, s, params, until, stop))(states)
+
+    new = sharding.map_batch(steps, system.mesh, state, rest=(task, until, stop, params, sysid))
+    return new, _summary(new)
+
+
+def _agree(stop: bool, n: int) -> tuple[bool, int]:
+    """Across processes: a stop if any process asks for one, process 0's chunk length."""
+    if jax.process_count() == 1:
+        return stop, n
+    from jax.experimental import multihost_utils
+
+    both = multihost_utils.process_allgather(np.array([int(stop), n], np.int64))
+    return bool(np.any(both[:, 0])), int(both[0, 1])
+
+
+@jax.jit
+def _result(state: ILQRState):
+    if state.X.ndim == 2:
+        return ilqr_result(state)
+    results = ilqr_result(state)
+    costs = jnp.where(jnp.isfinite(results.cost), results.cost, jnp.inf)
+    i = jnp.argmin(costs)
+    return MultiStart(jax.tree.map(lambda a: a[i], results), results.cost, i)
+
+
+def solve(
+    system: System,
+    task: Task,
+    U0: jax.Array,
+    key: jax.Array,
+    params: ILQRParams = ILQRParams(),
+    sysid: sid.SysIdParams = sid.SysIdParams(),
+    method: str = "d2c",
+    progress: progress_lib.ProgressMeter = progress_lib.NO_PROGRESS,
+    chunk_s: float = 0.5,
+) -> Timed:
+    """One solve ("d2c", "exact" or "finite_difference", as :func:`mjx_surrogate.d2c.problem`)
+    from U0 [T, nu] or [S, T, nu], driven in chunks of about ``chunk_s`` seconds; returns
+    :class:`~mjx_surrogate.timing.Timed`: the result, the compile time of both programs and
+    the run time. ``progress`` is updated and polled for stop requests between chunks."""
+    t0 = time.perf_counter()
+    start_c = start.lower(system, task, U0, key, params, sysid, method).compile()
+    t1 = time.perf_counter()
+    state, summary = jax.block_until_ready(start_c(task, U0, key, params, sysid))
+    t2 = time.perf_counter()
+    until, stop = jnp.asarray(0), jnp.asarray(False)
+    advance_c = advance.lower(system, task, state, until, stop, params, sysid, method).compile()
+    t3 = time.perf_counter()
+    done, n = 0, 1
+    while bool(np.asarray(summary)[0]):  # a solve is running
+        requested, n = _agree(progress_lib.stop_polled(progress), n)
+        tic = time.perf_counter()
+        state, summary = advance_c(task, state, jnp.asarray(done + n), jnp.asarray(requested), params, sysid)
+        summary = np.asarray(summary)
+        elapsed = time.perf_counter() - tic
+        it = int(summary[1])
+        progress_lib.report(progress, it, summary[2], summary[3])
+        # the next chunk: as many iterations as fit in chunk_s at this chunk's pace
+        n = int(np.clip(chunk_s * max(it - done, 1) / max(elapsed, 1e-6), 1, max(params.max_iter, 1)))
+        done = it
+    out = jax.block_until_ready(_result(state))
+    t4 = time.perf_counter()
+    return Timed(out, (t1 - t0) + (t3 - t2), (t2 - t1) + (t4 - t3))
+
+
+def solve_exact(
+    system: System,
+    task: Task,
+    U0: jax.Array,
+    params: ILQRParams = ILQRParams(),
+    progress: progress_lib.ProgressMeter = progress_lib.NO_PROGRESS,
+    jacobians: str = "jacfwd",
+    chunk_s: float = 0.5,
+) -> Timed:
+    """:func:`solve` of the exact-Jacobian oracle (:func:`mjx_surrogate.d2c.solve_exact`)."""
+    method = oracle_method(jacobians)
+    return solve(system, task, U0, jax.random.key(0), params, sid.SysIdParams(), method, progress, chunk_s)
