@@ -1,7 +1,8 @@
 """The iLQR backward pass now and before the regularisation share ``reg`` was added.
 
 Same run, same inputs, compile apart: ``python benchmarks/backward_pass.py BEFORE.py``
-where BEFORE.py is an earlier ``mjx_surrogate/ilqr.py`` (e.g. ``git show REV:mjx_surrogate/ilqr.py``).
+where BEFORE.py is an earlier ``mjx_surrogate/riccati.py`` (``mjx_surrogate/ilqr.py`` before
+the backward pass had its own module; e.g. ``git show REV:mjx_surrogate/riccati.py``).
 Shapes: cartpole (T 30, nx 4, nu 1) and fish (T 600, nx 27, nu 5), unbounded and boxed.
 """
 

@@ -16,9 +16,10 @@ the same function. ``U0`` [T, nu] gives one solve (an :class:`~mjx_surrogate.ilq
 ``U0`` [S, T, nu] a multi-start solve (a :class:`~mjx_surrogate.d2c.MultiStart`, starts
 spread over ``system.mesh`` as in :func:`~mjx_surrogate.d2c.solve_multistart`).
 
-Over several processes (:mod:`jax.distributed`) every process runs the same host loop: the
-chunk length and the stop request are agreed on before each chunk (process 0's length; a
-stop if any process was asked to stop).
+Over several processes (:mod:`jax.distributed`) :func:`solve` runs the one-program solve
+(its meter polled from inside, as before): a host loop there would need every process to
+agree on each chunk's length and stop, and a two-process test of that hung once under load
+on 2 cores (docs/performance.md), so it is left for later.
 """
 
 from __future__ import annotations
@@ -30,14 +31,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from mjx_surrogate import d2c, sharding
 from mjx_surrogate import progress as progress_lib
-from mjx_surrogate import sharding
 from mjx_surrogate import sysid as sid
 from mjx_surrogate.d2c import MultiStart, oracle_method, problem
 from mjx_surrogate.ilqr import ILQRParams, ILQRState, StopReason, ilqr_advance, ilqr_init, ilqr_result
 from mjx_surrogate.systems import System
 from mjx_surrogate.tasks import Task
-from mjx_surrogate.timing import Timed
+from mjx_surrogate.timing import Timed, compile_then_run
 
 
 def _init_one(system, task, U0, key, params, sysid, method) -> ILQRState:
@@ -103,16 +104,6 @@ def advance(
     return new, _summary(new)
 
 
-def _agree(stop: bool, n: int) -> tuple[bool, int]:
-    """Across processes: a stop if any process asks for one, process 0's chunk length."""
-    if jax.process_count() == 1:
-        return stop, n
-    from jax.experimental import multihost_utils
-
-    both = multihost_utils.process_allgather(np.array([int(stop), n], np.int64))
-    return bool(np.any(both[:, 0])), int(both[0, 1])
-
-
 @jax.jit
 def _result(state: ILQRState):
     if state.X.ndim == 2:
@@ -138,6 +129,8 @@ def solve(
     from U0 [T, nu] or [S, T, nu], driven in chunks of about ``chunk_s`` seconds; returns
     :class:`~mjx_surrogate.timing.Timed`: the result, the compile time of both programs and
     the run time. ``progress`` is updated and polled for stop requests between chunks."""
+    if jax.process_count() > 1:
+        return _one_program(system, task, U0, key, params, sysid, method, progress)
     t0 = time.perf_counter()
     start_c = start.lower(system, task, U0, key, params, sysid, method).compile()
     t1 = time.perf_counter()
@@ -148,7 +141,7 @@ def solve(
     t3 = time.perf_counter()
     done, n = 0, 1
     while bool(np.asarray(summary)[0]):  # a solve is running
-        requested, n = _agree(progress_lib.stop_polled(progress), n)
+        requested = progress_lib.stop_polled(progress)
         tic = time.perf_counter()
         state, summary = advance_c(task, state, jnp.asarray(done + n), jnp.asarray(requested), params, sysid)
         summary = np.asarray(summary)
@@ -161,6 +154,19 @@ def solve(
     out = jax.block_until_ready(_result(state))
     t4 = time.perf_counter()
     return Timed(out, (t1 - t0) + (t3 - t2), (t2 - t1) + (t4 - t3))
+
+
+def _one_program(system, task, U0, key, params, sysid, method, progress) -> Timed:
+    """The same solve as one program (:mod:`mjx_surrogate.d2c`), its meter polled inside."""
+    if U0.ndim == 3:
+        kw = {"static_kwargs": {"method": method}, "dynamic_kwargs": {"progress": progress}}
+        return compile_then_run(d2c.solve_multistart, (system,), (task, U0, key, params, sysid), **kw)
+    if method == "d2c":
+        return compile_then_run(d2c.solve_d2c, (system,), (task, U0, key, params, sysid, progress))
+    jacobians = "jacfwd" if method == "exact" else "finite_difference"
+    return compile_then_run(
+        d2c.solve_exact, (system,), (task, U0, params, progress), static_kwargs={"jacobians": jacobians}
+    )
 
 
 def solve_exact(
