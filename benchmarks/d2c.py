@@ -4,7 +4,10 @@
 * the exact-Jacobian oracle from the same initial controls (the 1 % cost target),
 * the NumPy + native ``mujoco.rollout`` reference of the same algorithm
   (``tests/reference_d2c_numpy.py``), same start, samples and stopping rules,
-* the published D2C 2.0 wall times and costs (their models differ: indicative only).
+* the published D2C 2.0 wall times and costs (their models differ: indicative only),
+* the physics rate of the D2C solve (simulated control steps x substeps / run time) against
+  plain ``mujoco.rollout`` on all threads doing one-step simulations from the solution's
+  states on the same model.
 
     python benchmarks/d2c.py [--systems pendulum cartpole fish swimmer6] [--backend auto]
                              [--max-iter N] [--rel-tol R] [--sysid SCHEME] [--n-samples N]
@@ -60,7 +63,7 @@ def bench(
 
     from configs import load as load_config
     from mjx_surrogate.d2c import solve_d2c, solve_exact
-    from mjx_surrogate.pipeline import initial_controls
+    from mjx_surrogate.pipeline import initial_controls, simulation_metrics
     from mjx_surrogate.resolution import resolve, solver_params
     from mjx_surrogate.timing import compile_then_run
 
@@ -93,6 +96,11 @@ def bench(
         d2c_compile=t.compile_s,
         d2c_run=t.run_s,
         d2c_conv=bool(t.out.converged),
+    )
+    steps = simulation_metrics(t.out, task.T, params.n_alphas, sid)["simulated_steps"]
+    row.update(
+        physics_rate=steps * system.substeps / t.run_s,
+        rollout_rate=rollout_rate(system, np.asarray(t.out.X), np.asarray(t.out.U)),
     )
     if exact:
         e = compile_then_run(solve_exact, (system,), (task, U0, params))
@@ -129,6 +137,32 @@ def bench(
     return row
 
 
+def rollout_rate(system, X: np.ndarray, U: np.ndarray, batch: int = 8192, repeats: int = 3) -> float:
+    """Physics steps per second of plain ``mujoco.rollout`` on all threads for the work of
+    an identification: ``batch`` one-control-step simulations from the states X [T+1, nx]
+    with the controls U [T, nu] of a solution (median of ``repeats``)."""
+    import os
+
+    import mujoco
+    from mujoco import rollout as mj_rollout
+
+    m, S, nx = system.mj_model, system.substeps, system.nx
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    init = np.empty((batch, mujoco.mj_stateSize(m, spec)))
+    mujoco.mj_getState(m, mujoco.MjData(m), init[0], spec)
+    init[:] = init[0]
+    t = np.arange(batch) % U.shape[0]
+    init[:, 1 : 1 + nx] = X[t]
+    ctrl = np.repeat(U[t][:, None], S, axis=1)
+    datas = [mujoco.MjData(m) for _ in range(os.cpu_count() or 1)]
+    times = []
+    for _ in range(repeats + 1):  # the first call warms up
+        t0 = time.perf_counter()
+        mj_rollout.rollout(m, datas, init, ctrl)
+        times.append(time.perf_counter() - t0)
+    return batch * S / sorted(times[1:])[len(times[1:]) // 2]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--systems", nargs="+", default=["pendulum", "cartpole", "fish", "swimmer6"])
@@ -151,9 +185,10 @@ def main() -> None:
     print(
         "| system | backend | precision | identification | T | D2C cost | iters | D2C run s | D2C compile s "
         "| exact cost | exact iters | gap % | NumPy+native run s | NumPy cost | speed-up vs NumPy "
-        "| published LLS-CD s / cost | published FD s / cost |"
+        "| published LLS-CD s / cost | published FD s / cost "
+        "| physics steps/s | of mujoco.rollout's |"
     )
-    print("|" + "---|" * 17)
+    print("|" + "---|" * 19)
     for name in a.systems:
         r = bench(
             name,
@@ -177,7 +212,9 @@ def main() -> None:
             f"{r['d2c_iters']} | {f(r['d2c_run'])} | {f(r['d2c_compile'])} | "
             f"{f(r.get('exact_cost'), 5)} | {r.get('exact_iters', '-')} | "
             f"{f(gap, 2)} | {f(r.get('np_run'))} | {f(r.get('np_cost'), 5)} | {f(sp)} | "
-            f"{f(p[0])} / {f(p[1], 4)} | {f(p[2])} / {f(p[3], 4)} |",
+            f"{f(p[0])} / {f(p[1], 4)} | {f(p[2])} / {f(p[3], 4)} | "
+            f"{r['physics_rate'] / 1e6:.3g} M | {100 * r['physics_rate'] / r['rollout_rate']:.0f} % "
+            f"({r['rollout_rate'] / 1e6:.3g} M) |",
             flush=True,
         )
         if "polish_cost" in r:

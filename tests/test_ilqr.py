@@ -182,29 +182,35 @@ def test_spd_solve_matches_numpy_and_detects_indefinite():
     assert not bool(ok)
 
 
-def test_native_one_call_line_search_equals_the_per_step_rollouts(systems):
-    """System.closed_loop (one host call for all step sizes) = closed_loop over step."""
+@pytest.mark.parametrize("threaded", [False, True])
+def test_native_one_call_line_search_equals_the_per_step_rollouts(threaded):
+    """System.closed_loop (one host call for all step sizes, on this thread or one thread
+    per group of step sizes) = closed_loop over step, diverged trials included."""
     import jax
     import jax.numpy as jnp
 
     from mjx_surrogate.ilqr import closed_loop
+    from mjx_surrogate.systems import make_system
 
-    sys_ = systems("cartpole", "native")
+    sys_ = make_system("cartpole", backend="native", native_threads=3)  # groups of 2, 2, 1
+    sys_.native.min_threaded_step_s = 0.0 if threaded else np.inf
     T, nu, nx = 12, sys_.nu, sys_.nx
     key = jax.random.key(0)
     k1, k2, k3 = jax.random.split(key, 3)
     x0 = jnp.array([0.0, 3.0, 0.0, 0.0])
     Ub = 0.5 * jax.random.normal(k1, (T, nu))
     Xb = sys_.rollout(x0[None], Ub[None])[0] + 0.01
-    k = jax.random.normal(k2, (T, nu))
+    k = jax.random.normal(k2, (T, nu)).at[5].set(-1e12)  # beyond mjMAXVAL at alpha >= 1/8
     K = 0.3 * jax.random.normal(k3, (T, nu, nx))
-    alphas = 0.5 ** jnp.arange(4.0)
-    lo, hi = jnp.full(nu, -0.8), jnp.full(nu, 0.9)
+    alphas = 0.5 ** jnp.arange(5.0) * jnp.array([1.0, 1.0, 1.0, 1.0, 1e-12])
+    lo, hi = jnp.full(nu, -jnp.inf), jnp.full(nu, 0.9)
     X1, U1 = jax.jit(sys_.closed_loop)(x0, Xb, Ub, k, K, alphas, lo, hi)
     ref = jax.vmap(lambda a: closed_loop(sys_.step, x0, Xb, Ub, k, K, a, lo, hi))
     X2, U2 = jax.jit(ref)(alphas)
-    assert float(jnp.max(U1)) <= 0.9 and float(jnp.min(U1)) >= -0.8
-    np.testing.assert_allclose(U1, U2, atol=1e-12)
+    assert float(jnp.nanmax(U1)) <= 0.9
+    assert bool(jnp.isnan(X1[:4, 6:]).all()) and bool(jnp.isfinite(X1[:4, :6]).all())
+    assert bool(jnp.isfinite(X1[4]).all())  # the smallest step stays below mjMAXVAL
+    np.testing.assert_allclose(U1[:, :6], U2[:, :6], atol=1e-12)
     np.testing.assert_allclose(X1, X2, atol=1e-12)
 
 

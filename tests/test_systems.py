@@ -96,13 +96,17 @@ def test_constraint_solver_disabled_only_without_constraints():
 
 def test_native_backend_marks_divergence_as_nan(systems):
     s = systems("cartpole", "native")
-    x0 = np.zeros((2, 4))
-    U = np.zeros((2, 5, 1))
+    x0 = np.zeros((4, 4))
+    U = np.zeros((4, 5, 1))
     U[0, 2, 0] = np.nan  # MuJoCo would silently zero this control
-    U[1, 1, 0] = 1e30  # and reset this diverged state
+    U[1, 1, 0] = 1e30  # and this one
+    x0[2, 2] = 1e30  # and reset this state, at the first step, from time 0
     X = s.native(x0, U)
-    assert np.isfinite(X[:, :2]).all()
-    assert np.isnan(X[0, 3:]).all() and np.isnan(X[1, 2:]).all()
+    assert np.isfinite(X[0, :3]).all() and np.isfinite(X[1, :2]).all() and np.isfinite(X[3]).all()
+    assert np.isnan(X[0, 3:]).all() and np.isnan(X[1, 2:]).all() and np.isnan(X[2, 1:]).all()
+    # a one-step call with one physics step too: there a reset left no trace in the time
+    one = systems("cartpole", "native", substeps=1).native(x0[2:], U[2:, :1])[:, 1]
+    assert np.isnan(one[0]).all() and np.isfinite(one[1]).all()
 
 
 def test_from_mjcf_user_model(tmp_path, systems):
