@@ -12,14 +12,18 @@
     python benchmarks/d2c.py [--systems pendulum cartpole fish swimmer6] [--backend auto]
                              [--max-iter N] [--rel-tol R] [--sysid SCHEME] [--n-samples N]
                              [--sigma S] [--repeats N] [--polish]
-                             [--no-exact] [--no-numpy]
+                             [--no-exact] [--no-numpy] [--solver FIELD=VALUE,...]
 
 ``--sysid``, ``--n-samples`` and ``--sigma`` override the presets' identification. The NumPy
 reference uses the same scheme (central or forward differences), samples and sigma; with a
 rollout scheme it falls back to central differences. ``--repeats N`` runs the compiled D2C
 solve and the NumPy reference N times each and reports the median (the exact oracle once).
 ``--polish`` also runs the exact oracle from D2C's solution: how much exact Jacobians can
-still improve it (printed after the table row).
+still improve it (printed after the table row). ``--solver`` sets any solver fields over the
+preset's (as ``benchmarks/sample_efficiency.py``'s variants), e.g. D2C 2.0's scheme on the
+fish: ``--solver sysid_design=gaussian,sysid_every=1,sysid_refine_tol=0``. The NumPy
+reference draws i.i.d. Gaussian samples at every step; a row whose engine scheme differs
+says so in its per-iteration column.
 """
 
 from __future__ import annotations
@@ -55,11 +59,13 @@ def bench(
     rel_tol: float | None = None,
     repeats: int = 1,
     polish: bool = False,
+    solver: str = "base",
 ) -> dict:
     import dataclasses
 
     import jax
     import reference_d2c_numpy as d2c_numpy  # the test oracle, tests/reference_d2c_numpy.py
+    from sample_efficiency import solver_overrides
 
     from configs import load as load_config
     from mjx_surrogate.d2c import solve_d2c, solve_exact
@@ -77,6 +83,8 @@ def bench(
         ).items()
         if v
     }
+    preset_system = resolve(cfg)[1]
+    over |= solver_overrides(solver, cfg.solver, preset_system.nx + preset_system.nu)
     cfg = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, **over))
     _, system, task = resolve(cfg)
     params, sid = solver_params(cfg)
@@ -86,7 +94,9 @@ def bench(
         "backend": system.backend,
         "T": task.T,
         "n_samples": sid.n_samples,
-        "scheme": f"{sid.scheme} n={sid.n_samples} sigma={float(sid.sigma_x):g}",
+        "scheme": f"{sid.scheme} n={sid.n_samples} sigma={float(sid.sigma_x):g}"
+        + ("" if sid.design == "gaussian" else f" {sid.design}")
+        + ("" if sid.every == 1 else f" every {sid.every}"),
         "precision": "f64" if cfg.experiment.x64 else "f32",
     }
     t = compile_then_run(solve_d2c, (system,), (task, U0, jax.random.key(1), params, sid), repeats)
@@ -134,6 +144,8 @@ def bench(
             )
             times.append(time.perf_counter() - t0)
         row.update(np_run=sorted(times)[len(times) // 2], np_cost=ref["cost"], np_iters=ref["iterations"])
+        # the reference draws i.i.d. Gaussian samples at every step: another scheme otherwise
+        row["np_same_scheme"] = sid.design == "gaussian" and sid.every == 1
     return row
 
 
@@ -176,6 +188,11 @@ def main() -> None:
     ap.add_argument("--polish", action="store_true")
     ap.add_argument("--no-exact", action="store_true")
     ap.add_argument("--no-numpy", action="store_true")
+    ap.add_argument(
+        "--solver",
+        default="base",
+        help="comma-separated solver fields over the preset's, e.g. sysid_design=gaussian,sysid_every=1",
+    )
     a = ap.parse_args()
     from mjx_surrogate.runtime import configure_runtime
 
@@ -186,9 +203,9 @@ def main() -> None:
         "| system | backend | precision | identification | T | D2C cost | iters | D2C run s | D2C compile s "
         "| exact cost | exact iters | gap % | NumPy+native run s | NumPy cost | speed-up vs NumPy "
         "| published LLS-CD s / cost | published FD s / cost "
-        "| physics steps/s | of mujoco.rollout's |"
+        "| physics steps/s | of mujoco.rollout's | speed-up vs NumPy per iteration |"
     )
-    print("|" + "---|" * 19)
+    print("|" + "---|" * 20)
     for name in a.systems:
         r = bench(
             name,
@@ -202,9 +219,14 @@ def main() -> None:
             a.rel_tol,
             a.repeats,
             a.polish,
+            a.solver,
         )
         gap = 100 * (r["d2c_cost"] - r["exact_cost"]) / abs(r["exact_cost"]) if "exact_cost" in r else None
         sp = r["np_run"] / r["d2c_run"] if "np_run" in r else None
+        per_it = "-"
+        if "np_run" in r:  # per iteration, as the two may stop at different counts
+            per_it = f((r["np_run"] / r["np_iters"]) / (r["d2c_run"] / r["d2c_iters"]))
+            per_it += f" ({r['np_iters']} iters)" + ("" if r["np_same_scheme"] else ", other scheme")
         p = PUBLISHED.get(name, (None,) * 4)
         print(
             f"| {name} | {r['backend']} | {r['precision']} | {r['scheme']} | {r['T']} | "
@@ -214,7 +236,7 @@ def main() -> None:
             f"{f(gap, 2)} | {f(r.get('np_run'))} | {f(r.get('np_cost'), 5)} | {f(sp)} | "
             f"{f(p[0])} / {f(p[1], 4)} | {f(p[2])} / {f(p[3], 4)} | "
             f"{r['physics_rate'] / 1e6:.3g} M | {100 * r['physics_rate'] / r['rollout_rate']:.0f} % "
-            f"({r['rollout_rate'] / 1e6:.3g} M) |",
+            f"({r['rollout_rate'] / 1e6:.3g} M) | {per_it} |",
             flush=True,
         )
         if "polish_cost" in r:

@@ -29,7 +29,8 @@ import dataclasses
 import numpy as np
 
 
-def _overrides(variant: str, solver, nx_nu: int) -> dict:
+def solver_overrides(variant: str, solver, nx_nu: int) -> dict:
+    """``base`` or comma-separated ``solver`` fields (``n_samples=0``: nx + nu) -> a dict."""
     if variant == "base":
         return {}
     out = {}
@@ -53,7 +54,7 @@ def solve(name: str, variant: str, key: int = 1, max_iter: int | None = None) ->
     cfg = load_config(f"{name}_d2c")
     jax.config.update("jax_enable_x64", cfg.experiment.x64)
     _, system, _ = resolve(cfg)
-    over = _overrides(variant, cfg.solver, system.nx + system.nu)
+    over = solver_overrides(variant, cfg.solver, system.nx + system.nu)
     if max_iter is not None:
         over["max_iter"] = max_iter
     cfg = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, **over))
