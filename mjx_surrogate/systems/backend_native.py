@@ -51,9 +51,10 @@ class NativeSimulator:
     min_batch_per_thread = 32
     # A line search splits its step sizes over threads only where one control step of
     # physics takes longer than this: below, the Python work per step dominates and the
-    # threads contend for the GIL (2 cores: fish, 5 physics steps of ~4 us, gained
-    # 1.2-1.4x; swimmer6, one of ~4 us, lost 1.5-2x).
-    min_threaded_step_s = 10e-6
+    # threads contend for the GIL. On 2 cores (8 step sizes) threads gained 1.2-1.5x on the
+    # fish (16-26 us per control step) and the 15-link swimmer (9-10 us), and lost 1.7-2.5x
+    # on the swimmer6 (3-5 us) and the native cartpole (5-7 us). Only speed depends on it.
+    min_threaded_step_s = 8e-6
 
     def __init__(self, mj_model: mujoco.MjModel, substeps: int, nthread: int | None = None):
         self.model = copy.copy(mj_model)
@@ -106,11 +107,17 @@ class NativeSimulator:
 
     @functools.cached_property
     def control_step_s(self) -> float:
-        """Seconds one control step takes on this thread, measured once (10 steps)."""
+        """Seconds one control step takes on this thread: the fastest of 5 timings of 5
+        steps after a warm-up step, measured once (a single cold timing was noisy enough to
+        flip the line search's threading choice)."""
         data = mujoco.MjData(self.model)
-        t = time.perf_counter()
-        mujoco.mj_step(self.model, data, 10 * self.substeps)
-        return (time.perf_counter() - t) / 10
+        mujoco.mj_step(self.model, data, self.substeps)
+        best = np.inf
+        for _ in range(5):
+            t = time.perf_counter()
+            mujoco.mj_step(self.model, data, 5 * self.substeps)
+            best = min(best, (time.perf_counter() - t) / 5)
+        return best
 
     def closed_loop(self, x0, X_bar, U_bar, k, K, alphas, lo, hi):
         """u_t = clip(U_bar_t + alpha k_t + K_t (x_t - X_bar_t)) for every alpha at once:
