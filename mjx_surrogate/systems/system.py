@@ -13,7 +13,7 @@ from jax.sharding import Mesh
 
 from mjx_surrogate import sharding
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.systems import backend_mjx, backend_native
+from mjx_surrogate.systems import backend_mjx, backend_native, exported_step
 
 BACKENDS = ("mjx", "native")
 
@@ -70,8 +70,6 @@ class System:
     @functools.cached_property
     def mjx_step(self):
         """Differentiable MJX step (the exact-Jacobian oracle), whatever the backend."""
-        if self.backend == "mjx":
-            return self.step
         return backend_mjx.make_mjx_step(self.mj_model, self.substeps)
 
     @functools.cached_property
@@ -85,8 +83,9 @@ class System:
         if self.mesh is None:
             return self
         single = dataclasses.replace(self, mesh=None)
-        if "native" in self.__dict__:
-            single.__dict__["native"] = self.__dict__["native"]
+        for shared in ("native", "mjx_step"):
+            if shared in self.__dict__:
+                single.__dict__[shared] = self.__dict__[shared]
         return single
 
     def __repr__(self) -> str:
@@ -148,7 +147,9 @@ def build_system(
     model, exact_xml = compile_mjcf(xml, field, timestep, path)
     threads = native_threads or os.cpu_count() or 1
     if backend == "mjx":
-        step = backend_mjx.make_mjx_step(model, substeps)
+        plain = backend_mjx.make_mjx_step(model, substeps)
+        # Programs exported for one device; work spread over a mesh traces the step itself.
+        step = plain if mesh is not None else exported_step.with_exported_batches(plain, model, substeps)
         rollout = backend_mjx.make_mjx_rollout(step)
     else:
         sim = backend_native.NativeSimulator(model, substeps, threads)
@@ -160,6 +161,8 @@ def build_system(
     system = System(name, exact_xml, model, substeps, backend, threads, step, rollout, closed, mesh)
     if backend == "native":
         system.__dict__["native"] = sim  # share the one pool
+    else:
+        system.__dict__["mjx_step"] = plain  # differentiable; the same numbers as step
     return system
 
 

@@ -1,0 +1,114 @@
+"""The MJX step's batched programs kept on disk, so a second run does not trace them again.
+
+JAX's persistent compilation cache (:mod:`mjx_surrogate.runtime`) spares a second run the
+XLA compile but not the tracing: the key of a cached program is its lowered text, so every
+run first traces the whole solve, and most of that is the MJX step, batched by ``vmap`` for
+each batch size the solve uses (cartpole D2C: about 2 of the 4.3 s a cached run spent
+before its first iteration; docs/performance.md, "Compile times").
+
+:func:`with_exported_batches` wraps a step so that under ``vmap`` it calls ``vmap(step)``
+for that batch size as a :mod:`jax.export` program, serialised once into
+``<compilation cache>/exported_steps`` and deserialised by later runs (microseconds) instead
+of being traced. Unbatched calls, and every derivative (the exact oracle differentiates
+:attr:`System.mjx_step`, the plain step), use the step itself. Nested vmaps (a multi-start
+solve around a vmapped identification) merge into one batch. A program's file name hashes
+everything it depends on: the compiled model, the substeps, the batch shape and dtypes, the
+platform, the versions of jax, jaxlib, mujoco and mujoco-mjx, and this package's MJX
+backend source. With the compilation cache off nothing is written or read.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.metadata
+import inspect
+import os
+import tempfile
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from jax import export
+
+SUBDIR = "exported_steps"
+
+
+def cache_folder() -> str | None:
+    """``<jax_compilation_cache_dir>/exported_steps``, or None when the cache is off."""
+    base = jax.config.jax_compilation_cache_dir
+    return os.path.join(base, SUBDIR) if base else None
+
+
+def _model_digest(mj_model: mujoco.MjModel, substeps: int) -> str:
+    from mjx_surrogate.systems import backend_mjx  # its source is part of the key
+
+    buf = np.zeros(mujoco.mj_sizeModel(mj_model), np.uint8)
+    mujoco.mj_saveModel(mj_model, None, buf)
+    h = hashlib.sha256(buf.tobytes())
+    versions = [importlib.metadata.version(p) for p in ("jax", "jaxlib", "mujoco", "mujoco-mjx")]
+    h.update(repr((substeps, versions, inspect.getsource(backend_mjx))).encode())
+    return h.hexdigest()[:32]
+
+
+def with_exported_batches(step: Callable, mj_model: mujoco.MjModel, substeps: int) -> Callable:
+    """``step(x[nx], u[nu])`` whose ``vmap`` runs a disk-cached export of ``vmap(step)``."""
+    digest = _model_digest(mj_model, substeps)
+    programs: dict = {}
+
+    def program(x: jax.ShapeDtypeStruct, u: jax.ShapeDtypeStruct) -> export.Exported:
+        """The export of ``step`` (x [nx]) or of ``vmap(step)`` (x [B, nx])."""
+        key = (x.shape, x.dtype.name, u.shape, u.dtype.name, jax.default_backend())
+        if key in programs:
+            return programs[key]
+        folder = cache_folder()
+        path = None
+        if folder:
+            name = hashlib.sha256(repr((digest, key)).encode()).hexdigest()[:40]
+            path = os.path.join(folder, name + ".jaxexport")
+            try:
+                with open(path, "rb") as f:
+                    programs[key] = export.deserialize(bytearray(f.read()))
+                return programs[key]
+            except (OSError, ValueError):
+                pass  # not there yet (or unreadable): export it afresh
+        exp = export.export(jax.jit(jax.vmap(step) if len(x.shape) == 2 else step))(x, u)
+        if path:
+            try:
+                os.makedirs(folder, exist_ok=True)
+                fd, tmp = tempfile.mkstemp(dir=folder)
+                with os.fdopen(fd, "wb") as f:
+                    f.write(exp.serialize())
+                os.replace(tmp, path)  # whole files only, also with concurrent writers
+            except OSError:
+                pass  # a read-only cache: run without it
+        programs[key] = exp
+        return exp
+
+    def call(x: jax.Array, u: jax.Array) -> jax.Array:
+        shape = lambda a: jax.ShapeDtypeStruct(a.shape, a.dtype)  # noqa: E731
+        return program(shape(x), shape(u)).call(x, u)
+
+    @jax.custom_batching.custom_vmap
+    def batched(x: jax.Array, u: jax.Array) -> jax.Array:
+        """x [B, nx], u [B, nu] -> [B, nx] by the exported program for B."""
+        return call(x, u)
+
+    @batched.def_vmap
+    def _batched_vmap(axis_size, in_batched, x, u):
+        x, u = (a if b else jnp.broadcast_to(a, (axis_size,) + a.shape) for a, b in zip((x, u), in_batched))
+        S, B = x.shape[:2]
+        out = batched(x.reshape((S * B,) + x.shape[2:]), u.reshape((S * B,) + u.shape[2:]))
+        return out.reshape((S, B) + out.shape[1:]), True
+
+    @jax.custom_batching.custom_vmap
+    def cached(x: jax.Array, u: jax.Array) -> jax.Array:
+        return call(x, u)
+
+    @cached.def_vmap
+    def _cached_vmap(axis_size, in_batched, x, u):
+        x, u = (a if b else jnp.broadcast_to(a, (axis_size,) + a.shape) for a, b in zip((x, u), in_batched))
+        return batched(x, u), True
+
+    return cached

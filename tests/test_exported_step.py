@@ -1,0 +1,65 @@
+"""The MJX step's disk-cached exported programs (mjx_surrogate/systems/exported_step.py)."""
+
+import os
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mjx_surrogate.systems import exported_step
+
+
+def _inputs(system, n=7):
+    k = jax.random.split(jax.random.key(0), 2)
+    return 0.3 * jax.random.normal(k[0], (n, system.nx)), jax.random.normal(k[1], (n, system.nu))
+
+
+def test_exported_step_gives_the_plain_steps_numbers_batched_nested_in_scans(systems, tmp_path, monkeypatch):
+    monkeypatch.setattr(exported_step, "cache_folder", lambda: str(tmp_path))
+    s = systems("pendulum", "mjx")
+    plain = s.mjx_step
+    cached = exported_step.with_exported_batches(plain, s.mj_model, s.substeps)
+    x, u = _inputs(s)
+    np.testing.assert_array_equal(jax.jit(jax.vmap(cached))(x, u), jax.jit(jax.vmap(plain))(x, u))
+    np.testing.assert_array_equal(jax.jit(cached)(x[0], u[0]), jax.jit(plain)(x[0], u[0]))
+    xs = jnp.stack([x, x + 0.1, x - 0.1])  # a vmap around a vmap, u shared by the outer one
+    nested = [jax.jit(jax.vmap(jax.vmap(f), in_axes=(0, None))) for f in (cached, plain)]
+    np.testing.assert_array_equal(nested[0](xs, u), nested[1](xs, u))
+    U = jnp.broadcast_to(u[:, None], (7, 4, s.nu))
+
+    def rollouts(step):
+        return jax.jit(jax.vmap(lambda x0, Ut: jax.lax.scan(lambda c, ut: (step(c, ut), c), x0, Ut)[1]))
+
+    np.testing.assert_array_equal(rollouts(cached)(x, U), rollouts(plain)(x, U))
+    assert len(os.listdir(tmp_path)) == 3  # programs for [nx], [7, nx] and [21, nx]
+
+
+def test_a_second_wrapper_loads_the_programs_without_tracing_the_step(systems, tmp_path, monkeypatch):
+    monkeypatch.setattr(exported_step, "cache_folder", lambda: str(tmp_path))
+    s = systems("pendulum", "mjx")
+    traced = []
+
+    def step(x, u):  # counts its traces
+        traced.append(1)
+        return s.mjx_step(x, u)
+
+    x, u = _inputs(s, 5)
+    first = jax.jit(jax.vmap(exported_step.with_exported_batches(step, s.mj_model, s.substeps)))(x, u)
+    files = len(os.listdir(tmp_path))
+    assert traced and files >= 1
+    traced.clear()
+    second = jax.jit(jax.vmap(exported_step.with_exported_batches(step, s.mj_model, s.substeps)))(x, u)
+    assert not traced
+    np.testing.assert_array_equal(first, second)
+    # another model (here: other substeps) never reads that program
+    other = exported_step.with_exported_batches(step, s.mj_model, s.substeps + 1)
+    jax.jit(jax.vmap(other))(x, u)
+    assert traced and len(os.listdir(tmp_path)) > files
+
+
+def test_nothing_is_written_with_the_compilation_cache_off(systems, monkeypatch):
+    monkeypatch.setattr(exported_step, "cache_folder", lambda: None)
+    s = systems("pendulum", "mjx")
+    x, u = _inputs(s, 3)
+    out = jax.jit(jax.vmap(exported_step.with_exported_batches(s.mjx_step, s.mj_model, s.substeps)))(x, u)
+    np.testing.assert_array_equal(out, jax.jit(jax.vmap(s.mjx_step))(x, u))
