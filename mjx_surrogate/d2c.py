@@ -43,7 +43,7 @@ def exact_linearize(system: System, jacobians: str = "jacfwd") -> sid.LinearizeF
     ("jacfwd") or by coordinate central differences of the black-box step."""
     if jacobians == "finite_difference":
         return lambda X, U, K, key: sid.finite_difference_jacobians(system.step, X, U)
-    return lambda X, U, K, key: sid.exact_jacobians(system.mjx_step, X, U)
+    return lambda X, U, K, key: jax.vmap(system.mjx_jacobians)(X[:-1], U)
 
 
 def problem(system: System, task: Task, sysid: sid.SysIdParams, method: str) -> Problem:
@@ -58,7 +58,9 @@ def problem(system: System, task: Task, sysid: sid.SysIdParams, method: str) -> 
     elif method == "finite_difference":
         step, linearize, closed = system.step, exact_linearize(system, method), system.closed_loop
     else:
-        step, linearize, closed = system.mjx_step, exact_linearize(system), None
+        # the MJX physics: on the MJX backend its step is the black box's own
+        step = system.step if system.backend == "mjx" else system.mjx_step
+        linearize, closed = exact_linearize(system), None
     if system.mesh is not None:
         closed = sharded_trials(step, closed, system.mesh)
     return Problem(step, linearize, task_cost(task), task.x0, task.u_min, task.u_max, closed, fine)

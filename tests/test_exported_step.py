@@ -63,3 +63,18 @@ def test_nothing_is_written_with_the_compilation_cache_off(systems, monkeypatch)
     x, u = _inputs(s, 3)
     out = jax.jit(jax.vmap(exported_step.with_exported_batches(s.mjx_step, s.mj_model, s.substeps)))(x, u)
     np.testing.assert_array_equal(out, jax.jit(jax.vmap(s.mjx_step))(x, u))
+
+
+def test_exported_jacobians_are_jacfwd_through_the_plain_step_and_step_stays_differentiable(systems):
+    from mjx_surrogate import sysid
+
+    s = systems("pendulum", "mjx")
+    x, u = _inputs(s, 4)
+    X = jnp.concatenate([x, x[:1]])
+    A, B = jax.jit(jax.vmap(s.mjx_jacobians))(x, u)
+    A_ref, B_ref = jax.jit(lambda X, U: sysid.exact_jacobians(s.mjx_step, X, U))(X, u)
+    np.testing.assert_allclose(A, A_ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(B, B_ref, rtol=0, atol=1e-12)
+    A2, B2 = jax.jit(jax.vmap(jax.jacfwd(s.step, argnums=(0, 1))))(x, u)  # the exported step
+    np.testing.assert_allclose(A2, A_ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(B2, B_ref, rtol=0, atol=1e-12)

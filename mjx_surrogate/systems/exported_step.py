@@ -52,9 +52,12 @@ def _model_digest(mj_model: mujoco.MjModel, substeps: int) -> str:
     return h.hexdigest()[:32]
 
 
-def with_exported_batches(step: Callable, mj_model: mujoco.MjModel, substeps: int) -> Callable:
-    """``step(x[nx], u[nu])`` whose ``vmap`` runs a disk-cached export of ``vmap(step)``."""
-    digest = _model_digest(mj_model, substeps)
+def with_exported_batches(
+    step: Callable, mj_model: mujoco.MjModel, substeps: int, tag: str = "step"
+) -> Callable:
+    """``step(x[nx], u[nu])`` (any function of the state and control of ``mj_model``, e.g.
+    its Jacobians, named by ``tag``) whose calls and ``vmap`` run disk-cached exports."""
+    digest = _model_digest(mj_model, substeps) + tag
     programs: dict = {}
 
     def program(x: jax.ShapeDtypeStruct, u: jax.ShapeDtypeStruct) -> export.Exported:
@@ -100,7 +103,8 @@ def with_exported_batches(step: Callable, mj_model: mujoco.MjModel, substeps: in
         x, u = (a if b else jnp.broadcast_to(a, (axis_size,) + a.shape) for a, b in zip((x, u), in_batched))
         S, B = x.shape[:2]
         out = batched(x.reshape((S * B,) + x.shape[2:]), u.reshape((S * B,) + u.shape[2:]))
-        return out.reshape((S, B) + out.shape[1:]), True
+        out = jax.tree.map(lambda o: o.reshape((S, B) + o.shape[1:]), out)
+        return out, jax.tree.map(lambda _: True, out)
 
     @jax.custom_batching.custom_vmap
     def cached(x: jax.Array, u: jax.Array) -> jax.Array:
@@ -109,6 +113,15 @@ def with_exported_batches(step: Callable, mj_model: mujoco.MjModel, substeps: in
     @cached.def_vmap
     def _cached_vmap(axis_size, in_batched, x, u):
         x, u = (a if b else jnp.broadcast_to(a, (axis_size,) + a.shape) for a, b in zip((x, u), in_batched))
-        return batched(x, u), True
+        out = batched(x, u)
+        return out, jax.tree.map(lambda _: True, out)
 
-    return cached
+    @jax.custom_jvp
+    def differentiable(x: jax.Array, u: jax.Array):
+        return cached(x, u)
+
+    @differentiable.defjvp
+    def _differentiable_jvp(primals, tangents):  # derivatives trace the step itself
+        return jax.jvp(step, primals, tangents)
+
+    return differentiable

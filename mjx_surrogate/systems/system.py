@@ -77,13 +77,19 @@ class System:
         """Host-side native simulator (replay, references), whatever the backend."""
         return backend_native.NativeSimulator(self.mj_model, self.substeps, self.native_threads)
 
+    @functools.cached_property
+    def mjx_jacobians(self):
+        """``(x[nx], u[nu]) -> (A [nx, nx], B [nx, nu])`` by ``jax.jacfwd`` through
+        :attr:`mjx_step` (the exact oracle's Jacobians)."""
+        return jax.jacfwd(self.mjx_step, argnums=(0, 1))
+
     def on_one_device(self) -> "System":
         """The same system with its batched work kept on one device (for use inside a
         computation that is itself spread over the mesh, e.g. one of many solves)."""
         if self.mesh is None:
             return self
         single = dataclasses.replace(self, mesh=None)
-        for shared in ("native", "mjx_step"):
+        for shared in ("native", "mjx_step", "mjx_jacobians"):
             if shared in self.__dict__:
                 single.__dict__[shared] = self.__dict__[shared]
         return single
@@ -149,7 +155,8 @@ def build_system(
     if backend == "mjx":
         plain = backend_mjx.make_mjx_step(model, substeps)
         # Programs exported for one device; work spread over a mesh traces the step itself.
-        step = plain if mesh is not None else exported_step.with_exported_batches(plain, model, substeps)
+        exported = mesh is None
+        step = exported_step.with_exported_batches(plain, model, substeps) if exported else plain
         rollout = backend_mjx.make_mjx_rollout(step)
     else:
         sim = backend_native.NativeSimulator(model, substeps, threads)
@@ -163,6 +170,10 @@ def build_system(
         system.__dict__["native"] = sim  # share the one pool
     else:
         system.__dict__["mjx_step"] = plain  # differentiable; the same numbers as step
+        if exported:
+            jac = jax.jacfwd(plain, argnums=(0, 1))
+            jac = exported_step.with_exported_batches(jac, model, substeps, "jacfwd")
+            system.__dict__["mjx_jacobians"] = jac
     return system
 
 
