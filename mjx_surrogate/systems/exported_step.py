@@ -52,6 +52,16 @@ def _model_digest(mj_model: mujoco.MjModel, substeps: int) -> str:
     return h.hexdigest()[:32]
 
 
+def _both_batched(axis_size: int, in_batched, x: jax.Array, u: jax.Array) -> tuple:
+    """x and u with the vmapped axis leading (an unbatched one broadcast to it)."""
+    return tuple(a if b else jnp.broadcast_to(a, (axis_size,) + a.shape) for a, b in zip((x, u), in_batched))
+
+
+def _all_batched(out):
+    """A vmap rule's result: ``out`` and its every leaf batched."""
+    return out, jax.tree.map(lambda _: True, out)
+
+
 def with_exported_batches(
     step: Callable, mj_model: mujoco.MjModel, substeps: int, tag: str = "step"
 ) -> Callable:
@@ -99,12 +109,11 @@ def with_exported_batches(
         return call(x, u)
 
     @batched.def_vmap
-    def _batched_vmap(axis_size, in_batched, x, u):
-        x, u = (a if b else jnp.broadcast_to(a, (axis_size,) + a.shape) for a, b in zip((x, u), in_batched))
+    def _batched_vmap(axis_size, in_batched, x, u):  # an outer vmap: one batch of S B
+        x, u = _both_batched(axis_size, in_batched, x, u)
         S, B = x.shape[:2]
         out = batched(x.reshape((S * B,) + x.shape[2:]), u.reshape((S * B,) + u.shape[2:]))
-        out = jax.tree.map(lambda o: o.reshape((S, B) + o.shape[1:]), out)
-        return out, jax.tree.map(lambda _: True, out)
+        return _all_batched(jax.tree.map(lambda o: o.reshape((S, B) + o.shape[1:]), out))
 
     @jax.custom_batching.custom_vmap
     def cached(x: jax.Array, u: jax.Array) -> jax.Array:
@@ -112,9 +121,7 @@ def with_exported_batches(
 
     @cached.def_vmap
     def _cached_vmap(axis_size, in_batched, x, u):
-        x, u = (a if b else jnp.broadcast_to(a, (axis_size,) + a.shape) for a, b in zip((x, u), in_batched))
-        out = batched(x, u)
-        return out, jax.tree.map(lambda _: True, out)
+        return _all_batched(batched(*_both_batched(axis_size, in_batched, x, u)))
 
     @jax.custom_jvp
     def differentiable(x: jax.Array, u: jax.Array):
