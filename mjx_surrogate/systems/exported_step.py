@@ -1,20 +1,23 @@
-"""The MJX step's batched programs kept on disk, so a second run does not trace them again.
+"""The MJX step's programs kept on disk, so that a second run does not trace them again.
 
 JAX's persistent compilation cache (:mod:`mjx_surrogate.runtime`) spares a second run the
 XLA compile but not the tracing: the key of a cached program is its lowered text, so every
 run first traces the whole solve, and most of that is the MJX step, batched by ``vmap`` for
-each batch size the solve uses (cartpole D2C: about 2 of the 4.3 s a cached run spent
+each batch size the solve uses (cartpole D2C: about 3 of the 4.3 s a cached run spent
 before its first iteration; docs/performance.md, "Compile times").
 
-:func:`with_exported_batches` wraps a step so that under ``vmap`` it calls ``vmap(step)``
-for that batch size as a :mod:`jax.export` program, serialised once into
+:func:`with_exported_batches` wraps a step so that it calls ``step``, and under ``vmap``
+``vmap(step)`` for that batch size, as :mod:`jax.export` programs, serialised once into
 ``<compilation cache>/exported_steps`` and deserialised by later runs (microseconds) instead
-of being traced. Unbatched calls, and every derivative (the exact oracle differentiates
-:attr:`System.mjx_step`, the plain step), use the step itself. Nested vmaps (a multi-start
-solve around a vmapped identification) merge into one batch. A program's file name hashes
-everything it depends on: the compiled model, the substeps, the batch shape and dtypes, the
-platform, the versions of jax, jaxlib, mujoco and mujoco-mjx, and this package's MJX
-backend source. With the compilation cache off nothing is written or read.
+of being traced. Its derivatives trace the step itself (forward mode, as ``jacfwd``); the
+exact oracle's Jacobians (:attr:`System.mjx_jacobians`) are exported the same way. Nested
+vmaps (a multi-start solve around a vmapped identification) merge into one batch. Only for
+work on one device: programs spread over a mesh trace the plain step.
+
+A program's file name hashes everything it depends on: the compiled model, the substeps,
+the batch shape and dtypes, the precision mode (``jax_enable_x64`` sets the MJX model's
+dtype), the platform, the versions of jax, jaxlib, mujoco and mujoco-mjx, and this
+package's MJX backend source. With the compilation cache off nothing is written or read.
 """
 
 from __future__ import annotations
@@ -72,7 +75,7 @@ def with_exported_batches(
 
     def program(x: jax.ShapeDtypeStruct, u: jax.ShapeDtypeStruct) -> export.Exported:
         """The export of ``step`` (x [nx]) or of ``vmap(step)`` (x [B, nx])."""
-        key = (x.shape, x.dtype.name, u.shape, u.dtype.name, jax.default_backend())
+        key = (x.shape, x.dtype.name, u.shape, u.dtype.name, jax.default_backend(), jax.config.jax_enable_x64)
         if key in programs:
             return programs[key]
         folder = cache_folder()
