@@ -83,8 +83,9 @@ def bench(
         ).items()
         if v
     }
-    preset_system = resolve(cfg)[1]
-    over |= solver_overrides(solver, cfg.solver, preset_system.nx + preset_system.nu)
+    if solver != "base":  # n_samples=0 means nx + nu: the model is needed
+        preset_system = resolve(cfg)[1]
+        over |= solver_overrides(solver, cfg.solver, preset_system.nx + preset_system.nu)
     cfg = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, **over))
     _, system, task = resolve(cfg)
     params, sid = solver_params(cfg)
