@@ -119,6 +119,8 @@ class SolverConfig:
     sysid_refine_tol: with sysid_every > 1, identify at every step from the first accepted
     step that gains at most this fraction of the cost, or where the solver would have
     stopped (0: only there); minima are declared on every-step models only.
+    mu_raise_alpha: a step accepted only at a size below this raises mu (up to mu_max)
+    instead of lowering it: a trust region on the step (``mjx_surrogate.ilqr``); 0: off.
     reuse_tol, reuse_max: after an accepted step whose actual decrease was within reuse_tol
     of the model's promise, carry the model over (secant update) instead of identifying,
     at most reuse_max iterations in a row (``mjx_surrogate.ilqr``); 0: always identify.
@@ -135,6 +137,7 @@ class SolverConfig:
     n_alphas: int = _ILQR.n_alphas
     accept_ratio: float = _ILQR.accept_ratio
     alpha_factor: float = _ILQR.alpha_factor  # step sizes alpha_factor ** (0 .. n_alphas - 1)
+    mu_raise_alpha: float = _ILQR.mu_raise_alpha  # accepted step sizes below this raise mu
     sysid: str = "central_difference"  # a registered scheme (mjx_surrogate.sysid.SCHEMES)
     sysid_every: int = 1  # one-step schemes: identify every k-th step, interpolate between
     sysid_design: Literal["gaussian", "orthogonal"] = "gaussian"  # one-step perturbations
@@ -493,6 +496,7 @@ def validate_static(cfg: Config) -> None:
         "solver.init_scale": s.init_scale,
         "solver.mu_init": s.mu_init,
         "solver.mu_min": s.mu_min,
+        "solver.mu_raise_alpha": s.mu_raise_alpha,
     }.items():
         if not (math.isfinite(v) and v >= 0):
             raise ConfigError(field, f"must be a finite number >= 0, got {v}")

@@ -144,6 +144,7 @@ class ILQRParams:
     mu_factor: float = 4.0
     accept_ratio: float = 1e-4
     alpha_factor: float = 0.5  # the line search's step sizes: alpha_factor ** (0 .. n_alphas - 1)
+    mu_raise_alpha: float = 0.0  # an accepted step size below this raises mu as a rejection does
     reuse_tol: float = 0.0  # reuse the model when |actual/expected decrease - 1| <= this
     reuse_max: int = 0  # at most this many iterations in a row on a reused model
     refine_tol: float = 0.0  # with linearize_fine: switch to it once a step gains <= this
@@ -337,8 +338,15 @@ def _iteration(problem: Problem, p: ILQRParams, progress, s: ILQRState) -> ILQRS
     best = jnp.argmin(jnp.where(accept, Ja, jnp.inf))
     J = jnp.where(any_acc, Ja[best], s.J)
     X = jnp.where(any_acc, Xa[best], s.X)
+    # A step accepted only at a small size says the model's Newton step reaches too far:
+    # optionally treated as a rejection by the schedule (a trust region on the step).
+    # Raised that way mu stays at most mu_max: only rejections stop the solve there.
+    short_step = any_acc & (alphas[best] < p.mu_raise_alpha)
+    raised = jnp.maximum(s.mu * p.mu_factor, p.mu_min)
     mu = jnp.where(
-        any_acc, jnp.maximum(s.mu / p.mu_factor, p.mu_min), jnp.maximum(s.mu * p.mu_factor, p.mu_min)
+        any_acc,
+        jnp.where(short_step, jnp.minimum(raised, p.mu_max), jnp.maximum(s.mu / p.mu_factor, p.mu_min)),
+        raised,
     )
     it = s.it + 1
     scale_u = 1.0 + jnp.max(jnp.abs(s.U))
@@ -346,7 +354,7 @@ def _iteration(problem: Problem, p: ILQRParams, progress, s: ILQRState) -> ILQRS
     # not make it small: both scale like 1 / (1 + reg), so they are judged undone.
     unreg = 1.0 + reg
     small_k = ok & (unreg * jnp.max(jnp.abs(k)) < p.k_tol * scale_u)
-    small_dJ = any_acc & ((s.J - J) <= p.rel_tol * jnp.abs(s.J))
+    small_dJ = any_acc & (unreg * (s.J - J) <= p.rel_tol * jnp.abs(s.J))
     # No trial accepted although the model promises almost nothing: a minimum, up to
     # the noise of the black box / the LTV estimate.
     floor = ok & ~any_acc & (unreg * jnp.abs(dV[0] + dV[1]) <= p.rel_tol * jnp.abs(s.J))

@@ -163,6 +163,7 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
         mu_factor=s.mu_factor,
         accept_ratio=s.accept_ratio,
         alpha_factor=s.alpha_factor,
+        mu_raise_alpha=s.mu_raise_alpha,
         max_iter=s.max_iter,
         n_alphas=s.n_alphas,
         reuse_tol=s.reuse_tol,

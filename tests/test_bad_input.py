@@ -25,6 +25,7 @@ CASES = [
     (["smoke_d2c", "--solver.reuse_tol", "nan"], "solver.reuse_tol"),
     (["smoke_d2c", "--solver.reuse_tol", "-0.1"], "solver.reuse_tol"),
     (["smoke_d2c", "--solver.reuse_max", "-1"], "solver.reuse_max"),
+    (["smoke_d2c", "--solver.mu_raise_alpha", "-0.5"], "solver.mu_raise_alpha"),
     (["smoke_predict", "--surrogate.mlp.stop_rel_tol", "1.5"], "surrogate.mlp.stop_rel_tol"),
     (["smoke_predict", "--surrogate.mlp.stop_window", "-1"], "surrogate.mlp.stop_window"),
     (["cartpole_horizon", "--data.n_traj", "3"], "data.n_traj"),

@@ -226,6 +226,26 @@ def test_a_wrong_model_stalls_instead_of_converging_on_regularised_steps():
     assert not bool(res.converged)
 
 
+def test_a_heavily_regularised_step_gaining_little_is_no_converged_cost_change():
+    # mu_init 1e4 makes the first steps about 1e4 times shorter than Newton's: their small
+    # gain says nothing about a minimum (once declared "converged" at 1.7x the optimum).
+    opt = solve(jnp.zeros((T, 1)), max_iter=60, rel_tol=1e-9)
+    res = solve(jnp.zeros((T, 1)), max_iter=60, rel_tol=1e-3, mu_init=1e4)
+    assert bool(res.converged)
+    assert float(res.cost) == pytest.approx(float(opt.cost), rel=1e-5)
+
+
+def test_short_accepted_steps_raise_mu_up_to_mu_max_without_stalling():
+    zeros = jnp.zeros((T, 1))
+    # A linear model: the full step is accepted; raise below alpha 1.5 treats it as short.
+    assert float(solve(zeros, max_iter=1, mu_init=1e-3).mu) == pytest.approx(1e-3 / 4)
+    assert float(solve(zeros, max_iter=1, mu_init=1e-3, mu_raise_alpha=1.5).mu) == pytest.approx(4e-3)
+    # Raised by accepted steps, mu stops at mu_max: only rejections end a solve there.
+    res = solve(zeros, max_iter=60, mu_init=1e-3, mu_max=1e-3, mu_raise_alpha=1.5)
+    assert StopReason(int(res.stop_reason)) == StopReason.COST_CHANGE
+    assert float(res.mu) == pytest.approx(1e-3)
+
+
 def test_batched_feedback_rollouts_equal_the_vmapped_rollout():
     from mjx_surrogate.trajectory import feedback_rollout, feedback_rollouts
 
