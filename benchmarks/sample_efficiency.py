@@ -61,7 +61,12 @@ def solve(name: str, variant: str, key: int = 1, max_iter: int | None = None) ->
     _, system, task = resolve(cfg)
     params, sid = solver_params(cfg)
     U0 = initial_controls(jax.random.key(0), task.T, system.nu, cfg.solver.init, cfg.solver.init_scale)
-    t = compile_then_run(solve_d2c, (system,), (task, U0, jax.random.key(key), params, sid))
+    t = compile_then_run(
+        solve_d2c,
+        (system,),
+        (task, U0, jax.random.key(key), params, sid),
+        compiler_options=system.compiler_options,
+    )
     r = t.out
     curve = simulation_curve(
         r.identified, r.iterations, task.T, params.n_alphas, *steps_per_identification(sid, task.T)

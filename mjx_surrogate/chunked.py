@@ -132,12 +132,14 @@ def solve(
     if jax.process_count() > 1:
         return _one_program(system, task, U0, key, params, sysid, method, progress)
     t0 = time.perf_counter()
-    start_c = start.lower(system, task, U0, key, params, sysid, method).compile()
+    start_c = start.lower(system, task, U0, key, params, sysid, method).compile(system.compiler_options)
     t1 = time.perf_counter()
     state, summary = jax.block_until_ready(start_c(task, U0, key, params, sysid))
     t2 = time.perf_counter()
     until, stop = jnp.asarray(0), jnp.asarray(False)
-    advance_c = advance.lower(system, task, state, until, stop, params, sysid, method).compile()
+    advance_c = advance.lower(system, task, state, until, stop, params, sysid, method).compile(
+        system.compiler_options
+    )
     t3 = time.perf_counter()
     done, n = 0, 1
     while bool(np.asarray(summary)[0]):  # a solve is running
@@ -158,14 +160,15 @@ def solve(
 
 def _one_program(system, task, U0, key, params, sysid, method, progress) -> Timed:
     """The same solve as one program (:mod:`mjx_surrogate.d2c`), its meter polled inside."""
+    kw = {"compiler_options": system.compiler_options}
     if U0.ndim == 3:
-        kw = {"static_kwargs": {"method": method}, "dynamic_kwargs": {"progress": progress}}
+        kw["static_kwargs"], kw["dynamic_kwargs"] = {"method": method}, {"progress": progress}
         return compile_then_run(d2c.solve_multistart, (system,), (task, U0, key, params, sysid), **kw)
     if method == "d2c":
-        return compile_then_run(d2c.solve_d2c, (system,), (task, U0, key, params, sysid, progress))
+        return compile_then_run(d2c.solve_d2c, (system,), (task, U0, key, params, sysid, progress), **kw)
     jacobians = "jacfwd" if method == "exact" else "finite_difference"
     return compile_then_run(
-        d2c.solve_exact, (system,), (task, U0, params, progress), static_kwargs={"jacobians": jacobians}
+        d2c.solve_exact, (system,), (task, U0, params, progress), static_kwargs={"jacobians": jacobians}, **kw
     )
 
 

@@ -21,13 +21,16 @@ def compile_then_run(
     repeats: int = 1,
     static_kwargs: dict | None = None,
     dynamic_kwargs: dict | None = None,
+    compiler_options: dict | None = None,
 ) -> Timed:
     """``fn`` is a ``jax.jit`` whose leading positional parameters are static (more static
-    parameters may come by keyword); the compiled call runs ``repeats`` times on the same
+    parameters may come by keyword); it is compiled with ``compiler_options`` (e.g.
+    ``System.compiler_options``), the compiled call runs ``repeats`` times on the same
     inputs and the median time is reported."""
     t0 = time.perf_counter()
     dyn_kw = dynamic_kwargs or {}
-    compiled = fn.lower(*static_args, *dynamic_args, **(static_kwargs or {}), **dyn_kw).compile()
+    lowered = fn.lower(*static_args, *dynamic_args, **(static_kwargs or {}), **dyn_kw)
+    compiled = lowered.compile(compiler_options)
     t1 = time.perf_counter()
     times = []
     for _ in range(max(1, repeats)):

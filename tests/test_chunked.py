@@ -129,3 +129,31 @@ def test_new_values_do_not_recompile_the_chunks(pendulum):
     p, sid = P.replace(mu_init=1e-4), SID.replace(sigma_u=2e-3)
     chunked.solve(system, task, U0 + 0.01, jax.random.key(3), p, sid)
     assert (chunked.advance._cache_size(), chunked.start._cache_size()) == n
+
+
+def test_native_programs_compile_with_the_systems_options_to_the_same_iterates(pendulum, monkeypatch):
+    # Native-backend programs hold a host callback and are never cached: they compile with
+    # System.compiler_options (a lower XLA backend optimisation level), MJX ones as before.
+    system, task, U0 = pendulum
+    assert system.backend == "mjx" and system.compiler_options is None
+    _, native, _ = resolve(
+        Config(
+            system=SystemConfig(name="pendulum", backend="native"),
+            task=TaskConfig(preset="pendulum_d2c", T=30),
+        )
+    )
+    assert native.compiler_options == {"xla_backend_optimization_level": 1}
+    seen = []
+    compile_ = jax.stages.Lowered.compile
+
+    def recording(self, compiler_options=None):
+        seen.append(compiler_options)
+        return compile_(self, compiler_options)
+
+    monkeypatch.setattr(jax.stages.Lowered, "compile", recording)
+    timed = chunked.solve(native, task, U0, jax.random.key(1), P, SID)
+    assert seen == [native.compiler_options] * 2  # start and advance
+    whole = solve_d2c(native, task, U0, jax.random.key(1), P, SID)  # XLA's default options
+    assert int(timed.out.iterations) == int(whole.iterations) > 3
+    np.testing.assert_allclose(np.asarray(timed.out.U), np.asarray(whole.U), rtol=1e-9, atol=1e-12)
+    assert float(timed.out.cost) == pytest.approx(float(whole.cost), rel=1e-12)
