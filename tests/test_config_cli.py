@@ -184,3 +184,20 @@ def test_runs_never_overwrite(tmp_path):
     pa, pb = a.close(), b.close()
     assert pa != pb and os.path.isdir(pa) and os.path.isdir(pb)
     assert json.load(open(os.path.join(pa, "metrics.json"))) == {"a": 1}
+
+
+def test_every_solver_field_named_like_an_ilqr_parameter_reaches_it():
+    import dataclasses
+
+    from mjx_surrogate.config import SolverConfig
+    from mjx_surrogate.ilqr import ILQRParams
+    from mjx_surrogate.resolution import solver_params
+
+    names = {f.name for f in dataclasses.fields(SolverConfig)} & {
+        f.name for f in dataclasses.fields(ILQRParams)
+    }
+    assert {"mu_raise_alpha", "alpha_factor", "reuse_tol", "max_iter"} <= names
+    default = SolverConfig()
+    changed = {n: getattr(default, n) + 1 if isinstance(getattr(default, n), int) else 0.375 for n in names}
+    params, _ = solver_params(Config(solver=SolverConfig(**changed)))
+    assert {n: getattr(params, n) for n in names} == changed
