@@ -30,10 +30,14 @@ coarse model.
 
 Stopping rules (checked in this order after every iteration; :class:`StopReason`):
 relative cost decrease <= rel_tol; max|k| <= k_tol (1 + max|U|); no trial accepted while
-the model promises |dV| <= rel_tol |J| (the noise floor of the black box); in the last two
-k and dV are first multiplied by 1 + reg (:func:`backward_pass`), as a heavily regularised
-step is small without being optimal; mu > mu_max
+the model promises |dV| <= rel_tol |J| (the noise floor of the black box); in all three
+the decrease, k and dV are first multiplied by 1 + reg (:func:`backward_pass`), as a
+heavily regularised step is small, and gains little, without being optimal; mu > mu_max
 (no descent found: stalled); max_iter; a stop requested through the progress meter.
+
+Regularisation schedule: mu falls by mu_factor after an accepted step and rises after a
+rejected one; with mu_raise_alpha > 0 a step accepted only at a size below it raises mu
+too, up to mu_max (a trust region on the step).
 
 One solve, one trace: :func:`ilqr`. The same loop in pieces, for a host that drives it:
 :func:`ilqr_init` (the initial rollout), :func:`ilqr_advance` (iterate up to a given
@@ -350,8 +354,8 @@ def _iteration(problem: Problem, p: ILQRParams, progress, s: ILQRState) -> ILQRS
     )
     it = s.it + 1
     scale_u = 1.0 + jnp.max(jnp.abs(s.U))
-    # A small step or a small promise means a minimum only if the regularisation did
-    # not make it small: both scale like 1 / (1 + reg), so they are judged undone.
+    # A small step, gain or promise means a minimum only if the regularisation did not
+    # make it small: each scales like 1 / (1 + reg), so they are judged undone.
     unreg = 1.0 + reg
     small_k = ok & (unreg * jnp.max(jnp.abs(k)) < p.k_tol * scale_u)
     small_dJ = any_acc & (unreg * (s.J - J) <= p.rel_tol * jnp.abs(s.J))
