@@ -100,12 +100,9 @@ def bench(
         + ("" if sid.every == 1 else f" every {sid.every}"),
         "precision": "f64" if cfg.experiment.x64 else "f32",
     }
+    options = system.compiler_options  # XLA options of this backend's programs
     t = compile_then_run(
-        solve_d2c,
-        (system,),
-        (task, U0, jax.random.key(1), params, sid),
-        repeats,
-        compiler_options=system.compiler_options,
+        solve_d2c, (system,), (task, U0, jax.random.key(1), params, sid), repeats, compiler_options=options
     )
     row.update(
         d2c_cost=float(t.out.cost),
@@ -120,9 +117,7 @@ def bench(
         rollout_rate=rollout_rate(system, np.asarray(t.out.X), np.asarray(t.out.U)),
     )
     if exact:
-        e = compile_then_run(
-            solve_exact, (system,), (task, U0, params), compiler_options=system.compiler_options
-        )
+        e = compile_then_run(solve_exact, (system,), (task, U0, params), compiler_options=options)
         row.update(
             exact_cost=float(e.out.cost),
             exact_iters=int(e.out.iterations),
@@ -130,9 +125,7 @@ def bench(
             exact_run=e.run_s,
         )
     if polish:
-        p = compile_then_run(
-            solve_exact, (system,), (task, t.out.U, params), compiler_options=system.compiler_options
-        )
+        p = compile_then_run(solve_exact, (system,), (task, t.out.U, params), compiler_options=options)
         row.update(polish_cost=float(p.out.cost), polish_iters=int(p.out.iterations))
     if numpy_ref:
         step = d2c_numpy.NativeStepper(system.mj_model, system.substeps, nthread=2)

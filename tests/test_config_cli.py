@@ -1,6 +1,7 @@
 """Configs and the CLI: bad input exits 2 naming the field, before any compile;
 a run folder holds the full schema and replays on native MuJoCo."""
 
+import dataclasses
 import glob
 import json
 import os
@@ -13,7 +14,7 @@ import pytest
 from helpers import assert_png
 
 from experiments import run as cli
-from mjx_surrogate.config import Config, from_dict, to_dict
+from mjx_surrogate.config import Config, SolverConfig, from_dict, to_dict
 from mjx_surrogate.errors import ConfigError
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -187,9 +188,6 @@ def test_runs_never_overwrite(tmp_path):
 
 
 def test_every_solver_field_named_like_an_ilqr_parameter_reaches_it():
-    import dataclasses
-
-    from mjx_surrogate.config import SolverConfig
     from mjx_surrogate.ilqr import ILQRParams
     from mjx_surrogate.resolution import solver_params
 
