@@ -45,3 +45,33 @@ def test_no_recompilation_for_new_values(systems):
     n = perturbed_rollouts._cache_size()
     perturbed_rollouts(s, jax.random.key(1), jnp.ones(2), U + 1, 8, 0.3, 0.2)
     assert perturbed_rollouts._cache_size() == n
+
+
+def test_a_trial_mujoco_raises_on_is_marked_diverged(systems):
+    """The native line search marks a step size whose simulation MuJoCo raised an error on
+    (``mujoco.batch.SimulationError``) as diverged from that control step on; the other
+    step sizes run on unchanged."""
+    from mujoco import batch as mj_batch
+
+    sim = systems("cartpole", backend="native").native
+    T, A = 8, 3
+    x0, Ub = np.array([0.0, 3.0, 0.0, 0.0]), np.full((T, 1), 0.2)
+    Xb, k, K = sim(x0, Ub), np.ones((T, 1)), np.zeros((T, 1, 4))
+    alphas, lo, hi = np.array([1.0, 0.5, 0.25]), np.array([-np.inf]), np.array([np.inf])
+    X0, _ = sim.closed_loop(x0, Xb, Ub, k, K, alphas, lo, hi)
+    batch = sim._take_batch(A)
+    calls = []
+
+    def step_raising_at_the_fourth_call(**kw):
+        mj_batch.Batch.step(batch, **kw)
+        calls.append(1)
+        if len(calls) == 4:
+            batch.state[1] = -1.0  # MuJoCo keeps the pre-call state; the value is unused
+            raise mj_batch.SimulationError(np.array([1]), "test")
+
+    batch.step = step_raising_at_the_fourth_call
+    sim._batches[A].put(batch)
+    X1, _ = sim.closed_loop(x0, Xb, Ub, k, K, alphas, lo, hi)
+    assert len(calls) == T
+    assert np.isnan(X1[1, 4:]).all() and np.array_equal(X1[1, :4], X0[1, :4])
+    np.testing.assert_array_equal(X1[[0, 2]], X0[[0, 2]])

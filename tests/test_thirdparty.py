@@ -185,3 +185,30 @@ def test_sample_efficient_identification_on_third_party_models(name):
     assert sims[1] < sims[0] / 2, sims
     assert float(out.cost) <= 1.01 * float(ref.cost), (float(out.cost), float(ref.cost))
     assert verdict(out.stop_reason, out.cost) in ("converged", "stalled", "max_iter")
+
+
+def test_native_line_search_equals_one_step_simulations_on_a_contact_model():
+    """The line search's batched feedback rollouts restart every control step from the
+    one-step simulator's template (time, warmstart): on the half cheetah, whose ground
+    contacts make the warmstart matter, they equal per-step calls of that simulator."""
+    from mjx_surrogate.systems.backend_native import NativeSimulator
+
+    path = model_path("gymnasium", "half_cheetah.xml")
+    if path is None:
+        pytest.skip("gymnasium wheel not reachable")
+    sim = NativeSimulator(mujoco.MjModel.from_xml_path(path), substeps=4, nthread=2)
+    T, A, nx, nu = 60, 5, sim.nx, sim.model.nu
+    rng = np.random.default_rng(1)
+    x0 = sim.template[1 : 1 + nx].copy()
+    Ub = 0.5 * rng.standard_normal((T, nu))
+    Xb = sim(x0, Ub)
+    k, K = 0.3 * rng.standard_normal((T, nu)), 0.05 * rng.standard_normal((T, nu, nx))
+    alphas, lo, hi = 0.5 ** np.arange(A), -np.ones(nu), np.ones(nu)
+    X, U = sim.closed_loop(x0, Xb, Ub, k, K, alphas, lo, hi)
+    Xr = np.empty_like(X)
+    Xr[:, 0] = x0
+    for t in range(T):
+        u = np.clip(Ub[t] + alphas[:, None] * k[t] + (Xr[:, t] - Xb[t]) @ K[t].T, lo, hi)
+        np.testing.assert_array_equal(U[:, t], u)
+        Xr[:, t + 1] = sim(Xr[:, t], u[:, None, :])[:, 1]
+    np.testing.assert_array_equal(X, Xr)

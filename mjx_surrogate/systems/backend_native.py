@@ -2,7 +2,8 @@
 
 The host call sits behind ``jax.pure_callback`` so a surrounding ``jit``/``vmap``/
 ``while_loop`` trace is unchanged; it is a true black box (no derivatives) and runs
-every MuJoCo feature. Whole horizons go to C in one call, multi-threaded.
+every MuJoCo feature. Whole horizons go to C in one call, multi-threaded; the line
+search's feedback rollouts go one control step per ``mujoco.batch`` call.
 
 MuJoCo silently zeroes a non-finite control and resets a diverged state; the simulator
 turns its automatic reset off and maps both to NaN states, so callers can reject them.
@@ -13,20 +14,18 @@ Host callbacks inside jitted while loops need synchronous CPU dispatch
 from __future__ import annotations
 
 import copy
-import functools
 import os
 import queue
-import time
-from concurrent.futures import ThreadPoolExecutor
-from contextlib import nullcontext
 
 import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
+from mujoco import batch as mj_batch
 from mujoco import rollout as mj_rollout
 
 _SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
+_ROW = mujoco.mjtState.mjSTATE_INTEGRATION
 
 
 def _diverged(a: np.ndarray) -> np.ndarray:
@@ -45,16 +44,11 @@ class NativeSimulator:
     a control), and every step after it, is returned as NaN so that callers reject it.
 
     Calls may come concurrently (one per device when the batch is spread over a mesh,
-    :mod:`mjx_surrogate.sharding`): each call takes a free set of MjData (making a new set
-    only when all are in use), so concurrent calls run in parallel on their own data."""
+    :mod:`mjx_surrogate.sharding`): each call takes a free set of MjData, or a free line-search batch
+    (making new ones only when all are in use), so concurrent calls run in parallel on
+    their own data."""
 
     min_batch_per_thread = 32
-    # A line search splits its step sizes over threads only where one control step of
-    # physics takes longer than this: below, the Python work per step dominates and the
-    # threads contend for the GIL. On 2 cores (8 step sizes) threads gained 1.2-1.5x on the
-    # fish (16-26 us per control step) and the 15-link swimmer (9-10 us), and lost 1.7-2.5x
-    # on the swimmer6 (3-5 us) and the native cartpole (5-7 us). Only speed depends on it.
-    min_threaded_step_s = 8e-6
 
     def __init__(self, mj_model: mujoco.MjModel, substeps: int, nthread: int | None = None):
         self.model = copy.copy(mj_model)
@@ -67,6 +61,12 @@ class NativeSimulator:
         data = mujoco.MjData(self.model)
         self.template = np.empty(mujoco.mj_stateSize(self.model, _SPEC))
         mujoco.mj_getState(self.model, data, self.template, _SPEC)
+        # The line search's batch rows (mjSTATE_INTEGRATION): the template's values, with
+        # x at columns 1 : 1 + nx as in ``template`` and the controls after the warmstart.
+        self._row_template = np.empty(mujoco.mj_stateSize(self.model, _ROW))
+        mujoco.mj_getState(self.model, data, self._row_template, _ROW)
+        self._ctrl_col = mujoco.mj_stateSize(self.model, int(mujoco.mjtState.mjSTATE_CTRL) - 1)
+        self._batches: dict[int, queue.SimpleQueue] = {}  # free batches by size
 
     def _new_datas(self) -> list:
         return [mujoco.MjData(self.model) for _ in range(self.nthread)]
@@ -105,83 +105,64 @@ class NativeSimulator:
         X[:, 1:][bad] = np.nan
         return X.reshape(lead + (T + 1, self.nx)).astype(x0.dtype, copy=False)
 
-    @functools.cached_property
-    def control_step_s(self) -> float:
-        """Seconds one control step takes on this thread: the fastest of 5 timings of 5
-        steps after a warm-up step, measured once (a single cold timing was noisy enough to
-        flip the line search's threading choice)."""
-        data = mujoco.MjData(self.model)
-        mujoco.mj_step(self.model, data, self.substeps)
-        best = np.inf
-        for _ in range(5):
-            t = time.perf_counter()
-            mujoco.mj_step(self.model, data, 5 * self.substeps)
-            best = min(best, (time.perf_counter() - t) / 5)
-        return best
-
     def closed_loop(self, x0, X_bar, U_bar, k, K, alphas, lo, hi):
         """u_t = clip(U_bar_t + alpha k_t + K_t (x_t - X_bar_t)) for every alpha at once:
         x0 [nx], X_bar [T+1, nx], U_bar, k [T, nu], K [T, nu, nx], alphas [A]
         -> X [A, T+1, nx], U [A, T, nu].
 
-        One ``mujoco.rollout`` call per control step for a group of step sizes, each
-        control step from the full-physics template holding x_t (the numbers of
-        :meth:`__call__`). Where a control step's physics outweighs the Python work around
-        it, the step sizes are split into one group per thread, each running its whole
-        horizon on its own MjData (the GIL is released during the physics)."""
+        One ``mujoco.batch.Batch`` call per control step steps all step sizes on MuJoCo's
+        own threads. Each control step starts from the full-physics template holding x_t,
+        the numbers of :meth:`__call__` (bit for bit). A trial MuJoCo raises an error on
+        is marked diverged, like one that leaves ``mjMAXVAL``."""
         dtype = np.asarray(x0).dtype
         x0, X_bar, U_bar, k, K, alphas, lo, hi = (
             np.asarray(a, np.float64) for a in (x0, X_bar, U_bar, k, K, alphas, lo, hi)
         )
         T, nu = U_bar.shape
-        A = len(alphas)
-        X = np.empty((A, T + 1, self.nx))
+        A, nx, S = len(alphas), self.nx, self.substeps
+        X = np.empty((A, T + 1, nx))
         U = np.empty((A, T, nu))
         X[:, 0] = x0
-        threads = min(self.nthread, A) if self.control_step_s > self.min_threaded_step_s else 1
-        groups = np.array_split(np.arange(A), threads)
+        V = U_bar + alphas[:, None, None] * k  # [A, T, nu]
+        KT = np.swapaxes(K, 1, 2)  # [T, nx, nu]
+        clip = bool(np.isfinite(lo).any() or np.isfinite(hi).any())
+        raised = np.zeros((A, T), bool)
+        dx = np.empty((A, nx))
+        batch = self._take_batch(A)
+        rows, ctrl = batch.state, slice(self._ctrl_col, self._ctrl_col + nu)
         try:
-            datas = self._free.get_nowait()
-        except queue.Empty:
-            datas = self._new_datas()
-        args = (X, U, X_bar, U_bar, k, K, alphas, lo, hi)
-        try:
-            with ThreadPoolExecutor(threads - 1) if threads > 1 else nullcontext() as pool:
-                jobs = [pool.submit(self._feedback_group, d, g, *args) for d, g in zip(datas[1:], groups[1:])]
-                self._feedback_group(datas[0], groups[0], *args)
-                for job in jobs:
-                    job.result()
+            with np.errstate(invalid="ignore", over="ignore"):
+                for t in range(T):  # ufuncs into buffers: np.clip costs more than the physics
+                    u = U[:, t]
+                    np.subtract(X[:, t], X_bar[t], out=dx)
+                    np.matmul(dx, KT[t], out=u)
+                    np.add(u, V[:, t], out=u)
+                    if clip:
+                        np.maximum(u, lo, out=u)
+                        np.minimum(u, hi, out=u)
+                    rows[:] = self._row_template
+                    rows[:, 1 : 1 + nx] = X[:, t]
+                    rows[:, ctrl] = u
+                    try:
+                        batch.step(nstep=S)
+                    except mj_batch.SimulationError as e:
+                        raised[e.ids, t] = True
+                    X[:, t + 1] = rows[:, 1 : 1 + nx]
         finally:
-            self._free.put(datas)
+            self._batches[A].put(batch)
         with np.errstate(invalid="ignore"):
-            bad = np.logical_or.accumulate(_diverged(U) | _diverged(X[:, 1:]), axis=1)  # [A, T]
+            bad = np.logical_or.accumulate(raised | _diverged(U) | _diverged(X[:, 1:]), axis=1)  # [A, T]
         X[:, 1:][bad] = np.nan
         with np.errstate(over="ignore"):  # a blown-up trial becomes inf: rejected as such
             return X.astype(dtype, copy=False), U.astype(dtype, copy=False)
 
-    def _feedback_group(self, data, idx, X, U, X_bar, U_bar, k, K, alphas, lo, hi) -> None:
-        """Fill X[idx], U[idx] of :meth:`closed_loop` on one MjData."""
-        g, (T, nu), nx, S = len(idx), U_bar.shape, self.nx, self.substeps
-        V = U_bar + alphas[idx, None, None] * k  # [g, T, nu]
-        KT = np.swapaxes(K, 1, 2)  # [T, nx, nu]
-        Xg, Ug = X[idx], np.empty((g, T, nu))
-        init = np.tile(self.template, (g, 1))
-        ctrl = np.empty((g, S, nu))
-        state = np.empty((g, S, init.shape[1]))
-        models = [self.model] * g
-        clip = bool(np.isfinite(lo).any() or np.isfinite(hi).any())
-        with np.errstate(invalid="ignore", over="ignore"), mj_rollout.Rollout(nthread=0) as pool:
-            for t in range(T):
-                u = Ug[:, t]
-                np.matmul(Xg[:, t] - X_bar[t], KT[t], out=u)
-                u += V[:, t]
-                if clip:
-                    np.clip(u, lo, hi, out=u)
-                init[:, 1 : 1 + nx] = Xg[:, t]
-                ctrl[:] = u[:, None]
-                pool.rollout(models, [data], init, ctrl, skip_checks=True, nstep=S, state=state)
-                Xg[:, t + 1] = state[:, -1, 1 : 1 + nx]
-        X[idx], U[idx] = Xg, Ug
+    def _take_batch(self, nsim: int) -> mj_batch.Batch:
+        """A free batch of ``nsim`` simulations on up to ``nthread`` threads (made when
+        none is free: concurrent calls each get their own)."""
+        try:
+            return self._batches.setdefault(nsim, queue.SimpleQueue()).get_nowait()
+        except queue.Empty:
+            return mj_batch.Batch(self.model, nsim, nthread=min(self.nthread, nsim))
 
 
 def make_native_closed_loop(sim: NativeSimulator):
