@@ -78,3 +78,35 @@ def test_exported_jacobians_are_jacfwd_through_the_plain_step_and_step_stays_dif
     A2, B2 = jax.jit(jax.vmap(jax.jacfwd(s.step, argnums=(0, 1))))(x, u)  # the exported step
     np.testing.assert_allclose(A2, A_ref, rtol=0, atol=1e-12)
     np.testing.assert_allclose(B2, B_ref, rtol=0, atol=1e-12)
+
+
+def test_a_native_systems_oracle_loads_its_programs_without_building_the_mjx_model(tmp_path, monkeypatch):
+    """A native system's MJX step and Jacobians (its exact oracle) are exported too, and a
+    later system of the same model runs them from disk without building the MJX model."""
+    from mjx_surrogate.systems import backend_mjx, system
+    from mjx_surrogate.systems.registry import default_config
+
+    monkeypatch.setattr(exported_step, "cache_folder", lambda: str(tmp_path))
+    xml = default_config("pendulum").xml()
+
+    def fresh():  # not the registry's cached System: a later run's
+        return system.build_system("pendulum", xml, 2, "native")
+
+    first = fresh()
+    x, u = _inputs(first, 5)
+    plain = backend_mjx.make_mjx_step(first.mj_model, 2)
+    step = jax.jit(jax.vmap(first.mjx_step))(x, u)
+    A, B = jax.jit(jax.vmap(first.mjx_jacobians))(x, u)
+    np.testing.assert_array_equal(step, jax.jit(jax.vmap(plain))(x, u))
+    A_ref, B_ref = jax.jit(jax.vmap(jax.jacfwd(plain, argnums=(0, 1))))(x, u)
+    np.testing.assert_array_equal(A, A_ref)
+    np.testing.assert_array_equal(B, B_ref)
+    assert len(os.listdir(tmp_path)) == 4  # step and Jacobians, each for [nx] and [5, nx]
+
+    def no_model(*args):
+        raise AssertionError("the MJX model was built")
+
+    monkeypatch.setattr(backend_mjx, "make_mjx_step", no_model)
+    second = fresh()
+    np.testing.assert_array_equal(jax.jit(jax.vmap(second.mjx_step))(x, u), step)
+    np.testing.assert_array_equal(jax.jit(jax.vmap(second.mjx_jacobians))(x, u)[0], A)

@@ -12,7 +12,9 @@ before its first iteration; docs/performance.md, "Compile times").
 of being traced. Its derivatives trace the step itself (forward mode, as ``jacfwd``); the
 exact oracle's Jacobians (:attr:`System.mjx_jacobians`) are exported the same way. Nested
 vmaps (a multi-start solve around a vmapped identification) merge into one batch. Only for
-work on one device: programs spread over a mesh trace the plain step.
+work on one device: programs spread over a mesh trace the plain step. A native system's
+MJX step (its exact oracle) is wrapped around :func:`lazily` built steps, so that a run
+which finds every program on disk never builds the MJX model (the fish: 14 s).
 
 A program's file name hashes everything it depends on: the compiled model, the substeps,
 the batch shape and dtypes, the precision mode (``jax_enable_x64`` sets the MJX model's
@@ -53,6 +55,20 @@ def _model_digest(mj_model: mujoco.MjModel, substeps: int) -> str:
     versions = [importlib.metadata.version(p) for p in ("jax", "jaxlib", "mujoco", "mujoco-mjx")]
     h.update(repr((substeps, versions, inspect.getsource(backend_mjx))).encode())
     return h.hexdigest()[:32]
+
+
+def lazily(build: Callable[[], Callable]) -> Callable:
+    """A function that calls ``build()``'s result, built on its first call: a step whose
+    MJX model costs seconds to build is then built only to be exported or differentiated,
+    not by a run that loads every program it needs."""
+    built: list = []
+
+    def call(*args):
+        if not built:
+            built.append(build())
+        return built[0](*args)
+
+    return call
 
 
 def _both_batched(axis_size: int, in_batched, x: jax.Array, u: jax.Array) -> tuple:

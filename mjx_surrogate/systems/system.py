@@ -77,7 +77,17 @@ class System:
 
     @functools.cached_property
     def mjx_step(self):
-        """Differentiable MJX step (the exact-Jacobian oracle), whatever the backend."""
+        """Differentiable MJX step (the exact-Jacobian oracle), whatever the backend; on one
+        device its calls and vmaps run exported programs (:mod:`exported_step`), so that a
+        native system's oracle is not traced again by later runs."""
+        if self.mesh is not None:
+            return self._mjx_plain_step
+        plain = exported_step.lazily(lambda: self._mjx_plain_step)  # built only to export or differentiate
+        return exported_step.with_exported_batches(plain, self.mj_model, self.substeps)
+
+    @functools.cached_property
+    def _mjx_plain_step(self):
+        """The MJX step itself (building its MJX model: 14 s of eager work for the fish)."""
         return backend_mjx.make_mjx_step(self.mj_model, self.substeps)
 
     @functools.cached_property
@@ -88,8 +98,11 @@ class System:
     @functools.cached_property
     def mjx_jacobians(self):
         """``(x[nx], u[nu]) -> (A [nx, nx], B [nx, nu])`` by ``jax.jacfwd`` through
-        :attr:`mjx_step` (the exact oracle's Jacobians)."""
-        return jax.jacfwd(self.mjx_step, argnums=(0, 1))
+        :attr:`mjx_step` (the exact oracle's Jacobians), exported as that step is."""
+        if self.mesh is not None:
+            return jax.jacfwd(self._mjx_plain_step, argnums=(0, 1))
+        jac = exported_step.lazily(lambda: jax.jacfwd(self._mjx_plain_step, argnums=(0, 1)))
+        return exported_step.with_exported_batches(jac, self.mj_model, self.substeps, "jacfwd")
 
     def on_one_device(self) -> "System":
         """The same system with its batched work kept on one device (for use inside a
@@ -97,7 +110,7 @@ class System:
         if self.mesh is None:
             return self
         single = dataclasses.replace(self, mesh=None)
-        for shared in ("native", "mjx_step", "mjx_jacobians"):
+        for shared in ("native", "mjx_step", "mjx_jacobians", "_mjx_plain_step"):
             if shared in self.__dict__:
                 single.__dict__[shared] = self.__dict__[shared]
         return single
