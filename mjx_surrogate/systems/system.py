@@ -191,10 +191,7 @@ def build_system(
         system.__dict__["native"] = sim  # share the one pool
     else:
         system.__dict__["mjx_step"] = plain  # differentiable; the same numbers as step
-        if exported:
-            jac = jax.jacfwd(plain, argnums=(0, 1))
-            jac = exported_step.with_exported_batches(jac, model, substeps, "jacfwd")
-            system.__dict__["mjx_jacobians"] = jac
+        system.__dict__["_mjx_plain_step"] = plain  # its Jacobians: the mjx_jacobians property
     return system
 
 
