@@ -24,6 +24,7 @@ package's MJX backend source. With the compilation cache off nothing is written 
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.metadata
 import inspect
@@ -61,14 +62,8 @@ def lazily(build: Callable[[], Callable]) -> Callable:
     """A function that calls ``build()``'s result, built on its first call: a step whose
     MJX model costs seconds to build is then built only to be exported or differentiated,
     not by a run that loads every program it needs."""
-    built: list = []
-
-    def call(*args):
-        if not built:
-            built.append(build())
-        return built[0](*args)
-
-    return call
+    built = functools.cache(build)
+    return lambda *args: built()(*args)
 
 
 def _both_batched(axis_size: int, in_batched, x: jax.Array, u: jax.Array) -> tuple:

@@ -80,10 +80,7 @@ class System:
         """Differentiable MJX step (the exact-Jacobian oracle), whatever the backend; on one
         device its calls and vmaps run exported programs (:mod:`exported_step`), so that a
         native system's oracle is not traced again by later runs."""
-        if self.mesh is not None:
-            return self._mjx_plain_step
-        plain = exported_step.lazily(lambda: self._mjx_plain_step)  # built only to export or differentiate
-        return exported_step.with_exported_batches(plain, self.mj_model, self.substeps)
+        return self._exported(lambda: self._mjx_plain_step, "step")
 
     @functools.cached_property
     def _mjx_plain_step(self):
@@ -99,10 +96,15 @@ class System:
     def mjx_jacobians(self):
         """``(x[nx], u[nu]) -> (A [nx, nx], B [nx, nu])`` by ``jax.jacfwd`` through
         :attr:`mjx_step` (the exact oracle's Jacobians), exported as that step is."""
+        return self._exported(lambda: jax.jacfwd(self._mjx_plain_step, argnums=(0, 1)), "jacfwd")
+
+    def _exported(self, build, tag: str):
+        """``build()`` on one device as exported programs, built only to be exported or
+        differentiated; over a mesh ``build()`` itself."""
         if self.mesh is not None:
-            return jax.jacfwd(self._mjx_plain_step, argnums=(0, 1))
-        jac = exported_step.lazily(lambda: jax.jacfwd(self._mjx_plain_step, argnums=(0, 1)))
-        return exported_step.with_exported_batches(jac, self.mj_model, self.substeps, "jacfwd")
+            return build()
+        lazy = exported_step.lazily(build)
+        return exported_step.with_exported_batches(lazy, self.mj_model, self.substeps, tag)
 
     def on_one_device(self) -> "System":
         """The same system with its batched work kept on one device (for use inside a
