@@ -43,7 +43,7 @@ def exact_linearize(system: System, jacobians: str = "jacfwd") -> sid.LinearizeF
     ("jacfwd") or by coordinate central differences of the black-box step."""
     if jacobians == "finite_difference":
         return lambda X, U, K, key: sid.finite_difference_jacobians(system.step, X, U)
-    return lambda X, U, K, key: jax.vmap(system.mjx_jacobians)(X[:-1], U)
+    return lambda X, U, K, key: system.mjx_jacobians_batch(X[:-1], U)
 
 
 def problem(system: System, task: Task, sysid: sid.SysIdParams, method: str) -> Problem:

@@ -110,3 +110,23 @@ def test_a_native_systems_oracle_loads_its_programs_without_building_the_mjx_mod
     second = fresh()
     np.testing.assert_array_equal(jax.jit(jax.vmap(second.mjx_step))(x, u), step)
     np.testing.assert_array_equal(jax.jit(jax.vmap(second.mjx_jacobians))(x, u)[0], A)
+
+
+def test_the_batch_jacobians_export_only_the_batchs_program(tmp_path, monkeypatch):
+    """The exact oracle's batched Jacobians (``System.mjx_jacobians_batch``) write one
+    program, the batch's: ``vmap`` of the per-point function exports the unbatched one too."""
+    from mjx_surrogate.systems import system
+    from mjx_surrogate.systems.registry import default_config
+
+    monkeypatch.setattr(exported_step, "cache_folder", lambda: str(tmp_path))
+    s = system.build_system("pendulum", default_config("pendulum").xml(), 2, "native")
+    x, u = _inputs(s, 6)
+    A, B = jax.jit(s.mjx_jacobians_batch)(x, u)
+    assert len(os.listdir(tmp_path)) == 1
+    A_ref, B_ref = jax.jit(jax.vmap(jax.jacfwd(s._mjx_plain_step, argnums=(0, 1))))(x, u)
+    np.testing.assert_array_equal(A, A_ref)
+    np.testing.assert_array_equal(B, B_ref)
+    # under an outer vmap (a multi-start oracle) the batches merge into one program
+    A2, _ = jax.jit(jax.vmap(s.mjx_jacobians_batch))(jnp.stack([x, -x]), jnp.stack([u, u]))
+    np.testing.assert_allclose(A2[0], A, rtol=0, atol=1e-12)  # another batch size: round-off
+    assert len(os.listdir(tmp_path)) == 2
