@@ -76,7 +76,7 @@ def quick(cfg, name: str):
     if name.endswith("_predict"):  # one SINDy library of the preset's
         sindy = cfg.surrogate.sindy
         cfg = r(cfg, surrogate=r(cfg.surrogate, sindy=r(sindy, libraries=sindy.libraries[:1])))
-    if name.endswith("_control"):  # the exact oracle's compile (~50 s) is left to full runs
+    if name.endswith("_control"):  # the exact oracle's compile (~30 s) is left to full runs
         sindy = cfg.surrogate.sindy
         cfg = r(
             cfg,
