@@ -5,7 +5,7 @@ Each preset runs twice through ``python -m experiments.run PRESET --solver.max_i
 exact-oracle ``compile_s`` (tracing + compiling, or loading, both programs of the chunked
 solve) are read from each run's ``metrics.json``. Run on an idle machine:
 
-    python benchmarks/compile_cache.py [--presets default pendulum_d2c cartpole_d2c ...]
+    python benchmarks/compile_cache.py [--presets default pendulum_d2c cartpole_d2c ...] [--rounds N]
 """
 
 from __future__ import annotations
@@ -42,20 +42,24 @@ def _compile(metrics: dict, stage: str) -> str:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--presets", nargs="+", default=PRESETS)
+    ap.add_argument("--rounds", type=int, default=1, help="cold/cached pairs per preset")
     a = ap.parse_args(argv)
+    if a.rounds < 1:
+        ap.error(f"--rounds: must be at least 1, got {a.rounds}")
     print(
-        "| preset | D2C compile, cold / cached (s) | exact oracle compile, cold / cached (s) "
+        "| preset | round | D2C compile, cold / cached (s) | exact oracle compile, cold / cached (s) "
         "| run wall, cold / cached (s) |"
     )
-    print("|---|---|---|---|")
+    print("|---|---|---|---|---|")
     for preset in a.presets:
-        with tempfile.TemporaryDirectory() as tmp:
-            cache = os.path.join(tmp, "cache")
-            cold, w0 = _run(preset, cache, os.path.join(tmp, "a"))
-            warm, w1 = _run(preset, cache, os.path.join(tmp, "b"))
-        d2c = f"{_compile(cold, 'd2c')} / {_compile(warm, 'd2c')}"
-        exact = f"{_compile(cold, 'exact')} / {_compile(warm, 'exact')}"
-        print(f"| `{preset}` | {d2c} | {exact} | {w0:.1f} / {w1:.1f} |", flush=True)
+        for r in range(1, a.rounds + 1):
+            with tempfile.TemporaryDirectory() as tmp:
+                cache = os.path.join(tmp, "cache")
+                cold, w0 = _run(preset, cache, os.path.join(tmp, "a"))
+                warm, w1 = _run(preset, cache, os.path.join(tmp, "b"))
+            d2c = f"{_compile(cold, 'd2c')} / {_compile(warm, 'd2c')}"
+            exact = f"{_compile(cold, 'exact')} / {_compile(warm, 'exact')}"
+            print(f"| `{preset}` | {r} | {d2c} | {exact} | {w0:.1f} / {w1:.1f} |", flush=True)
 
 
 if __name__ == "__main__":
