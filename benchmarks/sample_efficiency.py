@@ -13,7 +13,7 @@ A variant is ``base`` (the preset as it is) or comma-separated ``solver`` fields
 ``sysid=forward_difference,sysid_design=orthogonal,n_samples=0`` (0: nx + nu).
 
     python benchmarks/sample_efficiency.py [--systems cartpole fish swimmer6]
-        [--variants base sysid_every=2 ...] [--keys 1 2 3] [--figure PATH]
+        [--variants base sysid_every=2 ...] [--keys 1 2 3] [--figure PATH] [--x64]
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ def solver_overrides(variant: str, solver, nx_nu: int) -> dict:
     return out
 
 
-def solve(name: str, variant: str, key: int = 1, max_iter: int | None = None) -> dict:
+def solve(name: str, variant: str, key: int = 1, max_iter: int | None = None, x64: bool = False) -> dict:
     import jax
 
     from configs import load as load_config
@@ -52,6 +52,8 @@ def solve(name: str, variant: str, key: int = 1, max_iter: int | None = None) ->
     from mjx_surrogate.timing import compile_then_run
 
     cfg = load_config(f"{name}_d2c")
+    if x64:
+        cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(cfg.experiment, x64=True))
     jax.config.update("jax_enable_x64", cfg.experiment.x64)
     _, system, _ = resolve(cfg)
     over = solver_overrides(variant, cfg.solver, system.nx + system.nu)
@@ -104,6 +106,7 @@ def main() -> None:
         help="solve again, stopped at the iteration that reached 0.1 %% of the first's cost, and time it",
     )
     ap.add_argument("--figure", default=None, help="write cost against simulated steps here")
+    ap.add_argument("--x64", action="store_true", help="every preset in float64 (e.g. the float32 cartpole)")
     a = ap.parse_args()
     from mjx_surrogate.ilqr import StopReason
     from mjx_surrogate.runtime import configure_runtime
@@ -118,7 +121,7 @@ def main() -> None:
     for name, key in [(n, k) for n in a.systems for k in a.keys]:
         base = None
         for v in a.variants:
-            r = solve(name, v, key)
+            r = solve(name, v, key, x64=a.x64)
             base = base or r
             J = base["cost"]
             s1, s01 = steps_to(r, J, 1e-2), steps_to(r, J, 1e-3)
@@ -128,7 +131,7 @@ def main() -> None:
             hit = iteration_to(r, J, 1e-3)
             to_s = "-"
             if a.time_to_target and hit:
-                to_s = f"{solve(name, v, key, max_iter=hit)['run_s']:.2f}"
+                to_s = f"{solve(name, v, key, max_iter=hit, x64=a.x64)['run_s']:.2f}"
             print(
                 f"| {name} | {label} | {r['cost']:.6g} | {(r['cost'] - J) / abs(J):+.2e} | "
                 f"{StopReason(r['stop']).verdict} | {r['iterations']} | {r['identifications']} | "
