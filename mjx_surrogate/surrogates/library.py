@@ -15,11 +15,13 @@ can be compared with pysindy column by column. The library size P is static.
 
 from __future__ import annotations
 
+import functools
 import itertools
 from typing import NamedTuple, Tuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 
 class LibrarySpec(NamedTuple):
@@ -93,24 +95,37 @@ def names(spec: LibrarySpec, nz: int, symbols: list[str] | None = None) -> list[
     return monos + trig + prods
 
 
+def _monomial_indices(spec: LibrarySpec, nz: int) -> list[np.ndarray]:
+    """The non-constant monomials in column order, one [n_d, d] index array per degree d."""
+    by_degree: dict[int, list[tuple[int, ...]]] = {}
+    for t in _monomials(spec, nz):
+        if t:
+            by_degree.setdefault(len(t), []).append(t)
+    return [np.asarray(ts, dtype=np.int32) for _, ts in sorted(by_degree.items())]
+
+
 def features(spec: LibrarySpec, z: jax.Array) -> jax.Array:
-    """Theta(z): z [..., nz] -> [..., P]."""
-    nz = z.shape[-1]
-    monos = _monomials(spec, nz)
-    cols = []
-    for t in monos:
-        if not t:
-            cols.append(jnp.ones(z.shape[:-1], z.dtype))
-        else:
-            cols.append(jnp.prod(z[..., list(t)], axis=-1))
+    """Theta(z): z [..., nz] -> [..., P].
+
+    One gather and d - 1 products per degree d, not one per column: the traced program
+    (and its Jacobians, which iLQR on a surrogate takes) stays small for large libraries.
+    """
+    batch = z.shape[:-1]
+    monos = [
+        functools.reduce(jnp.multiply, (z[..., idx[:, k]] for k in range(idx.shape[1])))
+        for idx in _monomial_indices(spec, z.shape[-1])
+    ]
     trig = []
-    for fn, h, j in _trig_terms(spec):
-        f = jnp.sin if fn == "sin" else jnp.cos
-        trig.append(f(h * z[..., j]))
-    out = cols + trig
-    if spec.products and trig:
-        out += [m * t for m in cols[int(spec.bias) :] for t in trig]
-    return jnp.stack(out, axis=-1)
+    coords = np.asarray(spec.trig_coords, dtype=np.int32)
+    if coords.size:
+        for h in range(1, spec.harmonics + 1):
+            a = h * z[..., coords]  # [..., n_trig_coords]; sin and cos interleaved per coordinate
+            trig.append(jnp.stack([jnp.sin(a), jnp.cos(a)], axis=-1).reshape(*batch, 2 * coords.size))
+    blocks = ([jnp.ones((*batch, 1), z.dtype)] if spec.bias else []) + monos + trig
+    if spec.products and monos and trig:
+        m, t = jnp.concatenate(monos, axis=-1), jnp.concatenate(trig, axis=-1)
+        blocks.append((m[..., :, None] * t[..., None, :]).reshape(*batch, m.shape[-1] * t.shape[-1]))
+    return jnp.concatenate(blocks, axis=-1)
 
 
 _ALIASES = {
