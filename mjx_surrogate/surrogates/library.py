@@ -109,23 +109,25 @@ def features(spec: LibrarySpec, z: jax.Array) -> jax.Array:
 
     One gather and d - 1 products per degree d, not one per column: the traced program
     (and its Jacobians, which iLQR on a surrogate takes) stays small for large libraries.
+    Built with the feature axis leading (whole rows gathered), moved last at the end.
     """
     batch = z.shape[:-1]
+    zt = jnp.moveaxis(z, -1, 0)  # [nz, ...]
     monos = [
-        functools.reduce(jnp.multiply, (z[..., idx[:, k]] for k in range(idx.shape[1])))
+        functools.reduce(jnp.multiply, (zt[idx[:, k]] for k in range(idx.shape[1])))
         for idx in _monomial_indices(spec, z.shape[-1])
     ]
     trig = []
     coords = np.asarray(spec.trig_coords, dtype=np.int32)
     if coords.size:
         for h in range(1, spec.harmonics + 1):
-            a = h * z[..., coords]  # [..., n_trig_coords]; sin and cos interleaved per coordinate
-            trig.append(jnp.stack([jnp.sin(a), jnp.cos(a)], axis=-1).reshape(*batch, 2 * coords.size))
-    blocks = ([jnp.ones((*batch, 1), z.dtype)] if spec.bias else []) + monos + trig
+            a = h * zt[coords]  # sin and cos interleaved per coordinate
+            trig.append(jnp.stack([jnp.sin(a), jnp.cos(a)], axis=1).reshape(2 * coords.size, *batch))
+    blocks = ([jnp.ones((1, *batch), z.dtype)] if spec.bias else []) + monos + trig
     if spec.products and monos and trig:
-        m, t = jnp.concatenate(monos, axis=-1), jnp.concatenate(trig, axis=-1)
-        blocks.append((m[..., :, None] * t[..., None, :]).reshape(*batch, m.shape[-1] * t.shape[-1]))
-    return jnp.concatenate(blocks, axis=-1)
+        m, t = jnp.concatenate(monos), jnp.concatenate(trig)
+        blocks.append((m[:, None] * t[None, :]).reshape(m.shape[0] * t.shape[0], *batch))
+    return jnp.moveaxis(jnp.concatenate(blocks), 0, -1)
 
 
 _ALIASES = {
