@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import io
+from typing import Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -35,12 +36,30 @@ def _without_batched_lapack(mj_model: mujoco.MjModel) -> mujoco.MjModel:
     return m
 
 
-def make_mjx_step(mj_model: mujoco.MjModel, substeps: int):
-    """Return ``step(x[nx], u[nu]) -> x_next[nx]`` advancing ``substeps`` physics steps.
+class MjxPhysics(NamedTuple):
+    """The MJX physics of one model and control step; every function jitted.
 
-    x = [qpos, qvel, act]. The MJX model is put on the device once, in the dtype that
-    is active when this is called (float64 if ``jax_enable_x64`` is on).
+    step: ``(x[nx], u[nu]) -> x_next[nx]``, ``substeps`` physics steps.
+    step_batch: ``(X [B, nx], U [B, nu]) -> [B, nx]``: the same numbers as ``vmap(step)``,
+      traced as a loop over the substeps of the batched physics step (``vmap`` of the loop
+      batches its body twice, to settle which carries are batched: twice the tracing).
+    jacobians_batch: ``(X [B, nx], U [B, nu]) -> (A [B, nx, nx], B [B, nx, nu])``, the
+      control step's exact Jacobians: forward mode along the nx + nu input directions,
+      pushed through a loop over the substeps of the batched physics step (the state and
+      the constraint solver's warmstart, which carries over from one substep to the next).
+      Equal to ``vmap(jacfwd(step))`` to round-off; it traces in a third of the time
+      (fish: 5 s against 13 s), for the reason above.
     """
+
+    step: Callable
+    step_batch: Callable
+    jacobians_batch: Callable
+
+
+def make_mjx_physics(mj_model: mujoco.MjModel, substeps: int) -> MjxPhysics:
+    """The :class:`MjxPhysics` of ``mj_model``, x = [qpos, qvel, act]. The MJX model is put
+    on the device once, in the dtype that is active when this is called (float64 if
+    ``jax_enable_x64`` is on)."""
     # Built eagerly even when first requested inside a trace (System.mjx_step is created
     # lazily): the model and data are constants of every program, never tracers.
     with jax.ensure_compile_time_eval():
@@ -58,21 +77,69 @@ def make_mjx_step(mj_model: mujoco.MjModel, substeps: int):
         with jax.ensure_compile_time_eval():
             data0 = jax.tree.map(lambda a, o: a.astype(o.dtype), data0, out)
     nq, nv, na = mj_model.nq, mj_model.nv, mj_model.na
+    dtype = data0.qpos.dtype
+
+    def put(data: mjx.Data, x: jax.Array, u: jax.Array) -> mjx.Data:
+        x = x.astype(dtype)
+        act = x[nq + nv :] if na else data.act
+        return data.replace(qpos=x[:nq], qvel=x[nq : nq + nv], act=act, ctrl=u.astype(dtype))
+
+    def state(data: mjx.Data) -> jax.Array:
+        return jnp.concatenate([data.qpos, data.qvel] + ([data.act] if na else []))
+
+    def physics_step(data: mjx.Data) -> mjx.Data:
+        return mjx.step(model, data)
 
     def step(x: jax.Array, u: jax.Array) -> jax.Array:
-        dtype = data0.qpos.dtype
-        x = x.astype(dtype)
-        data = data0.replace(
-            qpos=x[:nq],
-            qvel=x[nq : nq + nv],
-            act=x[nq + nv :] if na else data0.act,
-            ctrl=u.astype(dtype),
-        )
-        data = jax.lax.fori_loop(0, substeps, lambda _, d: mjx.step(model, d), data)
-        parts = [data.qpos, data.qvel] + ([data.act] if na else [])
-        return jnp.concatenate(parts)
+        data = jax.lax.fori_loop(0, substeps, lambda _, d: physics_step(d), put(data0, x, u))
+        return state(data)
 
-    return jax.jit(step)
+    def batch_data(X: jax.Array, U: jax.Array) -> mjx.Data:
+        data = jax.tree.map(lambda a: jnp.broadcast_to(a, X.shape[:1] + a.shape), data0)
+        return jax.vmap(put)(data, X, U)
+
+    def step_batch(X: jax.Array, U: jax.Array) -> jax.Array:
+        data = batch_data(X, U)
+        data = jax.lax.fori_loop(0, substeps, lambda _, d: jax.vmap(physics_step)(d), data)
+        return jax.vmap(state)(data)
+
+    def substep(x, w, u, data):
+        """One physics step from state x, solver warmstart w [nv] and control u."""
+        nxt = physics_step(put(data, x, u).replace(qacc_warmstart=w))
+        return (state(nxt), nxt.qacc_warmstart), nxt
+
+    def push(data, T_x, T_w, T_u):
+        """One substep of one point, and the tangents [n, nx], [n, nv] of its state and
+        warmstart along the n directions of (x0, u) pushed through it."""
+        x, w, u = state(data), data.qacc_warmstart, data.ctrl
+        f = lambda x, w, u: substep(x, w, u, data)  # noqa: E731
+        tangent = lambda t_x, t_w, t_u: jax.jvp(f, (x, w, u), (t_x, t_w, t_u), has_aux=True)  # noqa: E731
+        _, (T_x, T_w), nxt = jax.vmap(tangent, out_axes=(None, 0, None))(T_x, T_w, T_u)
+        return nxt, T_x, T_w
+
+    def jacobians_batch(X: jax.Array, U: jax.Array) -> tuple[jax.Array, jax.Array]:
+        n, nx = X.shape
+        nu = U.shape[1]
+        eye = jnp.eye(nx + nu, dtype=dtype)  # directions: the nx state and nu control entries
+        T_x = jnp.broadcast_to(eye[:, :nx], (n, nx + nu, nx))
+        T_w = jnp.zeros((n, nx + nu, nv), dtype)  # the first warmstart is a constant
+        T_u = eye[:, nx:]
+        batch_push = jax.vmap(push, in_axes=(0, 0, 0, None))
+
+        def body(_, carry):
+            data, T_x, T_w = carry
+            return batch_push(data, T_x, T_w, T_u)
+
+        _, T_x, _ = jax.lax.fori_loop(0, substeps, body, (batch_data(X, U), T_x, T_w))
+        J = jnp.swapaxes(T_x, 1, 2)  # [n, nx, nx + nu]
+        return J[..., :nx], J[..., nx:]
+
+    return MjxPhysics(jax.jit(step), jax.jit(step_batch), jax.jit(jacobians_batch))
+
+
+def make_mjx_step(mj_model: mujoco.MjModel, substeps: int):
+    """``step(x[nx], u[nu]) -> x_next[nx]`` of :func:`make_mjx_physics`."""
+    return make_mjx_physics(mj_model, substeps).step
 
 
 def make_mjx_rollout(step):

@@ -77,12 +77,18 @@ def _all_batched(out):
 
 
 def with_exported_batches(
-    step: Callable, mj_model: mujoco.MjModel, substeps: int, tag: str = "step"
+    step: Callable,
+    mj_model: mujoco.MjModel,
+    substeps: int,
+    tag: str = "step",
+    batch: Callable | None = None,
 ) -> Callable:
     """``step(x[nx], u[nu])`` (any function of the state and control of ``mj_model``, e.g.
-    its Jacobians, named by ``tag``) whose calls and ``vmap`` run disk-cached exports; its
+    its Jacobians, named by ``tag``) whose calls and ``vmap`` run disk-cached exports of
+    ``step`` and of ``batch(x [B, nx], u [B, nu])`` (default ``vmap(step)``); its
     attribute ``batched(x [B, nx], u [B, nu])`` runs the batch's program alone (not
     differentiable)."""
+    batch = batch or jax.vmap(step)
     digest = _model_digest(mj_model, substeps) + tag
     programs: dict = {}
 
@@ -102,7 +108,7 @@ def with_exported_batches(
                 return programs[key]
             except (OSError, ValueError):
                 pass  # not there yet (or unreadable): export it afresh
-        exp = export.export(jax.jit(jax.vmap(step) if len(x.shape) == 2 else step))(x, u)
+        exp = export.export(jax.jit(batch if len(x.shape) == 2 else step))(x, u)
         if path:
             try:
                 os.makedirs(folder, exist_ok=True)

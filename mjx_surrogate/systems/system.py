@@ -80,12 +80,13 @@ class System:
         """Differentiable MJX step (the exact-Jacobian oracle), whatever the backend; on one
         device its calls and vmaps run exported programs (:mod:`exported_step`), so that a
         native system's oracle is not traced again by later runs."""
-        return self._exported(lambda: self._mjx_plain_step, "step")
+        physics = lambda: self._mjx_physics  # noqa: E731
+        return self._exported(lambda: physics().step, lambda: physics().step_batch, "step")
 
     @functools.cached_property
-    def _mjx_plain_step(self):
-        """The MJX step itself (building it: 1.5 s for the fish)."""
-        return backend_mjx.make_mjx_step(self.mj_model, self.substeps)
+    def _mjx_physics(self) -> backend_mjx.MjxPhysics:
+        """The MJX step, its batch and its Jacobians (building them: 1.5 s for the fish)."""
+        return backend_mjx.make_mjx_physics(self.mj_model, self.substeps)
 
     @functools.cached_property
     def native(self) -> backend_native.NativeSimulator:
@@ -94,24 +95,29 @@ class System:
 
     @functools.cached_property
     def mjx_jacobians(self):
-        """``(x[nx], u[nu]) -> (A [nx, nx], B [nx, nu])`` by ``jax.jacfwd`` through
-        :attr:`mjx_step` (the exact oracle's Jacobians), exported as that step is."""
-        return self._exported(lambda: jax.jacfwd(self._mjx_plain_step, argnums=(0, 1)), "jacfwd")
+        """``(x[nx], u[nu]) -> (A [nx, nx], B [nx, nu])``, the exact oracle's Jacobians
+        (:attr:`backend_mjx.MjxPhysics.jacobians_batch`), exported as :attr:`mjx_step` is."""
+
+        def one(x, u):
+            A, B = self._mjx_physics.jacobians_batch(x[None], u[None])
+            return A[0], B[0]
+
+        return self._exported(lambda: one, lambda: self._mjx_physics.jacobians_batch, "jacobians")
 
     @property
     def mjx_jacobians_batch(self):
         """``(X [B, nx], U [B, nu]) -> (A [B, nx, nx], B [B, nx, nu])``: :attr:`mjx_jacobians`
         over a batch. On one device only the batch's program is exported or loaded (a
         ``vmap`` of the per-point function exports the unbatched one too)."""
-        return getattr(self.mjx_jacobians, "batched", None) or jax.vmap(self.mjx_jacobians)
+        return getattr(self.mjx_jacobians, "batched", None) or self._mjx_physics.jacobians_batch
 
-    def _exported(self, build, tag: str):
-        """``build()`` on one device as exported programs, built only to be exported or
-        differentiated; over a mesh ``build()`` itself."""
+    def _exported(self, build, build_batch, tag: str):
+        """``build()`` (its batches: ``build_batch()``) on one device as exported programs,
+        built only to be exported or differentiated; over a mesh ``build()`` itself."""
         if self.mesh is not None:
             return build()
-        lazy = exported_step.lazily(build)
-        return exported_step.with_exported_batches(lazy, self.mj_model, self.substeps, tag)
+        lazy, lazy_batch = exported_step.lazily(build), exported_step.lazily(build_batch)
+        return exported_step.with_exported_batches(lazy, self.mj_model, self.substeps, tag, lazy_batch)
 
     def on_one_device(self) -> "System":
         """The same system with its batched work kept on one device (for use inside a
@@ -119,7 +125,7 @@ class System:
         if self.mesh is None:
             return self
         single = dataclasses.replace(self, mesh=None)
-        for shared in ("native", "mjx_step", "mjx_jacobians", "_mjx_plain_step"):
+        for shared in ("native", "mjx_step", "mjx_jacobians", "_mjx_physics"):
             if shared in self.__dict__:
                 single.__dict__[shared] = self.__dict__[shared]
         return single
@@ -183,10 +189,12 @@ def build_system(
     model, exact_xml = compile_mjcf(xml, field, timestep, path)
     threads = native_threads or os.cpu_count() or 1
     if backend == "mjx":
-        plain = backend_mjx.make_mjx_step(model, substeps)
+        physics = backend_mjx.make_mjx_physics(model, substeps)
+        plain = physics.step
         # Programs exported for one device; work spread over a mesh traces the step itself.
         exported = mesh is None
-        step = exported_step.with_exported_batches(plain, model, substeps) if exported else plain
+        batch = physics.step_batch
+        step = exported_step.with_exported_batches(plain, model, substeps, batch=batch) if exported else plain
         rollout = backend_mjx.make_mjx_rollout(step)
     else:
         sim = backend_native.NativeSimulator(model, substeps, threads)
@@ -200,7 +208,7 @@ def build_system(
         system.__dict__["native"] = sim  # share the one pool
     else:
         system.__dict__["mjx_step"] = plain  # differentiable; the same numbers as step
-        system.__dict__["_mjx_plain_step"] = plain  # its Jacobians: the mjx_jacobians property
+        system.__dict__["_mjx_physics"] = physics  # its Jacobians: the mjx_jacobians property
     return system
 
 
