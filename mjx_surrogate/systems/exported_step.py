@@ -12,7 +12,7 @@ before its first iteration; docs/performance.md, "Compile times").
 of being traced. Its derivatives trace the step itself (forward mode, as ``jacfwd``); the
 exact oracle's Jacobians (:attr:`System.mjx_jacobians`) are exported the same way. Nested
 vmaps (a multi-start solve around a vmapped identification) merge into one batch. Only for
-work on one device: programs spread over a mesh trace the plain step. A native system's
+work on one device: programs spread over a mesh trace the step (:func:`with_batch_rule`). A native system's
 MJX step (its exact oracle) is wrapped around :func:`lazily` built steps, so that a run
 which finds every program on disk never builds the MJX model (the fish: 1.5 s).
 
@@ -125,10 +125,19 @@ def with_exported_batches(
         shape = lambda a: jax.ShapeDtypeStruct(a.shape, a.dtype)  # noqa: E731
         return program(shape(x), shape(u)).call(x, u)
 
+    return with_batch_rule(step, call, call)
+
+
+def with_batch_rule(step: Callable, call: Callable, call_batch: Callable) -> Callable:
+    """``step(x[nx], u[nu])`` run as ``call(x, u)``, and under ``vmap`` (nested vmaps merged
+    into one batch) as ``call_batch(x [B, nx], u [B, nu])``; its derivatives trace ``step``
+    itself. Its attribute ``batched`` is ``call_batch`` with that rule (not differentiable).
+    ``with_batch_rule(step, step, batch)`` gives a plain step a batch of its own (a mesh's)."""
+
     @jax.custom_batching.custom_vmap
     def batched(x: jax.Array, u: jax.Array) -> jax.Array:
-        """x [B, nx], u [B, nu] -> [B, nx] by the exported program for B."""
-        return call(x, u)
+        """x [B, nx], u [B, nu] -> [B, nx] by ``call_batch``."""
+        return call_batch(x, u)
 
     @batched.def_vmap
     def _batched_vmap(axis_size, in_batched, x, u):  # an outer vmap: one batch of S B
@@ -138,22 +147,22 @@ def with_exported_batches(
         return _all_batched(jax.tree.map(lambda o: o.reshape((S, B) + o.shape[1:]), out))
 
     @jax.custom_batching.custom_vmap
-    def cached(x: jax.Array, u: jax.Array) -> jax.Array:
+    def one(x: jax.Array, u: jax.Array) -> jax.Array:
         return call(x, u)
 
-    @cached.def_vmap
-    def _cached_vmap(axis_size, in_batched, x, u):
+    @one.def_vmap
+    def _one_vmap(axis_size, in_batched, x, u):
         return _all_batched(batched(*_both_batched(axis_size, in_batched, x, u)))
 
     @jax.custom_jvp
     def differentiable(x: jax.Array, u: jax.Array):
-        return cached(x, u)
+        return one(x, u)
 
     @differentiable.defjvp
     def _differentiable_jvp(primals, tangents):  # derivatives trace the step itself
         return jax.jvp(step, primals, tangents)
 
     # custom_vmap traces the function it wraps before its rule runs: vmap(differentiable)
-    # exports the unbatched program too. ``batched`` exports (or loads) only the batch's.
+    # traces (exports) the unbatched call too. ``batched`` traces only the batch's.
     differentiable.batched = batched
     return differentiable

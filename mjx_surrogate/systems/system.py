@@ -113,9 +113,9 @@ class System:
 
     def _exported(self, build, build_batch, tag: str):
         """``build()`` (its batches: ``build_batch()``) on one device as exported programs,
-        built only to be exported or differentiated; over a mesh ``build()`` itself."""
+        built only to be exported or differentiated; over a mesh traced as they are."""
         if self.mesh is not None:
-            return build()
+            return exported_step.with_batch_rule(build(), build(), build_batch())
         lazy, lazy_batch = exported_step.lazily(build), exported_step.lazily(build_batch)
         return exported_step.with_exported_batches(lazy, self.mj_model, self.substeps, tag, lazy_batch)
 
@@ -191,10 +191,12 @@ def build_system(
     if backend == "mjx":
         physics = backend_mjx.make_mjx_physics(model, substeps)
         plain = physics.step
-        # Programs exported for one device; work spread over a mesh traces the step itself.
-        exported = mesh is None
-        batch = physics.step_batch
-        step = exported_step.with_exported_batches(plain, model, substeps, batch=batch) if exported else plain
+        # Programs exported for one device; work spread over a mesh traces the step and its
+        # batch (exports for one device conflicted with the sharded programs).
+        if mesh is None:
+            step = exported_step.with_exported_batches(plain, model, substeps, batch=physics.step_batch)
+        else:
+            step = exported_step.with_batch_rule(plain, plain, physics.step_batch)
         rollout = backend_mjx.make_mjx_rollout(step)
     else:
         sim = backend_native.NativeSimulator(model, substeps, threads)
