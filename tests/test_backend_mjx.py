@@ -4,6 +4,7 @@ import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
+import pytest
 
 from mjx_surrogate.systems import backend_mjx
 
@@ -42,6 +43,7 @@ def _points():
     return X, U
 
 
+@pytest.mark.slow  # the fast tier has it on the pendulum (test_exported_step.py)
 def test_batched_step_is_the_vmapped_step_bit_for_bit():
     physics = _box()
     X, U = _points()
