@@ -107,6 +107,17 @@ def main(argv=None) -> None:
     ap.add_argument("--one", nargs=4, help=argparse.SUPPRESS)  # system program form out: a child process
     ap.add_argument("--runs", nargs=2, help=argparse.SUPPRESS)  # system program: a child process
     a = ap.parse_args(argv)
+    from mjx_surrogate.errors import ConfigError
+    from mjx_surrogate.systems.registry import default_config
+
+    for name in a.systems:
+        try:
+            default_config(name)
+        except ConfigError as e:
+            ap.error(f"--systems: {e}")
+    for field in ("T", "batch", "repeats"):
+        if getattr(a, field) is not None and getattr(a, field) < 1:
+            ap.error(f"--{field}: must be at least 1, got {getattr(a, field)}")
     T = lambda system: a.T or (600 if system == "fish" else 30)  # noqa: E731
     if a.one:
         system, program, form, out = a.one
