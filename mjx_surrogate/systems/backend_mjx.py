@@ -47,8 +47,9 @@ class MjxPhysics(NamedTuple):
       control step's exact Jacobians: forward mode along the nx + nu input directions,
       pushed through a loop over the substeps of the batched physics step (the state and
       the constraint solver's warmstart, which carries over from one substep to the next).
-      Equal to ``vmap(jacfwd(step))`` to round-off; it traces in a third of the time
-      (fish: 5 s against 13 s), for the reason above.
+      The same numbers as ``vmap(jacfwd(step))`` (bit for bit in the tests, contacts
+      included), traced in a third to a half of the time (fish, T 600: 3.7-5.2 s against
+      8.9-13.3 s), for the reason above (``benchmarks/mjx_programs.py``).
     """
 
     step: Callable

@@ -12,9 +12,10 @@ before its first iteration; docs/performance.md, "Compile times").
 of being traced. Its derivatives trace the step itself (forward mode, as ``jacfwd``); the
 exact oracle's Jacobians (:attr:`System.mjx_jacobians`) are exported the same way. Nested
 vmaps (a multi-start solve around a vmapped identification) merge into one batch. Only for
-work on one device: programs spread over a mesh trace the step (:func:`with_batch_rule`). A native system's
-MJX step (its exact oracle) is wrapped around :func:`lazily` built steps, so that a run
-which finds every program on disk never builds the MJX model (the fish: 1.5 s).
+work on one device: programs spread over a mesh trace the step and its batch
+(:func:`with_batch_rule`). A native system's MJX step (its exact oracle) is wrapped around
+:func:`lazily` built steps, so that a run which finds every program on disk never builds
+the MJX model (the fish: 1.5 s).
 
 A program's file name hashes everything it depends on: the compiled model, the substeps,
 the batch shape and dtypes, the precision mode (``jax_enable_x64`` sets the MJX model's
