@@ -262,7 +262,11 @@ def ilqr_init(problem: Problem, U0: jax.Array, params: ILQRParams, key: jax.Arra
     U0 = jnp.clip(U0.astype(dtype), u_min, u_max)
     zeros_K = jnp.zeros((T, nu, nx), dtype)
     zeros_x = jnp.zeros((T + 1, nx), dtype)
-    X0, _ = closed_loop(problem.step, x0, zeros_x, U0, jnp.zeros((T, nu), dtype), zeros_K, 0.0, u_min, u_max)
+    zeros_u = jnp.zeros((T, nu), dtype)
+    if problem.trial_rollouts is None:
+        X0, _ = closed_loop(problem.step, x0, zeros_x, U0, zeros_u, zeros_K, 0.0, u_min, u_max)
+    else:  # the line search's batched rollout with one step size: one host call, not T
+        X0 = problem.trial_rollouts(x0, zeros_x, U0, zeros_u, zeros_K, jnp.zeros((1,), dtype), u_min, u_max)[0][0]
     J0 = trajectory_cost(problem.cost, X0, U0)
     n_hist = params.max_iter + 1
     X_hist = (

@@ -213,6 +213,39 @@ def test_native_one_call_line_search_equals_the_per_step_rollouts(threads):
     np.testing.assert_allclose(X1, X2, atol=1e-12)
 
 
+def test_native_initial_rollout_is_one_host_call_equal_to_the_per_step_scan():
+    """ilqr_init rolls U0 out through the backend's batched line-search call (one host
+    call) rather than a scan of T one-step calls, to the same states in float64, clipped
+    controls included."""
+    import jax
+    import jax.numpy as jnp
+
+    from mjx_surrogate.d2c import problem
+    from mjx_surrogate.ilqr import ILQRParams, closed_loop, ilqr_init
+    from mjx_surrogate.sysid import SysIdParams
+    from mjx_surrogate.systems import backend_native, make_system
+    from mjx_surrogate.tasks import make_task
+
+    with jax.enable_x64(True):
+        sys_ = make_system("cartpole", backend="native", native_threads=1)
+        T = 20
+        task = make_task([0.0, 3.0, 0.0, 0.0], np.zeros(4), np.eye(4), np.eye(4), np.eye(1), T, [-1.0], [1.0])
+        prob = problem(sys_, task, SysIdParams(), "d2c")
+        U0 = 0.8 * jax.random.normal(jax.random.key(3), (T, sys_.nu), jnp.float64)  # some beyond +-1
+        calls = []
+        orig = backend_native.NativeSimulator.__call__
+        backend_native.NativeSimulator.__call__ = lambda self, *a: calls.append(1) or orig(self, *a)
+        try:
+            X0 = jax.jit(lambda U: ilqr_init(prob, U, ILQRParams(max_iter=3), jax.random.key(0)).X)(U0)
+        finally:
+            backend_native.NativeSimulator.__call__ = orig
+        assert calls == []  # no one-step callback: the batched trial rollout did it
+        Uc = jnp.clip(U0, task.u_min, task.u_max)
+        zeros = jnp.zeros((T + 1, sys_.nx)), jnp.zeros((T, sys_.nu, sys_.nx))
+        ref, _ = closed_loop(sys_.step, task.x0, zeros[0], Uc, jnp.zeros_like(Uc), zeros[1], 0.0, -jnp.inf, jnp.inf)
+        np.testing.assert_array_equal(np.asarray(X0), np.asarray(ref))
+
+
 def test_a_wrong_model_stalls_instead_of_converging_on_regularised_steps():
     # The model's B has the wrong sign: trials fail and mu grows until the regularised
     # step (k ~ 1/mu) and its promise are tiny. That is no minimum: the
