@@ -266,7 +266,8 @@ def ilqr_init(problem: Problem, U0: jax.Array, params: ILQRParams, key: jax.Arra
     if problem.trial_rollouts is None:
         X0, _ = closed_loop(problem.step, x0, zeros_x, U0, zeros_u, zeros_K, 0.0, u_min, u_max)
     else:  # the line search's batched rollout with one step size: one host call, not T
-        X0 = problem.trial_rollouts(x0, zeros_x, U0, zeros_u, zeros_K, jnp.zeros((1,), dtype), u_min, u_max)[0][0]
+        no_step = jnp.zeros((1,), dtype)
+        X0 = problem.trial_rollouts(x0, zeros_x, U0, zeros_u, zeros_K, no_step, u_min, u_max)[0][0]
     J0 = trajectory_cost(problem.cost, X0, U0)
     n_hist = params.max_iter + 1
     X_hist = (

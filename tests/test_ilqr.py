@@ -242,7 +242,8 @@ def test_native_initial_rollout_is_one_host_call_equal_to_the_per_step_scan():
         assert calls == []  # no one-step callback: the batched trial rollout did it
         Uc = jnp.clip(U0, task.u_min, task.u_max)
         zeros = jnp.zeros((T + 1, sys_.nx)), jnp.zeros((T, sys_.nu, sys_.nx))
-        ref, _ = closed_loop(sys_.step, task.x0, zeros[0], Uc, jnp.zeros_like(Uc), zeros[1], 0.0, -jnp.inf, jnp.inf)
+        no_k = jnp.zeros_like(Uc)
+        ref, _ = closed_loop(sys_.step, task.x0, zeros[0], Uc, no_k, zeros[1], 0.0, -jnp.inf, jnp.inf)
         np.testing.assert_array_equal(np.asarray(X0), np.asarray(ref))
 
 
