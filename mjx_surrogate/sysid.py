@@ -53,28 +53,44 @@ class SysIdParams:
     design: str = struct.field(pytree_node=False, default="gaussian")  # or "orthogonal"
 
 
-def normal_equations(Z: jax.Array, Y: jax.Array, w: jax.Array | None) -> tuple[jax.Array, jax.Array]:
+def normal_equations(
+    Z: jax.Array, Y: jax.Array, w: jax.Array | None, diagonal: bool = False
+) -> tuple[jax.Array, jax.Array]:
     """Weighted sufficient statistics of the regression, summed over samples:
     Z [T, n, m], Y [T, n, nx], w [n] (None: all ones) -> G = Z'WZ [T, m, m], F = Z'WY
-    [T, m, nx]. A sample of weight 0 (padding) contributes nothing, even if non-finite."""
-    if w is None:
-        return jnp.einsum("tni,tnj->tij", Z, Z), jnp.einsum("tni,tnj->tij", Z, Y)
-    keep = (w > 0)[None, :, None]
-    Zk, Yk = jnp.where(keep, Z, 0.0), jnp.where(keep, Y, 0.0)
-    Zw = Zk * w[None, :, None]
-    return jnp.einsum("tni,tnj->tij", Zw, Zk), jnp.einsum("tni,tnj->tij", Zw, Yk)
+    [T, m, nx]. A sample of weight 0 (padding) contributes nothing, even if non-finite.
+    ``diagonal``: the design makes Z'Z diagonal (:func:`diagonal_gram`); G is then only its
+    diagonal [T, m]."""
+    if w is not None:
+        keep = (w > 0)[None, :, None]
+        Z, Y = jnp.where(keep, Z, 0.0), jnp.where(keep, Y, 0.0)
+    Zw = Z if w is None else Z * w[None, :, None]
+    G = jnp.einsum("tni,tni->ti", Zw, Z) if diagonal else jnp.einsum("tni,tnj->tij", Zw, Z)
+    return G, jnp.einsum("tni,tnj->tij", Zw, Y)
 
 
 def solve_normal_equations(G: jax.Array, F: jax.Array, nx: int) -> tuple[jax.Array, jax.Array]:
-    """G [T, m, m], F [T, m, nx] -> A [T, nx, nx], B [T, nx, m - nx]. Rows and columns are
-    scaled to a unit diagonal first (the columns of Z to unit RMS), then solved."""
-    d = jnp.diagonal(G, axis1=1, axis2=2)  # [T, m]
-    s = jnp.where(d > 0, jnp.sqrt(d), 1.0)
-    Gs = G / (s[:, :, None] * s[:, None, :])
-    Fs = F / s[:, :, None]
-    W = jax.vmap(lambda g, f: spd_solve(g, f)[0])(Gs, Fs) / s[:, :, None]  # [T, m, nx]
+    """G [T, m, m] (or its diagonal [T, m]: a diagonal Gram matrix), F [T, m, nx] -> A [T,
+    nx, nx], B [T, nx, m - nx]. Rows and columns are scaled to a unit diagonal first (the
+    columns of Z to unit RMS), then solved; a diagonal G needs no elimination."""
+    if G.ndim == 2:
+        W = F / jnp.where(G > 0, G, 1.0)[:, :, None]
+    else:
+        d = jnp.diagonal(G, axis1=1, axis2=2)  # [T, m]
+        s = jnp.where(d > 0, jnp.sqrt(d), 1.0)
+        Gs = G / (s[:, :, None] * s[:, None, :])
+        Fs = F / s[:, :, None]
+        W = jax.vmap(lambda g, f: spd_solve(g, f)[0])(Gs, Fs) / s[:, :, None]  # [T, m, nx]
     Wt = jnp.swapaxes(W, 1, 2)  # [T, nx, m]
     return Wt[:, :, :nx], Wt[:, :, nx:]
+
+
+def diagonal_gram(p: "SysIdParams", m: int) -> bool:
+    """Whether one-step samples of design ``p`` make Z'Z diagonal for m regressors: whole
+    orthogonal blocks (n a multiple of m), so that Z'Z = (n / m) diag(sigma^2) exactly and
+    the regression is a product, [A B]' = diag(Z'Z)^-1 Z'Y (paper, Section 3: a perfectly
+    conditioned Gram matrix); its off-diagonal entries would be round-off."""
+    return p.design == "orthogonal" and p.n_samples % m == 0
 
 
 def lstsq_ltv(Z: jax.Array, Y: jax.Array, nx: int) -> tuple[jax.Array, jax.Array]:
@@ -138,7 +154,8 @@ def central_difference(
         xs = jnp.concatenate([X[:-1, None] + dx, X[:-1, None] - dx], axis=1)  # [T, 2b, nx]
         us = jnp.concatenate([U[:, None] + du, U[:, None] - du], axis=1)
         f = jax.vmap(step)(xs.reshape(-1, nx), us.reshape(-1, nu)).reshape(T, 2 * b, nx)
-        return normal_equations(jnp.concatenate([dx, du], axis=-1), 0.5 * (f[:, :b] - f[:, b:]), w)
+        Z = jnp.concatenate([dx, du], axis=-1)
+        return normal_equations(Z, 0.5 * (f[:, :b] - f[:, b:]), w, diagonal_gram(p, nx + nu))
 
     samples = _one_step_perturbations(key, T, nx, nu, p, X.dtype)
     return solve_normal_equations(*sharding.sum_over_batch(stats, mesh, samples, (X, U)), nx)
@@ -163,7 +180,8 @@ def forward_difference(
         xs = jnp.concatenate([X[:-1, None], X[:-1, None] + dx], axis=1)  # [T, b+1, nx]
         us = jnp.concatenate([U[:, None], U[:, None] + du], axis=1)
         f = jax.vmap(step)(xs.reshape(-1, nx), us.reshape(-1, nu)).reshape(T, b + 1, nx)
-        return normal_equations(jnp.concatenate([dx, du], axis=-1), f[:, 1:] - f[:, :1], w)
+        Z = jnp.concatenate([dx, du], axis=-1)
+        return normal_equations(Z, f[:, 1:] - f[:, :1], w, diagonal_gram(p, nx + nu))
 
     samples = _one_step_perturbations(key, T, nx, nu, p, X.dtype)
     return solve_normal_equations(*sharding.sum_over_batch(stats, mesh, samples, (X, U)), nx)

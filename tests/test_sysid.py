@@ -53,6 +53,28 @@ def test_orthogonal_minimal_design_recovers_a_linear_system(scheme):
     np.testing.assert_allclose(B, np.broadcast_to(B_TRUE, B.shape), atol=1e-10)
 
 
+@pytest.mark.parametrize("n", [5, 10, 7])
+def test_orthogonal_designs_give_numpy_least_squares_on_a_nonlinear_step(n):
+    """Whole orthogonal blocks (n a multiple of nx + nu = 5: Z'Z diagonal, the regression a
+    product) and a partial block (the general solve) give float64 NumPy's least-squares
+    fit of the same samples, with unequal sigma_x and sigma_u."""
+    step = lambda x, u: jnp.asarray(A_TRUE) @ jnp.sin(x) + jnp.asarray(B_TRUE) @ (u + u**3)  # noqa: E731
+    T = 4
+    U = jnp.asarray(rng.standard_normal((T, 2)))
+    X = simulate(step, jnp.ones(3), U)
+    p = sysid.SysIdParams(0.3, 0.05, scheme="forward_difference", n_samples=n, design="orthogonal")
+    assert sysid.diagonal_gram(p, 5) == (n % 5 == 0)
+    key = jax.random.key(7)
+    A, B = sysid.forward_difference(step, X, U, key, p)
+    dx, du = (np.asarray(a) for a in sysid._one_step_perturbations(key, T, 3, 2, p, jnp.float64))
+    for t in range(T):
+        Z = np.concatenate([dx[:, t], du[:, t]], axis=-1)  # [n, 5]
+        Y = np.stack([step(X[t] + dx[i, t], U[t] + du[i, t]) for i in range(n)]) - step(X[t], U[t])
+        W = np.linalg.lstsq(Z, Y, rcond=None)[0].T
+        np.testing.assert_allclose(A[t], W[:, :3], rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(B[t], W[:, 3:], rtol=1e-9, atol=1e-12)
+
+
 def test_lstsq_matches_float64_numpy():
     Z = rng.standard_normal((4, 30, 5)) * np.array([1e-3, 1e-3, 1e-3, 1.0, 10.0])
     Y = rng.standard_normal((4, 30, 3))
