@@ -75,3 +75,37 @@ def test_a_trial_mujoco_raises_on_is_marked_diverged(systems):
     assert len(calls) == T
     assert np.isnan(X1[1, 4:]).all() and np.array_equal(X1[1, :4], X0[1, :4])
     np.testing.assert_array_equal(X1[[0, 2]], X0[[0, 2]])
+
+
+def test_native_one_step_equals_the_rollout_of_one_step(systems):
+    """NativeSimulator.step (the identification's one-step batches: buffers reused, MuJoCo's
+    checks skipped) = the horizon-1 rollout bit for bit, rows with a non-finite or huge
+    control and a state beyond mjMAXVAL marked NaN, in float64 and float32, over repeated
+    calls and batch sizes; the jitted native step calls it once per vmapped batch."""
+    import mujoco
+
+    s = systems("fish", backend="native", native_threads=2)
+    sim = s.native
+    rng = np.random.default_rng(1)
+    x_rest = np.concatenate([s.mj_model.qpos0, np.zeros(sim.nx - s.nq)])
+    for B, dtype in ((70, np.float64), (3, np.float64), (70, np.float32), (70, np.float64)):
+        x = (x_rest + 1e-2 * rng.standard_normal((B, sim.nx))).astype(dtype)
+        u = rng.standard_normal((B, s.nu)).astype(dtype)
+        u[1, 0], u[2, 3] = np.nan, 2 * mujoco.mjMAXVAL
+        x[-1, 0] = 2 * mujoco.mjMAXVAL
+        ref = sim(x, u[:, None, :])[:, 1]
+        out = sim.step(x, u)
+        sim.step(x[::-1].copy(), u)  # the same buffers again: out must not change
+        assert out.dtype == dtype and out.shape == (B, sim.nx)
+        np.testing.assert_array_equal(out, ref)
+        assert np.isnan(out[[1, 2, -1]]).all() and np.isfinite(out[3:-1]).all()
+    calls = []
+    orig = sim.step
+    sim.step = lambda x, u: calls.append(np.shape(x)) or orig(x, u)
+    try:
+        xs, us = jnp.asarray(x[3:-1]), jnp.asarray(u[3:-1])
+        out = jax.jit(jax.vmap(s.step))(xs, us)
+    finally:
+        del sim.step
+    assert calls == [(B - 4, sim.nx)]
+    np.testing.assert_array_equal(np.asarray(out), ref[3:-1])

@@ -16,6 +16,7 @@ from __future__ import annotations
 import copy
 import os
 import queue
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -30,8 +31,19 @@ _ROW = mujoco.mjtState.mjSTATE_INTEGRATION
 
 def _diverged(a: np.ndarray) -> np.ndarray:
     """[..., n] -> [...]: any entry non-finite or beyond ``mjMAXVAL``, MuJoCo's own test for
-    a bad state or control."""
-    return ~(np.abs(a) <= mujoco.mjMAXVAL).all(axis=-1)
+    a bad state or control (two reductions, no temporary of a's size: NaN propagates)."""
+    with np.errstate(invalid="ignore"):
+        return ~((a.max(axis=-1) <= mujoco.mjMAXVAL) & (a.min(axis=-1) >= -mujoco.mjMAXVAL))
+
+
+class _StepBuffers(NamedTuple):
+    """Inputs and outputs of one batch size's one-step ``mujoco.rollout`` call, reused."""
+
+    models: list  # the model, once per row
+    init: np.ndarray  # [B, nstate]: the template, x written per call
+    ctrl: np.ndarray  # [B, substeps, nu]
+    state: np.ndarray  # [B, substeps, nstate]
+    sensordata: np.ndarray  # [B, substeps, 0]
 
 
 class NativeSimulator:
@@ -67,6 +79,7 @@ class NativeSimulator:
         mujoco.mj_getState(self.model, data, self._row_template, _ROW)
         self._ctrl_col = mujoco.mj_stateSize(self.model, int(mujoco.mjtState.mjSTATE_CTRL) - 1)
         self._batches: dict[int, queue.SimpleQueue] = {}  # free batches by size
+        self._step_buffers: dict[int, queue.SimpleQueue] = {}  # free one-step buffers by size
 
     def _new_datas(self) -> list:
         return [mujoco.MjData(self.model) for _ in range(self.nthread)]
@@ -104,6 +117,57 @@ class NativeSimulator:
             bad = np.logical_or.accumulate(_diverged(ub) | _diverged(X[:, 1:]), axis=1)  # [B, T]
         X[:, 1:][bad] = np.nan
         return X.reshape(lead + (T + 1, self.nx)).astype(x0.dtype, copy=False)
+
+    def step(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """One control step of every row: x [..., nx], u [..., nu] -> x_next [..., nx] in x's
+        dtype; the numbers of :meth:`__call__` with T = 1 (bit for bit), with its inputs and
+        outputs reused across calls of the same batch size and MuJoCo's argument checks
+        skipped (the identification's one-step batches: tens of thousands of rows)."""
+        x, u = np.asarray(x), np.asarray(u)
+        lead = np.broadcast_shapes(x.shape[:-1], u.shape[:-1])
+        nx, nu, S = self.nx, u.shape[-1], self.substeps
+        xb = np.broadcast_to(x, lead + (nx,)).reshape(-1, nx)
+        ub = np.broadcast_to(u, lead + (nu,)).reshape(-1, nu)
+        B = xb.shape[0]
+        buf = self._take_step_buffers(B, nu)
+        threaded = self.nthread > 1 and B >= self.min_batch_per_thread * self.nthread
+        try:
+            datas = self._free.get_nowait()
+        except queue.Empty:
+            datas = self._new_datas()
+        try:
+            buf.init[:, 1 : 1 + nx] = xb
+            buf.ctrl[:] = ub[:, None, :]
+            mj_rollout.rollout(
+                buf.models,
+                datas if threaded else datas[:1],
+                buf.init,
+                buf.ctrl,
+                skip_checks=True,
+                nstep=S,
+                state=buf.state,
+                sensordata=buf.sensordata,
+            )
+            out = buf.state[:, S - 1, 1 : 1 + nx].astype(x.dtype)
+        finally:
+            self._free.put(datas)
+            self._step_buffers[B].put(buf)
+        bad = _diverged(ub) | _diverged(out)
+        if bad.any():
+            out[bad] = np.nan
+        return out.reshape(lead + (nx,))
+
+    def _take_step_buffers(self, B: int, nu: int) -> _StepBuffers:
+        """Free one-step buffers for B rows (made when none is free: concurrent calls
+        each get their own)."""
+        try:
+            return self._step_buffers.setdefault(B, queue.SimpleQueue()).get_nowait()
+        except queue.Empty:
+            S, nstate = self.substeps, self.template.size
+            init = np.tile(self.template, (B, 1))
+            return _StepBuffers(
+                [self.model] * B, init, np.empty((B, S, nu)), np.empty((B, S, nstate)), np.empty((B, S, 0))
+            )
 
     def closed_loop(self, x0, X_bar, U_bar, k, K, alphas, lo, hi):
         """u_t = clip(U_bar_t + alpha k_t + K_t (x_t - X_bar_t)) for every alpha at once:
@@ -206,9 +270,9 @@ def make_native_rollout(sim: NativeSimulator):
 
 def make_native_step(sim: NativeSimulator):
     """Jittable ``step(x[nx], u[nu]) -> x_next[nx]``; vmaps into one batched host call."""
-    rollout = make_native_rollout(sim)
 
     def step(x: jax.Array, u: jax.Array) -> jax.Array:
-        return rollout(x, u[..., None, :])[..., 1, :]
+        out = jax.ShapeDtypeStruct(jnp.broadcast_shapes(x.shape[:-1], u.shape[:-1]) + (sim.nx,), x.dtype)
+        return jax.pure_callback(sim.step, out, x, u.astype(x.dtype), vmap_method="broadcast_all")
 
     return step
