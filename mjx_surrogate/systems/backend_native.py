@@ -13,6 +13,7 @@ Host callbacks inside jitted while loops need synchronous CPU dispatch
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import os
 import queue
@@ -84,6 +85,21 @@ class NativeSimulator:
     def _new_datas(self) -> list:
         return [mujoco.MjData(self.model) for _ in range(self.nthread)]
 
+    @contextlib.contextmanager
+    def _datas(self, B: int):
+        """A free set of MjData for a ``mujoco.rollout`` of B rows: one per thread, or one
+        for a small batch, which runs on the calling thread. (A persistent pool driven from
+        XLA's callback threads hung the process once in thousands of calls here, so large
+        batches get a thread pool made for the call.)"""
+        try:
+            datas = self._free.get_nowait()
+        except queue.Empty:
+            datas = self._new_datas()
+        try:
+            yield datas if self.nthread > 1 and B >= self.min_batch_per_thread * self.nthread else datas[:1]
+        finally:
+            self._free.put(datas)
+
     def __call__(self, x0: np.ndarray, U: np.ndarray) -> np.ndarray:
         """x0 [..., nx], U [..., T, nu] (float) -> X [..., T+1, nx] in x0's dtype."""
         x0 = np.asarray(x0)
@@ -97,18 +113,8 @@ class NativeSimulator:
         init = np.tile(self.template, (B, 1))
         init[:, 1 : 1 + self.nx] = xb
         ctrl = np.repeat(ub, self.substeps, axis=1)
-        # Small batches run on this thread; large ones on a thread pool made for the call.
-        # A persistent pool driven from XLA's callback threads hung the process once in
-        # thousands of calls here.
-        threaded = self.nthread > 1 and B >= self.min_batch_per_thread * self.nthread
-        try:
-            datas = self._free.get_nowait()
-        except queue.Empty:
-            datas = self._new_datas()
-        try:
-            state, _ = mj_rollout.rollout(self.model, datas if threaded else datas[0], init, ctrl)
-        finally:
-            self._free.put(datas)
+        with self._datas(B) as datas:
+            state, _ = mj_rollout.rollout(self.model, datas, init, ctrl)
         S = self.substeps
         X = np.empty((B, T + 1, self.nx))
         X[:, 0] = xb
@@ -130,27 +136,22 @@ class NativeSimulator:
         ub = np.broadcast_to(u, lead + (nu,)).reshape(-1, nu)
         B = xb.shape[0]
         buf = self._take_step_buffers(B, nu)
-        threaded = self.nthread > 1 and B >= self.min_batch_per_thread * self.nthread
-        try:
-            datas = self._free.get_nowait()
-        except queue.Empty:
-            datas = self._new_datas()
         try:
             buf.init[:, 1 : 1 + nx] = xb
             buf.ctrl[:] = ub[:, None, :]
-            mj_rollout.rollout(
-                buf.models,
-                datas if threaded else datas[:1],
-                buf.init,
-                buf.ctrl,
-                skip_checks=True,
-                nstep=S,
-                state=buf.state,
-                sensordata=buf.sensordata,
-            )
+            with self._datas(B) as datas:
+                mj_rollout.rollout(
+                    buf.models,
+                    datas,
+                    buf.init,
+                    buf.ctrl,
+                    skip_checks=True,
+                    nstep=S,
+                    state=buf.state,
+                    sensordata=buf.sensordata,
+                )
             out = buf.state[:, S - 1, 1 : 1 + nx].astype(x.dtype)
         finally:
-            self._free.put(datas)
             self._step_buffers[B].put(buf)
         bad = _diverged(ub) | _diverged(out)
         if bad.any():
