@@ -85,7 +85,7 @@ def solve_normal_equations(G: jax.Array, F: jax.Array, nx: int) -> tuple[jax.Arr
     return Wt[:, :, :nx], Wt[:, :, nx:]
 
 
-def diagonal_gram(p: "SysIdParams", m: int) -> bool:
+def diagonal_gram(p: SysIdParams, m: int) -> bool:
     """Whether one-step samples of design ``p`` make Z'Z diagonal for m regressors: whole
     orthogonal blocks (n a multiple of m), so that Z'Z = (n / m) diag(sigma^2) exactly and
     the regression is a product, [A B]' = diag(Z'Z)^-1 Z'Y (paper, Section 3: a perfectly
