@@ -226,25 +226,26 @@ def test_native_initial_rollout_is_one_host_call_equal_to_the_per_step_scan():
     from mjx_surrogate.systems import backend_native, make_system
     from mjx_surrogate.tasks import make_task
 
-    with jax.enable_x64(True):
-        sys_ = make_system("cartpole", backend="native", native_threads=1)
-        T = 20
-        task = make_task([0.0, 3.0, 0.0, 0.0], np.zeros(4), np.eye(4), np.eye(4), np.eye(1), T, [-1.0], [1.0])
-        prob = problem(sys_, task, SysIdParams(), "d2c")
-        U0 = 0.8 * jax.random.normal(jax.random.key(3), (T, sys_.nu), jnp.float64)  # some beyond +-1
-        calls = []
-        orig = backend_native.NativeSimulator.__call__
-        backend_native.NativeSimulator.__call__ = lambda self, *a: calls.append(1) or orig(self, *a)
-        try:
-            X0 = jax.jit(lambda U: ilqr_init(prob, U, ILQRParams(max_iter=3), jax.random.key(0)).X)(U0)
-        finally:
-            backend_native.NativeSimulator.__call__ = orig
-        assert calls == []  # no one-step callback: the batched trial rollout did it
-        Uc = jnp.clip(U0, task.u_min, task.u_max)
-        zeros = jnp.zeros((T + 1, sys_.nx)), jnp.zeros((T, sys_.nu, sys_.nx))
-        no_k = jnp.zeros_like(Uc)
-        ref, _ = closed_loop(sys_.step, task.x0, zeros[0], Uc, no_k, zeros[1], 0.0, -jnp.inf, jnp.inf)
-        np.testing.assert_array_equal(np.asarray(X0), np.asarray(ref))
+    # float64 throughout (tests/conftest.py)
+    sys_ = make_system("cartpole", backend="native", native_threads=1)
+    T = 20
+    task = make_task([0.0, 3.0, 0.0, 0.0], np.zeros(4), np.eye(4), np.eye(4), np.eye(1), T, [-1.0], [1.0])
+    prob = problem(sys_, task, SysIdParams(), "d2c")
+    U0 = 0.8 * jax.random.normal(jax.random.key(3), (T, sys_.nu), jnp.float64)  # some beyond +-1
+    calls, Sim = [], backend_native.NativeSimulator
+    orig = Sim.__call__, Sim.step
+    Sim.__call__ = lambda self, *a: calls.append("rollout") or orig[0](self, *a)
+    Sim.step = lambda self, *a: calls.append("step") or orig[1](self, *a)
+    try:
+        X0 = jax.jit(lambda U: ilqr_init(prob, U, ILQRParams(max_iter=3), jax.random.key(0)).X)(U0)
+    finally:
+        Sim.__call__, Sim.step = orig
+    assert calls == []  # no one-step callback: the batched trial rollout did it
+    Uc = jnp.clip(U0, task.u_min, task.u_max)
+    zeros = jnp.zeros((T + 1, sys_.nx)), jnp.zeros((T, sys_.nu, sys_.nx))
+    no_k = jnp.zeros_like(Uc)
+    ref, _ = closed_loop(sys_.step, task.x0, zeros[0], Uc, no_k, zeros[1], 0.0, -jnp.inf, jnp.inf)
+    np.testing.assert_array_equal(np.asarray(X0), np.asarray(ref))
 
 
 def test_a_wrong_model_stalls_instead_of_converging_on_regularised_steps():

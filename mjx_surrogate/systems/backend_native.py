@@ -119,8 +119,7 @@ class NativeSimulator:
         X = np.empty((B, T + 1, self.nx))
         X[:, 0] = xb
         X[:, 1:] = state[:, S - 1 :: S, 1 : 1 + self.nx]
-        with np.errstate(invalid="ignore"):
-            bad = np.logical_or.accumulate(_diverged(ub) | _diverged(X[:, 1:]), axis=1)  # [B, T]
+        bad = np.logical_or.accumulate(_diverged(ub) | _diverged(X[:, 1:]), axis=1)  # [B, T]
         X[:, 1:][bad] = np.nan
         return X.reshape(lead + (T + 1, self.nx)).astype(x0.dtype, copy=False)
 
