@@ -1,8 +1,8 @@
 """Experiment kind "d2c": data-driven iLQR on the black box against the exact oracle,
 the LTV estimates against exact Jacobians, and the feedback policy under noise.
 
-Stages (each written as it finishes): ``d2c``, ``exact`` (if enabled), ``ltv_error``,
-``feedback``; then the figures. The run's status is the D2C solve's verdict.
+Stages (each written as it finishes, each figure as soon as its stages are): ``d2c``,
+``exact`` (if enabled), ``ltv_error``, ``feedback``. The run's status is the D2C solve's verdict.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from mjx_surrogate.d2c import exact_linearize
 from mjx_surrogate.evaluation import evaluate_feedback
 from mjx_surrogate.linalg import ltv_relative_error
 from mjx_surrogate.resolution import Resolved, solver_params
-from mjx_surrogate.results import Run
+from mjx_surrogate.results import Interrupted, Run
 from mjx_surrogate.systems.system import actuated_state_indices, state_labels
 
 
@@ -94,6 +94,30 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     m_d2c, a_d2c = record.stage("d2c", d2c_stage)
     X_d2c, U_d2c, K_d2c = (jnp.asarray(a_d2c[k]) for k in ("d2c_X", "d2c_U", "d2c_K"))
     U0 = jnp.asarray(a_d2c["d2c_U0"])
+    d2c_hist = a_d2c["d2c_cost_history"][: m_d2c["iterations"] + 1]
+    per_id = pipeline.steps_per_identification(sid_params, task.T)
+    n_it = m_d2c["iterations"]
+    curve = pipeline.simulation_curve(a_d2c["d2c_identified"], n_it, task.T, sc.n_alphas, *per_id)
+    record.figure(
+        "cost_vs_simulations.png",
+        lambda: plots.cost_vs_simulations(
+            {f"D2C ({sc.sysid}, n={sid_params.n_samples})": (curve, d2c_hist)},
+            f"{system.name}: cost against black-box control steps",
+        ),
+    )
+    t = np.arange(task.T + 1) * system.dt
+    Xh = a_d2c.get("d2c_X_history", a_d2c["d2c_X"][None])[: m_d2c["iterations"] + 1]
+    record.figure(
+        "trajectory_evolution.png",
+        lambda: plots.trajectory_evolution(
+            t,
+            Xh,
+            np.asarray(task.x_goal),
+            state_labels(system.mj_model),
+            f"D2C on {system.name} from {cfg.solver.init} controls",
+            _shown_states(task, system.mj_model),
+        ),
+    )
 
     exact_hist = None
     if not ex.exact_oracle:
@@ -109,6 +133,8 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
 
         try:
             m_ex, a_ex = record.stage("exact", exact_stage)
+        except Interrupted:
+            raise
         except Exception as exc:  # e.g. a user model using a feature MJX lacks
             record.set("exact", {"error": f"{type(exc).__name__}: {exc}"})
         else:
@@ -126,6 +152,11 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
                 ),
             )
 
+    hist = {"D2C (LTV)": d2c_hist}
+    if exact_hist is not None:
+        hist["exact Jacobians"] = exact_hist
+    record.figure("cost_history.png", lambda: plots.cost_history(hist, f"{system.name}: {cfg.task.preset}"))
+
     def feedback_stage():
         levels = jnp.asarray(ex.noise_levels, dtype)
         closed, opened = evaluate_feedback(
@@ -142,33 +173,6 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
 
     _, a_fb = record.stage("feedback", feedback_stage)
 
-    hist = {"D2C (LTV)": a_d2c["d2c_cost_history"][: m_d2c["iterations"] + 1]}
-    if exact_hist is not None:
-        hist["exact Jacobians"] = exact_hist
-    record.figure("cost_history.png", lambda: plots.cost_history(hist, f"{system.name}: {cfg.task.preset}"))
-    per_id = pipeline.steps_per_identification(sid_params, task.T)
-    n_it = m_d2c["iterations"]
-    curve = pipeline.simulation_curve(a_d2c["d2c_identified"], n_it, task.T, sc.n_alphas, *per_id)
-    record.figure(
-        "cost_vs_simulations.png",
-        lambda: plots.cost_vs_simulations(
-            {f"D2C ({sc.sysid}, n={sid_params.n_samples})": (curve, hist["D2C (LTV)"])},
-            f"{system.name}: cost against black-box control steps",
-        ),
-    )
-    t = np.arange(task.T + 1) * system.dt
-    Xh = a_d2c.get("d2c_X_history", a_d2c["d2c_X"][None])[: m_d2c["iterations"] + 1]
-    record.figure(
-        "trajectory_evolution.png",
-        lambda: plots.trajectory_evolution(
-            t,
-            Xh,
-            np.asarray(task.x_goal),
-            state_labels(system.mj_model),
-            f"D2C on {system.name} from {cfg.solver.init} controls",
-            _shown_states(task, system.mj_model),
-        ),
-    )
     record.figure(
         "feedback_noise.png",
         lambda: plots.cost_vs_noise(

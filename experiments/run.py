@@ -100,11 +100,21 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
                 prog="python -m experiments.run [CONFIG]",
             )
     except SystemExit:
-        raise _one_line_tyro_error(err.getvalue()) from None
+        raise _one_line_tyro_error(err.getvalue(), argv) from None
     if out is not None:
         cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(cfg.experiment, out_dir=out))
-    name = os.path.splitext(os.path.basename(spec))[0]
-    return cfg, name
+    return cfg, run_name(spec)
+
+
+def run_name(spec: str) -> str:
+    """The name a run of ``spec`` gets: the preset's or file's stem; a replayed run's
+    ``config.json`` gives its run's name (the folder's, less its time stamp) + ``_replay``."""
+    stem = os.path.splitext(os.path.basename(spec))[0]
+    if os.path.basename(spec) != "config.json":
+        return stem
+    folder = os.path.basename(os.path.dirname(os.path.abspath(spec)))
+    folder = re.sub(r"^\d{8}-\d{6}_", "", folder)
+    return f"{folder or stem}_replay"
 
 
 def _take_out(argv: list[str]) -> tuple[list[str], str | None]:
@@ -144,21 +154,91 @@ def check_out_dir(path: str) -> None:
         raise ConfigError("experiment.out_dir", f"{probe!r} is not writable")
 
 
-def _one_line_tyro_error(text: str) -> ConfigError:
-    """Condense tyro's boxed message to one line naming the field."""
+_METAVARS = {"INT": "an integer", "FLOAT": "a number", "STR": "a string", "PATH": "a path"}
+
+
+def _expected(metavar: str) -> str:
+    """tyro's metavar in words: ``{None}|INT`` -> "an integer or None"."""
+    alts = [a.strip("{}") for a in metavar.split("|")]
+    words = []
+    for a in alts:
+        if a.startswith("[") or "..." in a:
+            words.append("numbers" if "FLOAT" in a or "INT" in a else "values")
+        elif a in _METAVARS:
+            words.append(_METAVARS[a])
+        elif a and a != "None":
+            words.append("one of " + ", ".join(a.split(",")))
+    words += ["None"] if "None" in alts else []
+    return " or ".join(words) or metavar
+
+
+def _values_after(argv: list[str], field: str) -> list[str]:
+    """The tokens given after ``field`` in argv, up to the next option."""
+    bare = field[2:]
+    names = {"--" + bare, "--" + bare.replace("_", "-"), "--" + bare.replace("-", "_")}
+    for i, a in enumerate(argv):
+        if a in names or any(a.startswith(n + "=") for n in names):
+            if "=" in a:
+                return [a.split("=", 1)[1]]
+            rest = argv[i + 1 :]
+            stop = next((j for j, b in enumerate(rest) if b.startswith("--")), len(rest))
+            return rest[:stop]
+    return []
+
+
+def _one_line_tyro_error(text: str, argv: list[str] | None = None) -> ConfigError:
+    """Condense tyro's boxed message to one line naming the field and the bad value."""
+    argv = argv or []
     lines = [re.sub(r"^[\s│╭╰─]+|[\s│╮╯─]+$", "", ln) for ln in text.splitlines()]
-    lines = [ln for ln in lines if ln and "helptext" not in ln.lower() and not re.fullmatch(r"[-─\s]+", ln)]
-    lines = [re.sub(r"\s*-{3,}\s*", "", ln) for ln in lines]
-    body = " ".join(lines[1:4] if len(lines) > 1 else lines)
-    fields = re.findall(r"--[\w.-]*\w", body)  # tyro writes snake_case fields with hyphens
-    field = "--" + fields[0][2:].replace("-", "_") if fields else "overrides"
-    if "Unrecognized" in body:
-        joined = " ".join(lines)
+    lines = [ln for ln in lines if ln and not re.fullmatch(r"[-─\s]+", ln)]
+    joined = re.sub(r"\s+", " ", " ".join(lines))
+    if "Unrecognized options" in joined:
+        return _unrecognized(joined, argv)
+    fields = re.findall(r"--[\w.-]*\w", joined)  # tyro writes snake_case fields with hyphens
+    if not fields:
+        return ConfigError("overrides", joined[:300])
+    flag = fields[0]
+    field = "--" + flag[2:].replace("-", "_")
+    if joined.startswith("Missing") or "Missing value" in joined:
+        return ConfigError(field, "needs a value")
+    helptext = re.search(re.escape(flag) + r" (\S+)", joined.split("Argument helptext:", 1)[-1])
+    values = _values_after(argv, flag)
+    got = " ".join(repr(v) for v in values) if values else "nothing"
+    choices = re.search(r"Expected one of \(([^)]*)\)", joined)
+    if choices:
+        return ConfigError(field, f"expects one of {choices.group(1).replace(chr(39), '')}, got {got}")
+    if helptext:
+        return ConfigError(field, f"expects {_expected(helptext.group(1))}, got {got}")
+    reason = joined.split("Error parsing", 1)[-1].split("Got errors", 1)[0].split("Argument helptext", 1)[0]
+    return ConfigError(field, reason.strip(" :.")[:300])
+
+
+def _unrecognized(joined: str, argv: list[str]) -> ConfigError:
+    """An unknown option (with close names), or a stray value such as ``True`` after a flag."""
+    listed = joined.split("Unrecognized options:", 1)[1].split("For full helptext", 1)[0]
+    listed = listed.split("Perhaps you meant", 1)[0]
+    tokens = [t.strip(" ,") for t in listed.split(",") if t.strip(" ,")]
+    options = [t for t in tokens if t.startswith("--")]
+    if options:
         after = joined.split("Perhaps you meant", 1)[1] if "Perhaps you meant" in joined else ""
         similar = [f.replace("-", "_").replace("__", "--", 1) for f in re.findall(r"--[\w.-]+", after)]
+        similar = [f for f in similar if f != "--help"]
         hint = f"; did you mean {', '.join(dict.fromkeys(similar[:3]))}?" if similar else ""
-        return ConfigError(field, f"unknown field{hint} (run with --help for the valid fields)")
-    return ConfigError(field, re.sub(r"\s+", " ", body)[:300])
+        return ConfigError(options[0], f"unknown field{hint} (run with --help for the valid fields)")
+    stray = tokens[0] if tokens else "?"
+    before = argv[argv.index(stray) - 1] if stray in argv and argv.index(stray) > 0 else None
+    if before and before.startswith("--"):
+        name = before[2:].replace("-", "_")
+        if name.split(".")[-1].startswith("no_"):
+            parent, _, leaf = name.rpartition(".")
+            name = f"{parent}.{leaf[3:]}" if parent else leaf[3:]
+        return ConfigError(
+            f"--{name}",
+            f"a flag takes no value, got {stray!r}: write --{name} to switch it on, "
+            f"--{name.rpartition('.')[0] + '.' if '.' in name else ''}no_{name.rpartition('.')[2]} "
+            "to switch it off",
+        )
+    return ConfigError("overrides", f"unexpected value {stray!r} (options are --field value)")
 
 
 def kinds():
@@ -183,11 +263,18 @@ def kinds():
     }
 
 
+class RunWriteFailed(Exception):
+    """The run folder could not be made or written; the message is one line."""
+
+
 def run(cfg: Config, name: str = "run", resume_from: str | None = None, local: bool = False) -> str:
     """Run a config; returns the run folder. Raises ConfigError on bad input (before any
     compile). Every stage is written as it finishes; SIGINT/SIGTERM end the run after the
-    current solver iteration with status ``interrupted``; ``resume_from`` reuses the stages
-    a previous run of the same config finished.
+    current solver iteration (or, where nothing polls for a stop, within
+    ``progress.STOP_GRACE_S`` with the running stage dropped) with status ``interrupted``;
+    ``resume_from`` reuses the stages a previous run of the same config finished. A disk
+    that refuses the run's files (full, read-only) raises :class:`RunWriteFailed` after
+    the run recorded what it could, status ``failed``.
 
     With ``parallel.distributed`` every process runs this same call and only process 0
     writes the run folder (the others write to a temporary folder, removed at the end);
@@ -197,9 +284,10 @@ def run(cfg: Config, name: str = "run", resume_from: str | None = None, local: b
 
     from mjx_surrogate import distributed, progress
     from mjx_surrogate.resolution import resolve
-    from mjx_surrogate.results import Interrupted, Run, RunFolder, versions
+    from mjx_surrogate.results import Interrupted, Run, RunFolder, WriteError
 
     validate_static(cfg)  # before joining other processes, which may wait for minutes
+    check_out_dir(cfg.experiment.out_dir)
     configure_runtime(x64=cfg.experiment.x64 or None)
     parallel = distributed.initialize(cfg.parallel)
     # Record the precision actually used (a session may already run in x64).
@@ -208,43 +296,81 @@ def run(cfg: Config, name: str = "run", resume_from: str | None = None, local: b
     )
     res = resolve(cfg, local=local)
     ex = res.config.experiment
-    check_out_dir(ex.out_dir)
     writer = local or distributed.is_writer()
     out_dir = (
         ex.out_dir if writer else tempfile.mkdtemp(prefix=f"mjx_surrogate_p{distributed.process_index()}_")
     )
-    folder = RunFolder(out_dir, ex.name or name)
+    try:
+        folder = RunFolder(out_dir, ex.name or name)
+    except WriteError as exc:
+        raise RunWriteFailed(f"no run folder could be made in {out_dir}: {exc}") from None
     for path in folder.recovered:
         print(f"note: recovered a run folder left unfinished by a killed process: {path}", file=sys.stderr)
-    folder.write_json("config.json", to_dict(res.config))
-    folder.write_text("model.xml", res.system.xml)
-    folder.write_bytes("model.mjb", model_bytes(res.system.mj_model))
-    folder.write_json("versions.json", versions() | {"parallel": parallel | _devices(res.system)})
     record = Run(folder, resume_from)
     key = jax.random.key(ex.seed)
-    status, error = "failed", None
+    status, error, write_failure = "failed", None, None
     guard = (
-        progress.stop_on_signals()
+        progress.stop_on_signals(on_stuck=lambda: _stop_now(record))
         if threading.current_thread() is threading.main_thread()
         else contextlib.nullcontext()
     )
     progress.clear_stop()
     try:
         with guard:
+            _write_inputs(folder, res, parallel)
             status = kinds()[ex.kind](res, record, key)
     except (Interrupted, KeyboardInterrupt) as exc:
         status, error = "interrupted", exc
     except Exception as exc:  # keep what was produced, say what happened
         status, error = "failed", exc
     finally:
-        path = record.finish(status, error)
+        try:
+            path = record.finish(status, error)
+        except WriteError as exc:
+            write_failure, path = exc, folder.path
         progress.clear_stop()
     LAST_STATUS["status"] = record.metrics.get("status")
     if not writer:
         shutil.rmtree(out_dir, ignore_errors=True)
         return path
+    write_failure = write_failure or (error if isinstance(error, WriteError) else None)
+    if write_failure is not None:
+        cause = write_failure.cause if isinstance(write_failure, WriteError) else write_failure
+        raise RunWriteFailed(
+            f"run folder {path}: cannot write {os.path.basename(write_failure.path)} "
+            f"([Errno {cause.errno}] {cause.strerror or cause}); status failed, "
+            "the stages finished before are kept"
+        )
     print(summary_screen(record.metrics, path))
     return path
+
+
+def _write_inputs(folder, res, parallel: dict) -> None:
+    """The resolved config, the exact model and the versions, into the run folder."""
+    from mjx_surrogate.results import versions
+
+    folder.write_json("config.json", to_dict(res.config))
+    folder.write_text("model.xml", res.system.xml)
+    folder.write_bytes("model.mjb", model_bytes(res.system.mj_model))
+    folder.write_json("versions.json", versions() | {"parallel": parallel | _devices(res.system)})
+
+
+def _stop_now(record) -> None:
+    """The stop watchdog's action (another thread): a stop request found code that does not
+    poll for one (a compile, a long jitted call); end the run at once, keeping every stage
+    written before, and leave the process with the interrupted status."""
+    from mjx_surrogate.progress import STOP_GRACE_S
+    from mjx_surrogate.results import EXIT_CODES
+
+    where = f"stage {record.current!r}" if record.current else "the run"
+    reason = (
+        f"stopped by a signal; {where} did not end within {STOP_GRACE_S:g} s and its partial work "
+        "was not kept"
+    )
+    if record.abort(reason):
+        print(summary_line(record.metrics, record.folder.path), flush=True)
+        sys.stderr.flush()
+        os._exit(EXIT_CODES["interrupted"])
 
 
 def _devices(system) -> dict:
@@ -313,6 +439,9 @@ def main(argv: list[str] | None = None) -> int:
     except ConfigError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except RunWriteFailed as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
     return EXIT_CODES.get(LAST_STATUS.get("status"), 1)
 
 

@@ -539,8 +539,9 @@ def validate_static(cfg: Config) -> None:
         if v < 1:
             raise ConfigError(field, f"must be >= 1, got {v}")
     check_finite("data.levels", d.levels)
-    if not d.levels or any(v < 0 for v in d.levels):
-        raise ConfigError("data.levels", "give one or more levels >= 0 (fractions of U_max)")
+    if not d.levels or any(v <= 0 for v in d.levels):
+        bad = ", ".join(f"{v:g}" for v in d.levels if v <= 0) or "none"
+        raise ConfigError("data.levels", f"give one or more levels > 0 (fractions of U_max), got {bad}")
     if not 0 < d.test_fraction < 1:
         raise ConfigError("data.test_fraction", f"must be in (0, 1), got {d.test_fraction}")
     if d.n_traj < 2:

@@ -89,7 +89,7 @@ class StopReason(enum.IntEnum):
     SMALL_STEP = 2  # max |k| below k_tol
     MAX_ITER = 3
     NO_DESCENT = 4  # regularisation above mu_max, no descent found
-    NOT_FINITE = 5  # initial trajectory not finite
+    NOT_FINITE = 5  # initial cost not finite: the trajectory is not, or blew up (|x| > cost.BLOWUP)
     NOISE_FLOOR = 6  # expected decrease below rel_tol with no trial accepted
     INTERRUPTED = 7  # a stop was requested through the progress meter
 
@@ -109,7 +109,7 @@ _DESCRIPTIONS = {
     StopReason.SMALL_STEP: "max |k| below k_tol",
     StopReason.MAX_ITER: "max_iter reached",
     StopReason.NO_DESCENT: "regularisation above mu_max (no descent found)",
-    StopReason.NOT_FINITE: "initial trajectory not finite",
+    StopReason.NOT_FINITE: "initial trajectory not finite or beyond |x| = 1e8 (diverged)",
     StopReason.NOISE_FLOOR: "expected decrease below rel_tol (at the noise floor)",
     StopReason.INTERRUPTED: "interrupted (stop requested)",
 }

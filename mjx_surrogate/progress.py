@@ -119,28 +119,48 @@ def poll(progress: ProgressMeter, iteration: jax.Array, cost: jax.Array, mu: jax
 
 
 _WAKEUP: dict = {}
+_WAKEUP_LOCK = threading.Lock()  # the pipe is read from several threads and closed by one
 
 
 def _drain_wakeup() -> None:
     """A signal's C-level handler writes a byte to the wakeup pipe at once, even while the
     main thread is blocked inside XLA and its Python handler cannot run yet."""
-    fd = _WAKEUP.get("read")
-    if fd is None:
-        return
     import os
 
-    try:
-        if os.read(fd, 64):
-            _STOP.set()
-    except (BlockingIOError, OSError):
-        pass
+    with _WAKEUP_LOCK:
+        fd = _WAKEUP.get("read")
+        if fd is None:
+            return
+        try:
+            if os.read(fd, 64):
+                _STOP.set()
+        except (BlockingIOError, OSError):
+            pass
+
+
+STOP_GRACE_S = 3.0  # how long a stop request waits for the code to end by itself
+
+
+def _watch(done: threading.Event, on_stuck, grace_s: float) -> None:
+    """Watchdog thread: once a stop is requested (seen through the wakeup pipe even while
+    the main thread is inside XLA), wait ``grace_s`` for the guarded block to end, else
+    call ``on_stuck``."""
+    while not done.is_set():
+        _drain_wakeup()
+        if _STOP.wait(0.1):
+            break
+    if not done.wait(grace_s):
+        on_stuck()
 
 
 @contextlib.contextmanager
-def stop_on_signals(signals=None):
+def stop_on_signals(signals=None, on_stuck=None, grace_s: float = STOP_GRACE_S):
     """While active, SIGINT and SIGTERM request a stop (the solver ends after its current
     iteration, the run keeps what it finished); a second signal raises KeyboardInterrupt.
-    Main thread only; restores the previous handlers and wakeup fd on exit."""
+    ``on_stuck``: called from a watchdog thread when the block has not ended ``grace_s``
+    after a stop request (code that polls for none: an XLA compile, a long jitted call);
+    it is expected to save what it can and end the process. Main thread only; restores
+    the previous handlers and wakeup fd on exit."""
     import os
     import signal
 
@@ -161,12 +181,19 @@ def stop_on_signals(signals=None):
     _WAKEUP["read"] = r
     for s in signals:
         signal.signal(s, handler)
+    done = threading.Event()
+    if on_stuck is not None:
+        threading.Thread(
+            target=_watch, args=(done, on_stuck, grace_s), daemon=True, name="stop-watchdog"
+        ).start()
     try:
         yield received
     finally:
+        done.set()
         for s, h in previous.items():
             signal.signal(s, h)
         signal.set_wakeup_fd(old_fd)
-        _WAKEUP.pop("read", None)
-        os.close(r)
-        os.close(w)
+        with _WAKEUP_LOCK:
+            _WAKEUP.pop("read", None)
+            os.close(r)
+            os.close(w)

@@ -13,6 +13,7 @@ from jax.sharding import Mesh
 
 from mjx_surrogate import sharding
 from mjx_surrogate.config import Config, SystemConfig, validate_static
+from mjx_surrogate.cost import BLOWUP
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.ilqr import ILQRParams
 from mjx_surrogate.surrogates.registry import get_surrogate, library_specs
@@ -82,24 +83,39 @@ def default_n_samples(nx: int, nu: int) -> int:
     return max(20, 2 * (nx + nu))
 
 
+def check_magnitude(field: str, x, dtype, sigma_x: float) -> None:
+    """Reject a state the solver cannot work from by its size alone: beyond the bound where
+    a trajectory counts as diverged, or so large that the perturbations sigma_x drown in the
+    round-off of ``dtype``."""
+    mag = float(np.max(np.abs(np.asarray(x, float)), initial=0.0))
+    if mag > BLOWUP:
+        raise ConfigError(
+            field,
+            f"|x| up to {mag:g} is beyond {BLOWUP:g}, where the solver counts a trajectory as "
+            "diverged; use coordinates of a smaller magnitude",
+        )
+    eps = float(np.finfo(dtype).eps)
+    if mag * eps > 0.1 * sigma_x:
+        fix = (
+            "use smaller coordinates or a larger solver.sigma_x"
+            if eps < 1e-10
+            else "use smaller coordinates, a larger solver.sigma_x or experiment.x64"
+        )
+        raise ConfigError(
+            field,
+            f"|x| up to {mag:g} leaves a resolution of {mag * eps:.2g} in {np.dtype(dtype).name}, more "
+            f"than a tenth of the identification perturbations (solver.sigma_x {sigma_x:g}); {fix}",
+        )
+
+
 def check_start(system: System, task: Task, sigma_x: float) -> None:
     """Reject states the solver cannot work from: MuJoCo flags the simulation as unstable
     within one control step, or the perturbations sigma_x drown in the round-off of the
     state's magnitude at the working precision."""
-    eps = float(np.finfo(np.asarray(task.x0).dtype).eps)
+    dtype = np.asarray(task.x0).dtype
     m = system.mj_model
-    for field, x in (
-        ("task.x0", np.asarray(task.x0, float)),
-        ("task.x_goal", np.asarray(task.x_goal, float)),
-    ):
-        mag = float(np.max(np.abs(x), initial=0.0))
-        if mag * eps > 0.1 * sigma_x:
-            raise ConfigError(
-                field,
-                f"|x| up to {mag:g} leaves a resolution of {mag * eps:.2g} at this precision, "
-                f"coarser than the identification perturbations (solver.sigma_x {sigma_x:g}); "
-                "use smaller coordinates or experiment.x64",
-            )
+    for field, x in (("task.x0", task.x0), ("task.x_goal", task.x_goal)):
+        check_magnitude(field, x, dtype, sigma_x)
     d = mujoco.MjData(m)
     x = np.asarray(task.x0, float)
     d.qpos[:], d.qvel[:] = x[: m.nq], x[m.nq : m.nq + m.nv]
@@ -187,6 +203,11 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     (of every process; ``local``: of this process only, for an experiment that one
     process of a sweep runs alone)."""
     validate_static(cfg)
+    sigma = default_sigma(cfg.system.name != "mjcf")
+    sigma_x = sigma if cfg.solver.sigma_x is None else cfg.solver.sigma_x
+    for field in ("x0", "x_goal"):  # as given, before anything is built or compiled
+        if getattr(cfg.task, field) is not None:
+            check_magnitude(f"task.{field}", getattr(cfg.task, field), jnp.result_type(float), sigma_x)
     pool = jax.local_devices() if local else jax.devices()
     mesh = sharding.device_mesh(cfg.parallel.devices, pool)
     system = build_system_from_config(cfg.system, mesh)
@@ -207,8 +228,6 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
                 f"for the LTV least squares to be determined, got {n_samples}",
             )
         check_memory(cfg, system, int(tc.T), n_samples)
-    sigma = default_sigma(cfg.system.name != "mjcf")
-    sigma_x = sigma if cfg.solver.sigma_x is None else cfg.solver.sigma_x
     sigma_u = sigma if cfg.solver.sigma_u is None else cfg.solver.sigma_u
     check_start(system, task, sigma_x)
     if kind in ("predict", "analysis", "control"):

@@ -181,11 +181,12 @@ def make_task(
     quats: tuple = (),
 ) -> Task:
     """Assemble a :class:`Task` from array-likes (shapes checked by ``resolution.resolve``)."""
-    dtype = dtype or jnp.asarray(0.0).dtype
+    dtype = dtype or jnp.result_type(float)
     nu = np.shape(R)[0]
     lo = np.full(nu, -np.inf) if u_min is None else np.asarray(u_min, float)
     hi = np.full(nu, np.inf) if u_max is None else np.asarray(u_max, float)
-    arr = lambda a: jnp.asarray(np.asarray(a, float), dtype)  # noqa: E731
+    # converted by NumPy, then placed: no XLA program runs before the task is checked
+    arr = lambda a: jax.device_put(np.asarray(a, float).astype(np.dtype(dtype)))  # noqa: E731
     k = 0 if targets is None else len(targets)
     return Task(
         x0=arr(x0),

@@ -175,3 +175,51 @@ def test_reproduce_cpu_devices_is_checked_before_anything_runs(tmp_path, capsys)
         err = capsys.readouterr().err.strip()
         assert err.startswith("error: --cpu-devices:") and said in err and "\n" not in err
     assert not any(tmp_path.iterdir())  # nothing ran
+
+
+MESSAGES = [
+    # (argv, the field the line starts with, words it must hold, words it must not)
+    (["smoke_d2c", "--task.x0", "0", "1e12", "--experiment.x64"], "task.x0", ["1e+12", "1e+08"], ["x64"]),
+    (["smoke_d2c", "--task.x0", "0", "1e9"], "task.x0", ["1e+09", "diverged"], []),
+    (
+        ["smoke_d2c", "--task.x0", "0", "1e7", "--solver.sigma_x", "1e-9", "--experiment.x64"],
+        "task.x0",
+        ["float64", "solver.sigma_x"],
+        ["x64"],
+    ),
+    (["smoke_d2c", "--experiment.x64", "True"], "--experiment.x64", ["'True'", "no_x64"], []),
+    (["smoke_d2c", "--task.T", "2.5"], "--task.T", ["'2.5'", "integer"], ["Got errors"]),
+    (["smoke_d2c", "--solver.max_iter", "abc"], "--solver.max_iter", ["'abc'", "integer"], []),
+    (["smoke_d2c", "--solver.sysid_design", "sobol"], "--solver.sysid_design", ["'sobol'", "orthogonal"], []),
+    (["smoke_predict", "--data.levels", "0"], "data.levels", ["> 0", "got 0"], []),
+    (["smoke_d2c", "--data.levels", "0.1", "-1"], "data.levels", ["got -1"], []),
+]
+
+
+@pytest.mark.parametrize("argv,field,has,lacks", MESSAGES)
+def test_messages_are_true_and_name_the_field_and_the_value(argv, field, has, lacks, capsys, tmp_path):
+    code, err = _run(argv, capsys, tmp_path)
+    assert code == 2 and len(err) == 1 and err[0].startswith(f"error: {field}:"), err
+    assert all(w in err[0] for w in has) and not any(w in err[0] for w in lacks), err
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["default", "--task.x0", "0", "1e9"],
+        ["default", "--task.x_goal", "1e12", "0"],
+        ["smoke_predict", "--data.levels", "0"],
+        ["default", "--out", "/dev/null/runs"],
+    ],
+    ids=["x0", "x_goal", "levels", "out"],
+)
+def test_bad_input_is_refused_before_any_compile(argv, capsys, tmp_path):
+    from jax import monitoring
+
+    compiles = []
+    monitoring.register_event_duration_secs_listener(
+        lambda name, *a, **k: compiles.append(name) if "backend_compile" in name else None
+    )
+    code, err = _run(argv, capsys, tmp_path)
+    assert code == 2 and len(err) == 1, err
+    assert compiles == []

@@ -72,7 +72,7 @@ def test_signal_mid_solve_ends_the_run_interrupted_and_keeps_its_results(tmp_pat
             proc.kill()
     assert code == 130, seen.decode(errors="replace")[-2000:]
     assert stop_s < 60  # prompt: after the current chunk of iterations, then the writing
-    assert not glob.glob(str(tmp_path / ".*")), "a .partial folder was left behind"
+    assert not glob.glob(str(tmp_path / ".*.partial")), "a .partial folder was left behind"
     (path,) = glob.glob(str(tmp_path / "*smoke_d2c"))
     metrics, arrays = load_run(path)
     assert metrics["status"] == "interrupted"
@@ -156,15 +156,82 @@ def test_resume_reuses_finished_stages_only(tmp_path):
     assert again.metrics["stages"]["done"]["resumed"] is True
 
 
-def test_stop_request_ends_a_stage_run_with_interrupted(tmp_path):
+def test_a_stage_that_finishes_after_a_stop_request_is_done_and_the_next_never_starts(tmp_path):
+    from mjx_surrogate.results import Interrupted
+
     record = Run(RunFolder(str(tmp_path), "s"))
     progress.clear_stop()
+    calls = []
     try:
-        from mjx_surrogate.results import Interrupted
-
+        m, _ = record.stage("long", lambda: progress.request_stop() or ({"it": 3}, {"U": np.ones(2)}))
+        assert m == {"it": 3}
         with pytest.raises(Interrupted):
-            record.stage("long", lambda: progress.request_stop() or ({"it": 3}, {"U": np.ones(2)}))
+            record.stage("next", lambda: calls.append(1) or ({}, {}))
     finally:
         progress.clear_stop()
-    assert record.metrics["stages"]["long"]["status"] == "interrupted"
+    assert record.metrics["stages"]["long"]["status"] == "done" and calls == []
     assert json.load(open(os.path.join(record.folder.path, "metrics.json")))["long"] == {"it": 3}
+
+
+def test_a_stage_whose_solve_was_cut_short_is_interrupted(tmp_path):
+    from mjx_surrogate.results import Interrupted
+
+    record = Run(RunFolder(str(tmp_path), "s"))
+    with pytest.raises(Interrupted):
+        record.stage("solve", lambda: ({"status": "interrupted", "cost": 2.0}, {"U": np.ones(2)}))
+    assert record.metrics["stages"]["solve"]["status"] == "interrupted"
+    assert record.metrics["solve"]["cost"] == 2.0
+
+
+# A run whose second stage never polls for a stop (time.sleep stands for a compile or a
+# long jitted call: the signal handler runs and the sleep resumes).
+STUCK = """
+import sys, time
+import numpy as np
+from experiments import run as cli
+
+def kind(res, record, key):
+    record.stage("first", lambda: ({"x": 1.0}, {"a": np.arange(3.0)}))
+    record.figure("first.png", lambda: __import__("mjx_surrogate.plots", fromlist=["x"]).cost_history(
+        {"a": np.array([3.0, 2.0, 1.0])}, "first"))
+    print("READY", flush=True)
+    record.stage("stuck", lambda: (time.sleep(600), ({}, {}))[1])
+    return "completed"
+
+cli.kinds = lambda: {"d2c": kind}
+sys.exit(cli.main(["smoke_d2c", "--experiment.no-progress", "--out", sys.argv[1]]))
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_a_stage_that_polls_for_no_stop_still_ends_within_5_s(tmp_path, sig):
+    proc = subprocess.Popen(
+        [sys.executable, "-c", STUCK, str(tmp_path)],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+    )
+    try:
+        assert proc.stdout.readline().strip() == b"READY", proc.stderr.read().decode()[-2000:]
+        time.sleep(0.5)
+        t_signal = time.time()
+        proc.send_signal(sig)
+        code = proc.wait(timeout=60)
+        stop_s = time.time() - t_signal
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    out, err = proc.stdout.read().decode(), proc.stderr.read().decode()
+    assert code == 130, err[-2000:]
+    assert stop_s < 5.0, stop_s
+    assert "Traceback" not in err and "[interrupted]" in out
+    assert not glob.glob(str(tmp_path / ".*.partial"))
+    (path,) = glob.glob(str(tmp_path / "*smoke_d2c"))
+    metrics, arrays = load_run(path)
+    assert metrics["status"] == "interrupted" and "'stuck' did not end" in metrics["error"]
+    assert metrics["stages"]["first"]["status"] == "done" and metrics["first"] == {"x": 1.0}
+    assert metrics["stages"]["stuck"]["status"] == "interrupted"
+    np.testing.assert_array_equal(arrays["a"], np.arange(3.0))
+    assert metrics["figures"]["first.png"] == "written"
+    assert_png(os.path.join(path, "first.png"))
