@@ -1,7 +1,8 @@
 """Experiment kind "analysis": the paper's model-convergence, ill-conditioning and variance
 experiments around the task's optimum (paper: the cartpole swing-up).
 
-Stages: ``optimum``, ``convergence``, ``ill_conditioning``, ``variance``; then figures.
+Stages: ``optimum``, ``convergence``, ``ill_conditioning``, ``variance`` (each drives a step
+meter naming the fit or training it runs), each figure drawn once its stage is written.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import data, pipeline, plots, step_models
+from mjx_surrogate import data, pipeline, plots, progress, step_models
 from mjx_surrogate.analysis import spectra
 from mjx_surrogate.resolution import Resolved, analysis_library_specs
 from mjx_surrogate.results import Run
@@ -63,10 +64,17 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     x0, U1 = X_star[0][None], U_star[None]
     spec_mlp = mlp_spec(cfg)
 
+    show = cfg.experiment.progress
+
     def convergence():  # 1. Model convergence across data sets
         conv, arrays = {}, {}
-        for kind, levels in (("SINDy", a.convergence_sindy_levels), ("MLP", a.convergence_mlp_levels)):
-            for j, level in enumerate(levels):
+        n = len(a.convergence_sindy_levels) + len(a.convergence_mlp_levels)
+        with progress.steps("analysis: model convergence", n, show) as meter:
+            for kind, level, j in [
+                *(("SINDy", lv, j) for j, lv in enumerate(a.convergence_sindy_levels)),
+                *(("MLP", lv, j) for j, lv in enumerate(a.convergence_mlp_levels)),
+            ]:
+                meter.advance(f"{kind} {100 * level:g}%: {a.n_datasets} data sets")
                 k = jax.random.fold_in(keys["conv"], 100 * j + len(kind))
                 sets = _datasets(system, task, X_star, U_star, k, cfg, level)
                 if kind == "SINDy":
@@ -128,9 +136,15 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             )
 
     def ill_conditioning():  # 2. Gram spectra
+        n = len(a.gram_libraries) + len(a.gram_mlp_levels)
+        with progress.steps("analysis: Gram spectra", n, show) as meter:
+            return _gram(meter)
+
+    def _gram(meter):
         gram, arrays = {}, {}
         ((tr, _),) = _datasets(system, task, X_star, U_star, keys["gram"], _one(cfg), a.gram_sindy_level)
         for name in a.gram_libraries:
+            meter.advance(f"SINDy {name}")
             theta = sindy.design(specs[name], tr.x, tr.u)
             eig = spectra.eigenvalues(sindy.gram(theta))
             gram[f"SINDy {name} {100 * a.gram_sindy_level:g}%"] = {
@@ -140,6 +154,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             }
             arrays[f"sindy_gram_eigs_{name}"] = eig
         for j, level in enumerate(a.gram_mlp_levels):
+            meter.advance(f"MLP {100 * level:g}%: training, Jacobian Gram")
             ((tr, te),) = _datasets(
                 system, task, X_star, U_star, jax.random.fold_in(keys["gram"], j + 1), _one(cfg), level
             )
@@ -172,8 +187,13 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     record.figure("gram_spectra.png", lambda: plots.spectra(spectra_plot, "Gram matrix spectra"))
 
     def variance():  # 3. Variance of the projections across data sets
+        with progress.steps("analysis: variance", len(a.variance_libraries) + 1, show) as meter:
+            return _variance(meter)
+
+    def _variance(meter):
         var, arrays = {}, {}
         for j, (name, level) in enumerate(zip(a.variance_libraries, a.variance_levels)):
+            meter.advance(f"SINDy {name} {100 * level:g}%: {a.n_datasets} data sets")
             sets = _datasets(system, task, X_star, U_star, jax.random.fold_in(keys["var"], j), cfg, level)
             spec = specs[name]
             thetas = [sindy.design(spec, tr.x, tr.u) for tr, _ in sets]
@@ -187,6 +207,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
                 "n_features": int(D.shape[1]),
             }
             arrays[f"variance_projections_{name}_{level:g}"] = D
+        meter.advance(f"MLP {100 * a.gram_mlp_levels[0]:g}%: descent directions, {a.n_datasets} data sets")
         var.update(_mlp_directions(cfg, system, task, X_star, U_star, keys["var"], spec_mlp, arrays))
         return var, arrays
 

@@ -28,6 +28,13 @@ def _surrogate_stage(res, X_d2c, U_d2c, U0, J_d2c, level, seed, key, params):
     dc = cfg.data
 
     def compute():
+        n_steps = 1 + len(cfg.surrogate.kinds)  # + one per fitted model, once known
+        desc = f"surrogates {100 * level:g}% U_max, seed {seed}"
+        with progress.steps(desc, n_steps, cfg.experiment.progress) as meter:
+            return _compute(meter)
+
+    def _compute(meter):
+        meter.advance(f"sample {dc.n_traj} trajectories")
         ds = data.sample(system, X_d2c, U_d2c, key, dc.n_traj, level, dc.x0_sigma, task.u_min, task.u_max)
         train, test = data.split(ds, jax.random.fold_in(key, 1), dc.test_fraction)
         fitted = fit_all(
@@ -35,9 +42,12 @@ def _surrogate_stage(res, X_d2c, U_d2c, U0, J_d2c, level, seed, key, params):
             data.transitions(train),
             data.transitions(test),
             jax.random.fold_in(key, 2),
+            meter,
         )
         rows, arrays = [], {}
+        meter.extend(len(fitted))
         for name, f in fitted.items():
+            meter.advance(f"iLQR on {name}, replay")
             sol = solve_on_model(f.model, task, U0, params)
             # on the host: the surrogate's arrays may live on the data set's device mesh,
             # the black box's model on one device

@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import data, locality, pipeline, plots, step_models, sysid
+from mjx_surrogate import data, locality, pipeline, plots, progress, step_models, sysid
 from mjx_surrogate.evaluation import prediction_errors
 from mjx_surrogate.resolution import Resolved
 from mjx_surrogate.results import Run
@@ -30,19 +30,29 @@ def level_stage(res: Resolved, X_star, U_star, level: float, i: int, key: jax.Ar
     dc = cfg.data
 
     def compute():
+        n_steps = len(cfg.surrogate.kinds) + 3
+        with progress.steps(f"predict {100 * level:g}% U_max", n_steps, cfg.experiment.progress) as meter:
+            return _compute(meter)
+
+    def _compute(meter):
         k_data, k_split, k_fit = jax.random.split(key, 3)
+        meter.advance(f"sample {dc.n_traj} trajectories")
         t0 = time.perf_counter()
         lim = (task.u_min, task.u_max)
         ds = data.sample(system, X_star, U_star, k_data, dc.n_traj, level, dc.x0_sigma, *lim)
         ds = jax.block_until_ready(ds)
         t_data = time.perf_counter() - t0
         train, test = data.split(ds, k_split, dc.test_fraction)
-        fitted = fit_all(FitContext(cfg, system), data.transitions(train), data.transitions(test), k_fit)
+        fitted = fit_all(
+            FitContext(cfg, system), data.transitions(train), data.transitions(test), k_fit, meter
+        )
         steps = {name: step_models.time_invariant(f.model.step) for name, f in fitted.items()}
         info = {name: f.info for name, f in fitted.items()}
+        meter.advance("fit LTV")
         t0 = time.perf_counter()
         steps["LTV"] = step_models.fit_ltv(train, X_star, U_star).step_t
         info["LTV"] = {"fit_s": time.perf_counter() - t0}
+        meter.advance("prediction errors")
         per_model, arrays = {}, {}
         ok = np.asarray(jnp.isfinite(test.X).all((1, 2)))
         arrays[f"level{i}_test_X"] = np.asarray(test.X[ok][0])

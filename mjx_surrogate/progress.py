@@ -75,6 +75,64 @@ def meter(desc: str, total: int, display: bool = True):
             bar.close()
 
 
+class Stopped(Exception):
+    """A stop request seen between the steps of a host-driven stage (:func:`steps`)."""
+
+
+class StepMeter:
+    """What :func:`steps` yields: ``advance(label)`` before each step of a stage."""
+
+    def __init__(self, bar, total: int):
+        self._bar, self.total, self.done = bar, total, -1
+
+    def advance(self, label: str) -> None:
+        """Count the previous step as finished and show ``label`` as the running one;
+        raises :class:`Stopped` if a stop was requested."""
+        if stop_requested():
+            raise Stopped(f"before {label!r}")
+        self.done += 1
+        if self._bar is not None:
+            self._bar.n = self.done
+            self._bar.set_postfix_str(label, refresh=False)
+            self._bar.refresh()
+
+    def extend(self, n: int) -> None:
+        """``n`` more steps than announced (known only once earlier steps ran)."""
+        self.total += n
+        if self._bar is not None:
+            self._bar.total = self.total
+            self._bar.refresh()
+
+
+@contextlib.contextmanager
+def steps(desc: str, total: int, display: bool = True, tick_s: float = 1.0):
+    """A meter for a stage made of ``total`` host-side steps (fits, trainings, sweeps):
+    the bar names the running step and its clock is redrawn every ``tick_s`` seconds
+    while a step runs, so a long compiled call shows that it is alive."""
+    if not display:
+        yield StepMeter(None, total)
+        return
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=total, desc=desc, leave=True, dynamic_ncols=True)
+    ticking = threading.Event()
+
+    def tick():
+        while not ticking.wait(tick_s):
+            bar.refresh()
+
+    thread = threading.Thread(target=tick, daemon=True, name="progress-tick")
+    thread.start()
+    meter_ = StepMeter(bar, total)
+    try:
+        yield meter_
+        bar.n = total
+    finally:
+        ticking.set()
+        thread.join()
+        bar.close()
+
+
 def _update_bar(meter_id: int, iteration, cost, mu) -> None:
     bar = _BARS.get(meter_id)
     if bar is None:

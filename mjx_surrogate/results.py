@@ -7,7 +7,7 @@ gives, and :class:`Run` rewrites ``metrics.json`` and ``arrays.npz`` whole after
 stage; a failed figure is reported next to what succeeded and never discards a stage.
 
 Processes writing into one ``out_dir`` (an array job) take turns on an exclusive lock on
-``<out_dir>/.mjx_surrogate.lock`` to pick a name, create the folder with its ``.owner``
+the directory to pick a name, create the folder with its ``.owner``
 record, recover stale folders and rename a finished one, so none of them sees another's
 half-made folder. A folder left ``.partial`` by a killed process (SIGKILL, power loss) is
 recovered by the next run into the same ``out_dir``: renamed to its final name with status
@@ -50,7 +50,6 @@ except ImportError:  # not POSIX: no lock, names are still unique within one pro
 # Run statuses (docs/results.md); the CLI's exit status follows them.
 SUCCESS = ("converged", "stalled", "max_iter", "completed")
 EXIT_CODES = {**{s: 0 for s in SUCCESS}, "diverged": 1, "failed": 1, "killed": 1, "interrupted": 130}
-LOCK_NAME = ".mjx_surrogate.lock"
 
 
 class Interrupted(Exception):
@@ -177,17 +176,15 @@ def _alive(pid: int) -> bool:
 
 @contextlib.contextmanager
 def out_dir_lock(out_dir: str):
-    """Hold the exclusive lock of ``out_dir`` (see the module's docstring). Where the lock
-    file cannot be made (a full or read-only disk) the block runs unlocked."""
+    """Hold the exclusive lock of ``out_dir`` (see the module's docstring): ``flock`` on the
+    directory itself, so no lock file is left behind and a full or read-only disk still
+    locks. Where the directory cannot be opened the block runs unlocked."""
     fd = None
     if fcntl is not None:
         try:
-            fd = os.open(os.path.join(out_dir, LOCK_NAME), os.O_RDWR | os.O_CREAT, 0o666)
+            fd = os.open(out_dir, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
         except OSError:
-            try:
-                fd = os.open(os.path.join(out_dir, LOCK_NAME), os.O_RDONLY)
-            except OSError:
-                fd = None
+            fd = None
     try:
         if fd is not None:
             fcntl.flock(fd, fcntl.LOCK_EX)
@@ -413,6 +410,16 @@ class Run:
         self.current = name
         try:
             metrics, arrays = cached if cached is not None else compute()
+        except progress.Stopped:  # a stop seen between the stage's own steps
+            with self._lock:
+                self.current = None
+                self.metrics["stages"][name] = {
+                    "status": "interrupted",
+                    "wall_s": time.perf_counter() - t0,
+                    "arrays": [],
+                }
+                self._flush(arrays=False)
+            raise Interrupted(f"during stage {name!r}") from None
         except Exception as exc:
             with self._lock:
                 self.current = None

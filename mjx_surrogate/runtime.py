@@ -7,6 +7,10 @@ should too, before its first JAX computation:
   rollouts up to ~50x slower and compiles minutes long on many-body models
   (docs/performance.md). Only effective before JAX starts its backend; skipped when the
   user's ``XLA_FLAGS`` already names the flag or ``MJX_SURROGATE_KEEP_XLA_FLAGS=1``.
+* ``XLA_FLAGS += --xla_cpu_collective_call_warn_stuck_timeout_seconds=600``: on a busy
+  2-core machine, devices of a CPU mesh reach a collective seconds apart, and XLA's default
+  (20 s) prints "may be stuck" errors that XLA itself then retracts; a real hang is still
+  ended by XLA's termination timeout.
 * ``XLA_FLAGS += --xla_gpu_triton_gemm_any=true`` where a CUDA plugin of JAX is installed:
   the flag MuJoCo's MJX documentation recommends for GPUs (same rules as above).
 * synchronous CPU dispatch: host callbacks inside jitted while loops (the native backend)
@@ -29,6 +33,7 @@ import os
 
 FUSION_FLAG = "--xla_cpu_use_fusion_emitters=false"
 GPU_FLAG = "--xla_gpu_triton_gemm_any=true"
+STUCK_FLAG = "--xla_cpu_collective_call_warn_stuck_timeout_seconds=600"
 CUDA_PLUGINS = ("jax_cuda12_plugin", "jax_cuda13_plugin")
 MUJOCO_WARNINGS = {"count": 0, "last": ""}
 
@@ -77,6 +82,7 @@ def configure_runtime(x64: bool | None = None, compile_cache: str | bool | None 
     """
     applied: dict = {}
     _add_flag(FUSION_FLAG, applied)
+    _add_flag(STUCK_FLAG, applied)
     if cuda_plugin_installed():
         _add_flag(GPU_FLAG, applied)
     import jax

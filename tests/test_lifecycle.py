@@ -72,7 +72,7 @@ def test_signal_mid_solve_ends_the_run_interrupted_and_keeps_its_results(tmp_pat
             proc.kill()
     assert code == 130, seen.decode(errors="replace")[-2000:]
     assert stop_s < 60  # prompt: after the current chunk of iterations, then the writing
-    assert not glob.glob(str(tmp_path / ".*.partial")), "a .partial folder was left behind"
+    assert not glob.glob(str(tmp_path / ".*")), "a .partial folder was left behind"
     (path,) = glob.glob(str(tmp_path / "*smoke_d2c"))
     metrics, arrays = load_run(path)
     assert metrics["status"] == "interrupted"
@@ -235,3 +235,27 @@ def test_a_stage_that_polls_for_no_stop_still_ends_within_5_s(tmp_path, sig):
     np.testing.assert_array_equal(arrays["a"], np.arange(3.0))
     assert metrics["figures"]["first.png"] == "written"
     assert_png(os.path.join(path, "first.png"))
+
+
+def test_a_stop_between_the_steps_of_a_stage_ends_it_interrupted(tmp_path):
+    from mjx_surrogate.results import Interrupted
+
+    record = Run(RunFolder(str(tmp_path), "s"))
+    ran = []
+
+    def compute():
+        with progress.steps("steps", 3, display=False) as meter:
+            for label in ("one", "two", "three"):
+                meter.advance(label)
+                ran.append(label)
+                progress.request_stop()
+        return {"x": 1}, {}
+
+    progress.clear_stop()
+    try:
+        with pytest.raises(Interrupted):
+            record.stage("s", compute)
+    finally:
+        progress.clear_stop()
+    assert ran == ["one"] and record.metrics["stages"]["s"]["status"] == "interrupted"
+    assert "s" not in record.metrics  # its partial work is not kept as a result

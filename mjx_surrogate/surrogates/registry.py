@@ -60,11 +60,14 @@ def get_surrogate(name: str, field: str = "surrogate.kinds") -> SurrogateKind:
     return SURROGATES[name]
 
 
-def fit_all(ctx: FitContext, train, test, key: jax.Array) -> dict[str, Fitted]:
+def fit_all(ctx: FitContext, train, test, key: jax.Array, meter=None) -> dict[str, Fitted]:
     """Fit every kind of ``ctx.config.surrogate.kinds`` on Transitions ``train`` (``test``
-    for held-out losses); kind i draws from ``fold_in(key, i)``. Labels stay in order."""
+    for held-out losses); kind i draws from ``fold_in(key, i)``. Labels stay in order.
+    ``meter``: a :class:`mjx_surrogate.progress.StepMeter`, advanced once per kind."""
     out: dict[str, Fitted] = {}
     for i, name in enumerate(ctx.config.surrogate.kinds):
+        if meter is not None:
+            meter.advance(f"fit {name}")
         t0 = time.perf_counter()
         fitted = get_surrogate(name).fit(ctx, train, test, jax.random.fold_in(key, i))
         for label, f in fitted.items():
