@@ -3,7 +3,11 @@ rest -> target, T 600, from random controls. D2C finds the optimum; SINDy (quadr
 MLP models trained on 200 perturbed trajectories at 5 % U_max around it (the fish
 prediction preset's sizes) drive iLQR from the same start, and every controller runs on the
 black box. The exact oracle (MJX jacfwd through 600 steps of a contact-free 3-D body) is
-left to a GPU: --experiment.exact_oracle."""
+left to a GPU: --experiment.exact_oracle.
+
+From this start (seed 0) D2C crosses a long valley, each iteration gaining 2-4e-5 of the
+cost at the smallest regularisation: it converges after 602 iterations at 566.14 (570.31
+after 300, the prediction preset's cap), so the cap here is 800."""
 
 import dataclasses
 
@@ -12,6 +16,7 @@ from mjx_surrogate.config import DataConfig, ExperimentConfig, MLPConfig, SindyC
 
 CONFIG = dataclasses.replace(
     _PREDICT,
+    solver=dataclasses.replace(_PREDICT.solver, max_iter=800),
     experiment=ExperimentConfig(kind="control", exact_oracle=False, x64=True),
     data=DataConfig(n_traj=200, levels=(0.05,), n_seeds=1),
     surrogate=SurrogateConfig(sindy=SindyConfig(libraries=("poly2",)), mlp=MLPConfig(epochs=50)),

@@ -188,7 +188,7 @@ def main(argv: list[str] | None = None) -> int:
         cfg = quick(cfg, name) if a.quick else cfg
         cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(cfg.experiment, out_dir=out))
         t0 = time.perf_counter()
-        path = run(cfg, name, resume_from=resume, local=a.distributed)
+        path = run(cfg, name, resume_from=resume, local=a.distributed, hard_stop=True)
         if _status(path) == "interrupted":
             print("interrupted: run the same command again to resume", flush=True)
             return 130

@@ -267,11 +267,19 @@ class RunWriteFailed(Exception):
     """The run folder could not be made or written; the message is one line."""
 
 
-def run(cfg: Config, name: str = "run", resume_from: str | None = None, local: bool = False) -> str:
+def run(
+    cfg: Config,
+    name: str = "run",
+    resume_from: str | None = None,
+    local: bool = False,
+    hard_stop: bool = False,
+) -> str:
     """Run a config; returns the run folder. Raises ConfigError on bad input (before any
     compile). Every stage is written as it finishes; SIGINT/SIGTERM end the run after the
-    current solver iteration (or, where nothing polls for a stop, within
-    ``progress.STOP_GRACE_S`` with the running stage dropped) with status ``interrupted``;
+    current solver iteration with status ``interrupted``; with ``hard_stop`` (the command
+    line's entry points, never a notebook's kernel) a run whose code polls for no stop is
+    ended ``progress.STOP_GRACE_S`` after the signal, the running stage dropped, and the
+    process exits;
     ``resume_from`` reuses the stages a previous run of the same config finished. A disk
     that refuses the run's files (full, read-only) raises :class:`RunWriteFailed` after
     the run recorded what it could, status ``failed``.
@@ -310,7 +318,7 @@ def run(cfg: Config, name: str = "run", resume_from: str | None = None, local: b
     key = jax.random.key(ex.seed)
     status, error, write_failure = "failed", None, None
     guard = (
-        progress.stop_on_signals(on_stuck=lambda: _stop_now(record))
+        progress.stop_on_signals(on_stuck=(lambda: _stop_now(record)) if hard_stop else None)
         if threading.current_thread() is threading.main_thread()
         else contextlib.nullcontext()
     )
@@ -367,9 +375,14 @@ def _stop_now(record) -> None:
         f"stopped by a signal; {where} did not end within {STOP_GRACE_S:g} s and its partial work "
         "was not kept"
     )
-    if record.abort(reason):
+    if not record.abort(reason):
+        return  # the run is ending by itself
+    try:
         print(summary_line(record.metrics, record.folder.path), flush=True)
         sys.stderr.flush()
+    except Exception:  # e.g. the reader of stdout is gone: the record is written, exit anyway
+        pass
+    finally:
         os._exit(EXIT_CODES["interrupted"])
 
 
@@ -435,7 +448,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     try:
         cfg, name = parse_args(argv)
-        run(cfg, name)
+        run(cfg, name, hard_stop=True)
     except ConfigError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -469,6 +469,8 @@ class Run:
         metrics before the arrays, in place as a last resort), the folder still gets its
         final name, and :class:`WriteError` is raised after."""
         with self._lock:
+            if self._ending and self.folder.closed:  # aborted (another thread): keep that record
+                return self.folder.final_path
             self._ending = True
             self.metrics["status"] = status
             if error is not None:

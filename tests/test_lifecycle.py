@@ -203,8 +203,12 @@ sys.exit(cli.main(["smoke_d2c", "--experiment.no-progress", "--out", sys.argv[1]
 """
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
-def test_a_stage_that_polls_for_no_stop_still_ends_within_5_s(tmp_path, sig):
+@pytest.mark.parametrize(
+    "sig,reader_gone",
+    [(signal.SIGTERM, False), (signal.SIGINT, False), (signal.SIGTERM, True)],
+    ids=["SIGTERM", "SIGINT", "SIGTERM-output-closed"],
+)
+def test_a_stage_that_polls_for_no_stop_still_ends_within_5_s(tmp_path, sig, reader_gone):
     proc = subprocess.Popen(
         [sys.executable, "-c", STUCK, str(tmp_path)],
         cwd=ROOT,
@@ -214,6 +218,9 @@ def test_a_stage_that_polls_for_no_stop_still_ends_within_5_s(tmp_path, sig):
     )
     try:
         assert proc.stdout.readline().strip() == b"READY", proc.stderr.read().decode()[-2000:]
+        if reader_gone:  # as when the pipe the run printed into was closed
+            proc.stdout.close()
+            proc.stderr.close()
         time.sleep(0.5)
         t_signal = time.time()
         proc.send_signal(sig)
@@ -222,10 +229,10 @@ def test_a_stage_that_polls_for_no_stop_still_ends_within_5_s(tmp_path, sig):
     finally:
         if proc.poll() is None:
             proc.kill()
-    out, err = proc.stdout.read().decode(), proc.stderr.read().decode()
+    out, err = ("", "") if reader_gone else (proc.stdout.read().decode(), proc.stderr.read().decode())
     assert code == 130, err[-2000:]
     assert stop_s < 5.0, stop_s
-    assert "Traceback" not in err and "[interrupted]" in out
+    assert reader_gone or ("Traceback" not in err and "[interrupted]" in out)
     assert not glob.glob(str(tmp_path / ".*.partial"))
     (path,) = glob.glob(str(tmp_path / "*smoke_d2c"))
     metrics, arrays = load_run(path)
@@ -259,3 +266,29 @@ def test_a_stop_between_the_steps_of_a_stage_ends_it_interrupted(tmp_path):
         progress.clear_stop()
     assert ran == ["one"] and record.metrics["stages"]["s"]["status"] == "interrupted"
     assert "s" not in record.metrics  # its partial work is not kept as a result
+
+
+def test_a_run_stopped_after_its_d2c_stage_keeps_that_stages_figures(tmp_path, monkeypatch):
+    import experiments.d2c_study as study
+
+    original = study.chunked.solve_exact
+
+    def stop_then_solve(*args, **kwargs):
+        progress.request_stop()  # as a signal arriving while the oracle compiles
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(study.chunked, "solve_exact", stop_then_solve)
+    progress.clear_stop()
+    try:
+        code = cli.main(["smoke_d2c", "--out", str(tmp_path), "--experiment.no-progress"])
+    finally:
+        progress.clear_stop()
+    (path,) = glob.glob(str(tmp_path / "*smoke_d2c"))
+    metrics, _ = load_run(path)
+    assert code == 130 and metrics["status"] == "interrupted"
+    assert metrics["stages"]["d2c"]["status"] == "done"
+    assert metrics["stages"]["exact"]["status"] == "interrupted"
+    for name in ("cost_vs_simulations.png", "trajectory_evolution.png"):
+        assert metrics["figures"][name] == "written"
+        assert_png(os.path.join(path, name))
+    assert "feedback" not in metrics["stages"]

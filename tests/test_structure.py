@@ -92,6 +92,10 @@ def test_default_precision_float32_run_end_to_end(tmp_path):
     assert metrics["status"] == "converged"
     assert metrics["d2c"]["cost"] < 1.0 and metrics["d2c"]["goal"]["reached"]
     assert "[converged]" in out.stdout and "d2c cost" in out.stdout
+    # the runtime's XLA flags, the collectives' late "may be stuck" warning among them, are
+    # accepted by this jaxlib (an unknown flag aborts the process)
+    flags = json.load(open(os.path.join(path, "versions.json")))["XLA_FLAGS"]
+    assert "--xla_cpu_collective_call_warn_stuck_timeout_seconds=600" in flags
 
 
 def test_switching_the_progress_meter_does_not_recompile(systems):

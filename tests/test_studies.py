@@ -45,8 +45,25 @@ def _run(preset, tmp_path):
 
 
 @pytest.mark.slow
-def test_smoke_analysis_writes_every_figure_and_table(tmp_path):
+def test_smoke_analysis_writes_every_figure_and_table(tmp_path, monkeypatch):
+    import contextlib
+
+    from mjx_surrogate import progress
+
+    meters, original = {}, progress.steps
+
+    @contextlib.contextmanager
+    def recording(desc, total, display=True, **kw):
+        with original(desc, total, display, **kw) as meter:
+            yield meter
+        meters[desc] = (meter.done + 1, meter.total)
+
+    monkeypatch.setattr(progress, "steps", recording)
     path = _run("smoke_analysis", tmp_path)
+    # every analysis stage drives a step meter through all of its steps
+    for desc in ("analysis: model convergence", "analysis: Gram spectra", "analysis: variance"):
+        done, total = meters[desc]
+        assert done == total > 0, (desc, meters[desc])
     files = set(os.listdir(path))
     assert {
         "convergence_sindy_10pct.png",
