@@ -5,6 +5,6 @@ from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemC
 CONFIG = Config(
     system=SystemConfig(name="pendulum"),
     task=TaskConfig(preset="pendulum_d2c"),
-    solver=SolverConfig(sysid="central_difference", n_samples=10, max_iter=100, rel_tol=1e-5),
+    solver=SolverConfig(sysid="central_difference", max_iter=100, rel_tol=1e-5),
     experiment=ExperimentConfig(kind="d2c"),
 )

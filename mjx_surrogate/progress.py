@@ -240,14 +240,18 @@ def stop_on_signals(signals=None, on_stuck=None, grace_s: float = STOP_GRACE_S):
     for s in signals:
         signal.signal(s, handler)
     done = threading.Event()
+    watchdog = None
     if on_stuck is not None:
-        threading.Thread(
+        watchdog = threading.Thread(
             target=_watch, args=(done, on_stuck, grace_s), daemon=True, name="stop-watchdog"
-        ).start()
+        )
+        watchdog.start()
     try:
         yield received
     finally:
         done.set()
+        if watchdog is not None:  # ended before the caller goes on: no thread of ours at exit
+            watchdog.join(timeout=1.0)
         for s, h in previous.items():
             signal.signal(s, h)
         signal.set_wakeup_fd(old_fd)

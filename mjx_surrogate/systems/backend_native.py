@@ -44,7 +44,7 @@ class _StepBuffers(NamedTuple):
     init: np.ndarray  # [B, nstate]: the template, x written per call
     ctrl: np.ndarray  # [B, substeps, nu]
     state: np.ndarray  # [B, substeps, nstate]
-    sensordata: np.ndarray  # [B, substeps, 0]
+    sensordata: np.ndarray  # [B, substeps, nsensordata]: the model's sensors, computed anyway
 
 
 class NativeSimulator:
@@ -165,8 +165,9 @@ class NativeSimulator:
         except queue.Empty:
             S, nstate = self.substeps, self.template.size
             init = np.tile(self.template, (B, 1))
+            sensors = np.empty((B, S, self.model.nsensordata))
             return _StepBuffers(
-                [self.model] * B, init, np.empty((B, S, nu)), np.empty((B, S, nstate)), np.empty((B, S, 0))
+                [self.model] * B, init, np.empty((B, S, nu)), np.empty((B, S, nstate)), sensors
             )
 
     def closed_loop(self, x0, X_bar, U_bar, k, K, alphas, lo, hi):
