@@ -228,15 +228,12 @@ def _unrecognized(joined: str, argv: list[str]) -> ConfigError:
     stray = tokens[0] if tokens else "?"
     before = argv[argv.index(stray) - 1] if stray in argv and argv.index(stray) > 0 else None
     if before and before.startswith("--"):
-        name = before[2:].replace("-", "_")
-        if name.split(".")[-1].startswith("no_"):
-            parent, _, leaf = name.rpartition(".")
-            name = f"{parent}.{leaf[3:]}" if parent else leaf[3:]
+        parent, _, leaf = before[2:].replace("-", "_").rpartition(".")
+        prefix, leaf = (f"{parent}." if parent else ""), leaf.removeprefix("no_")
         return ConfigError(
-            f"--{name}",
-            f"a flag takes no value, got {stray!r}: write --{name} to switch it on, "
-            f"--{name.rpartition('.')[0] + '.' if '.' in name else ''}no_{name.rpartition('.')[2]} "
-            "to switch it off",
+            f"--{prefix}{leaf}",
+            f"a flag takes no value, got {stray!r}: write --{prefix}{leaf} to switch it on, "
+            f"--{prefix}no_{leaf} to switch it off",
         )
     return ConfigError("overrides", f"unexpected value {stray!r} (options are --field value)")
 
@@ -343,7 +340,7 @@ def run(
         return path
     write_failure = write_failure or (error if isinstance(error, WriteError) else None)
     if write_failure is not None:
-        cause = write_failure.cause if isinstance(write_failure, WriteError) else write_failure
+        cause = write_failure.cause
         raise RunWriteFailed(
             f"run folder {path}: cannot write {os.path.basename(write_failure.path)} "
             f"([Errno {cause.errno}] {cause.strerror or cause}); status failed, "

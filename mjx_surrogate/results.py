@@ -278,7 +278,6 @@ class RunFolder:
             except OSError as exc:
                 raise WriteError(partial, exc) from exc
             return final, partial
-        raise AssertionError("unreachable")
 
     def write_text(self, name: str, text: str) -> str:
         path = os.path.join(self.path, name)

@@ -39,6 +39,15 @@ ENDLESS = [
 ]
 
 
+def _signal_and_time(proc: subprocess.Popen, sig: int, timeout: float) -> tuple[int, float]:
+    """Send ``sig`` to the running ``proc`` and wait for it: (exit status, seconds from the
+    signal to the exit); raises if it has not ended within ``timeout``."""
+    t_signal = time.time()
+    proc.send_signal(sig)
+    code = proc.wait(timeout=timeout)
+    return code, time.time() - t_signal
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
 def test_signal_mid_solve_ends_the_run_interrupted_and_keeps_its_results(tmp_path, sig):
@@ -63,10 +72,7 @@ def test_signal_mid_solve_ends_the_run_interrupted_and_keeps_its_results(tmp_pat
                 break
             assert proc.poll() is None, seen.decode(errors="replace")
             time.sleep(0.2)
-        t_signal = time.time()
-        proc.send_signal(sig)
-        code = proc.wait(timeout=120)
-        stop_s = time.time() - t_signal
+        code, stop_s = _signal_and_time(proc, sig, timeout=120)
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -222,10 +228,7 @@ def test_a_stage_that_polls_for_no_stop_still_ends_within_5_s(tmp_path, sig, rea
             proc.stdout.close()
             proc.stderr.close()
         time.sleep(0.5)
-        t_signal = time.time()
-        proc.send_signal(sig)
-        code = proc.wait(timeout=60)
-        stop_s = time.time() - t_signal
+        code, stop_s = _signal_and_time(proc, sig, timeout=60)
     finally:
         if proc.poll() is None:
             proc.kill()
