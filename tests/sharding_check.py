@@ -1,6 +1,6 @@
-"""Run the engine's batched workloads on one device and spread over meshes; print JSON.
+"""Run the engine's batched workloads on one device and spread over meshes; write JSON.
 
-    python tests/sharding_check.py --process-id I --num-processes 2 --port P --cpu-devices 2
+    python tests/sharding_check.py --process-id I --port P --result-file F [--cpu-devices 2]
 
 Spawned twice by tests/test_sharding.py: two processes on localhost joined by
 ``jax.distributed``, each with 2 host CPU devices (``jax_num_cpu_devices``; a device count
@@ -16,8 +16,9 @@ reference) and once on a mesh:
 Then, optionally, a small D2C experiment through the CLI's ``run`` over the global mesh
 (process 0 writes the run folder) and a two-experiment sweep through
 ``experiments.reproduce --distributed`` (one experiment: process 1 has none and waits
-for process 0 at the barrier). Each process prints ``RESULT {json}`` with, per
-workload and mesh, the largest difference from the reference.
+for process 0 at the barrier). Each process writes ``--result-file`` (JSON) with, per
+workload and mesh, the largest difference from the reference: a file, not stdout, where
+Gloo's own connection messages can land in the middle of a line.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ def main() -> None:
     ap.add_argument("--process-id", type=int, required=True)
     ap.add_argument("--num-processes", type=int, default=2)
     ap.add_argument("--port", type=int, required=True)
+    ap.add_argument("--result-file", required=True, help="the JSON result is written here")
     ap.add_argument("--cpu-devices", type=int, default=2)
     ap.add_argument("--run-dir", default=None, help="then run a small D2C experiment writing here")
     ap.add_argument("--sweep-dir", default=None, help="then a two-experiment reproduce --distributed here")
@@ -91,7 +93,9 @@ def main() -> None:
         sweep += [os.path.join(a.sweep_dir, "report.md"), "--only", "theory"]
         out["sweep_status"] = reproduce.main(sweep)
     stamp("sweep done")
-    print("RESULT " + json.dumps(out), flush=True)
+    with open(a.result_file + ".tmp", "w") as f:
+        json.dump(out, f)
+    os.replace(a.result_file + ".tmp", a.result_file)
     jax.distributed.shutdown()  # together: a process that left first would fail the other
 
 
