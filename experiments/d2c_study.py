@@ -62,25 +62,16 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     params, sid_params = solver_params(
         cfg, record_trajectories=pipeline.record_history(sc.max_iter, task.T, system.nx)
     )
-    k_init, k_d2c, k_ltv, k_noise = jax.random.split(key, 4)
+    _, _, k_ltv, k_noise = pipeline.experiment_keys(cfg.experiment.seed)
     dtype = task.x0.dtype
     record.add_arrays({"x0": task.x0})
 
     def d2c_stage():
-        arrays = {}
-        if sc.n_starts > 1:
-            U0s = pipeline.initial_controls(
-                k_init, task.T, system.nu, sc.init, sc.init_scale, sc.n_starts, dtype
-            )
-            with progress.meter(f"D2C multi-start x{sc.n_starts}", sc.max_iter, ex.progress) as pm:
-                timed = chunked.solve(system, task, U0s, k_d2c, params, sid_params, "d2c", pm)
-            result, U0 = timed.out.best, U0s[int(timed.out.best_index)]
-            extra = {"multistart_costs": np.asarray(timed.out.costs).tolist()}
-        else:
-            U0 = pipeline.initial_controls(k_init, task.T, system.nu, sc.init, sc.init_scale, None, dtype)
-            with progress.meter("D2C (LTV identification + iLQR)", sc.max_iter, ex.progress) as pm:
-                timed = chunked.solve(system, task, U0, k_d2c, params, sid_params, "d2c", pm)
-            result, extra = timed.out, {}
+        title = f"D2C multi-start x{sc.n_starts}" if sc.n_starts > 1 else "D2C (LTV identification + iLQR)"
+        with progress.meter(title, sc.max_iter, ex.progress) as pm:
+            timed, U0, costs = pipeline.solve_config(res, pm)
+        result = timed.out
+        extra = {} if costs is None else {"multistart_costs": np.asarray(costs).tolist()}
         m, X_bb = pipeline.summary(result, system, task, cfg.task.goal_tolerance, _names("d2c"))
         m.update(
             extra,

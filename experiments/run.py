@@ -288,12 +288,13 @@ def run(
     import jax
 
     from mjx_surrogate import distributed, progress
+    from mjx_surrogate.model_defaults import default_x64
     from mjx_surrogate.resolution import resolve
     from mjx_surrogate.results import Interrupted, Run, RunFolder, WriteError
 
     validate_static(cfg)  # before joining other processes, which may wait for minutes
     check_out_dir(cfg.experiment.out_dir)
-    configure_runtime(x64=cfg.experiment.x64 or None)
+    configure_runtime(x64=(cfg.experiment.x64 or default_x64(cfg.system.name)) or None)
     parallel = distributed.initialize(cfg.parallel)
     # Record the precision actually used (a session may already run in x64).
     cfg = dataclasses.replace(

@@ -8,6 +8,7 @@ The public API, importable from here. Importing changes no global state; call
     cfg, system, task = ms.resolve(ms.Config(system=ms.SystemConfig(name="pendulum")))
     result = ms.solve_d2c(system, task, U0, jax.random.key(0))
     timed = ms.chunked.solve(system, task, U0, jax.random.key(0))  # host-driven, cacheable
+    timed, U0, _ = ms.solve_config(ms.resolve(cfg))  # exactly the command line's D2C solve
 """
 
 from mjx_surrogate import chunked, progress
@@ -27,6 +28,7 @@ from mjx_surrogate.cost import Cost
 from mjx_surrogate.d2c import solve_d2c, solve_exact, solve_multistart
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.ilqr import ILQRParams, ILQRResult, StopReason, ilqr
+from mjx_surrogate.pipeline import solve_config, start_controls
 from mjx_surrogate.resolution import resolve, solver_params
 from mjx_surrogate.runtime import configure_runtime
 from mjx_surrogate.surrogates import FitContext, Fitted, SurrogateKind, fit_all, register_surrogate
@@ -74,5 +76,7 @@ __all__ = [
     "solve_d2c",
     "solve_exact",
     "solve_multistart",
+    "solve_config",
+    "start_controls",
     "solver_params",
 ]

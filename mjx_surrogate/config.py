@@ -68,7 +68,9 @@ class TaskConfig:
     """Start, goal, horizon and quadratic weights (cost convention in docs/results.md).
 
     preset: a task preset (see ``mjx_surrogate.systems.task_presets()``) filling every
-    field left as None, or "custom" (then x0, x_goal, T and weights are required).
+    field left as None; "hold" (any model: keep the start, qpos0 or x0_keyframe, for 50
+    control steps; ``model_defaults.hold_task``); or "custom" (then x_goal, T and weights
+    are required).
     Q, Q_f, R: full matrices; Q_diag, Q_f_diag, R_diag: diagonal shortcuts.
     u_min, u_max: box limits on the controls, enforced by the solver; by default the
       preset's, else the model's actuator ctrlrange, which they may narrow but not widen.
@@ -145,9 +147,9 @@ class SolverConfig:
     reuse_tol: float = _ILQR.reuse_tol  # carry the model over when |ratio - 1| <= this
     reuse_max: int = _ILQR.reuse_max  # ... at most this many iterations in a row
     n_samples: Optional[int] = None  # None: max(20, 2 (nx + nu))
-    sigma_x: Optional[float] = None  # None: resolution.default_sigma
+    sigma_x: Optional[float] = None  # None: model_defaults.default_sigma
     sigma_u: Optional[float] = None
-    init: Literal["zeros", "random"] = "zeros"
+    init: Optional[Literal["zeros", "random", "u_ref", "hold"]] = None  # None: model_defaults.default_init
     init_scale: float = 0.1
     n_starts: int = 1
 
@@ -262,7 +264,8 @@ class ExperimentConfig:
     (iLQR on each surrogate, judged on the black box against D2C and the exact oracle) or
     "horizon" (identification error against the rollout length, open against closed loop;
     data.levels, data.n_traj rollouts).
-    x64: run in float64.
+    x64: run in float64 (a user's MJCF model always does: float32 round-off swamps the
+      perturbations that contacts and servos need; ``model_defaults.default_x64``).
     exact_oracle: also solve from the same start with exact Jacobians (None: on for the
       registered systems, off for a user's MJCF, whose jacfwd oracle can take minutes to
       compile; docs/performance.md).

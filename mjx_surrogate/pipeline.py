@@ -19,6 +19,7 @@ from mjx_surrogate import chunked, data, native_replay, progress
 from mjx_surrogate import sysid as sid
 from mjx_surrogate.evaluation import finite_or_none
 from mjx_surrogate.ilqr import ILQRParams, ILQRResult, StopReason, verdict
+from mjx_surrogate.model_defaults import hold_controls
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.resolution import solver_params
 from mjx_surrogate.systems import System
@@ -35,6 +36,64 @@ def initial_controls(
     if kind == "zeros":
         return jnp.zeros(shape, dtype)
     return scale * jax.random.normal(key, shape, dtype)
+
+
+def start_controls(
+    system: System, task: Task, kind: str, scale: float, key: jax.Array, n: int | None = None
+) -> jax.Array:
+    """The solver's start U0 [T, nu] (or [n, T, nu] for n starts) of ``solver.init``:
+
+    "zeros", "random" (N(0, scale^2)), "u_ref" (the task's control reference at every step)
+    or "hold" (the controls that hold x0 still, :func:`model_defaults.hold_controls`). With
+    several starts of a constant kind, start 0 is the constant and start i > 0 adds
+    N(0, (scale * half range)^2) per control (half range 1 where unlimited), clipped to the
+    limits: distinct starts, not one start repeated."""
+    dtype = task.x0.dtype
+    if kind in ("zeros", "random"):
+        return initial_controls(key, task.T, system.nu, kind, scale, n, dtype)
+    lo, hi = np.asarray(task.u_min, float), np.asarray(task.u_max, float)
+    if kind == "u_ref":
+        base = np.clip(np.asarray(task.u_ref, float), lo, hi)
+    elif kind == "hold":
+        base = hold_controls(system.mj_model, np.asarray(task.x0, float), lo, hi)
+    else:
+        raise ValueError(f"solver.init: unknown start {kind!r}; valid: zeros, random, u_ref, hold")
+    U = jnp.broadcast_to(jnp.asarray(base, dtype), (task.T, system.nu))
+    if n is None:
+        return U
+    half = jnp.asarray(np.where(np.isfinite(hi - lo), 0.5 * (hi - lo), 1.0), dtype)
+    noise = scale * half * jax.random.normal(key, (n, task.T, system.nu), dtype)
+    noise = noise.at[0].set(0.0)
+    return jnp.clip(U + noise, jnp.asarray(lo, dtype), jnp.asarray(hi, dtype))
+
+
+def experiment_keys(seed: int) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
+    """The keys of a d2c experiment with ``experiment.seed``: (start, identification,
+    LTV error, feedback noise)."""
+    return tuple(jax.random.split(jax.random.key(seed), 4))
+
+
+class ConfigSolve(NamedTuple):
+    timed: "chunked.Timed"  # .out: ILQRResult (the best start's with several), compile_s, run_s
+    U0: jax.Array  # [T, nu] the start of the returned solve
+    costs: jax.Array | None  # [n_starts] every start's final cost, or None for one start
+
+
+def solve_config(res, progress: ProgressMeter = NO_PROGRESS) -> ConfigSolve:
+    """The D2C solve of a resolved config exactly as ``python -m experiments.run`` makes it
+    (solver settings, ``solver.init`` and ``n_starts``, keys from ``experiment.seed``):
+    a notebook and the command line get the same controls and cost."""
+    cfg, system, task = res
+    sc = cfg.solver
+    params, sid_params = solver_params(cfg, record_history(sc.max_iter, task.T, system.nx))
+    k_init, k_d2c, _, _ = experiment_keys(cfg.experiment.seed)
+    if sc.n_starts > 1:
+        U0s = start_controls(system, task, sc.init, sc.init_scale, k_init, sc.n_starts)
+        timed = chunked.solve(system, task, U0s, k_d2c, params, sid_params, "d2c", progress)
+        out = timed.out
+        return ConfigSolve(timed._replace(out=out.best), U0s[int(out.best_index)], out.costs)
+    U0 = start_controls(system, task, sc.init, sc.init_scale, k_init)
+    return ConfigSolve(chunked.solve(system, task, U0, k_d2c, params, sid_params, "d2c", progress), U0, None)
 
 
 def simulation_curve(
@@ -90,11 +149,20 @@ def black_box_trajectory(system: System, task: Task, U: jax.Array) -> tuple[jax.
     return X, finite_or_none(J)
 
 
+def unit_goal_cost(task: Task) -> float:
+    """The goal cost of a unit error in every state coordinate and 1 m at every point goal:
+    the scale of the goal test for a task that starts at its goal (a hold task)."""
+    terminal = bool(np.any(np.asarray(task.Q_f))) or bool(np.any(np.asarray(task.final_weights)))
+    W, w = (task.Q_f, task.final_weights) if terminal else (task.Q, task.weights)
+    return 0.5 * float(np.trace(np.asarray(W))) + 0.5 * float(np.sum(np.asarray(w)))
+
+
 def goal_test(task: Task, X: jax.Array, tolerance: float) -> dict:
     """The goal test in the task's own weighted terms (:func:`tasks.goal_cost`): reached
-    when goal_cost(x_T) <= tolerance * goal_cost(x_0) (or <= 1e-9 for a start at the goal)."""
+    when goal_cost(x_T) <= tolerance * goal_cost(x_0); for a start at the goal (a hold
+    task), when goal_cost(x_T) <= tolerance * :func:`unit_goal_cost`."""
     start, final = float(goal_cost(task, X[0])), float(goal_cost(task, X[-1]))
-    bound = tolerance * start if start > 0 else 1e-9
+    bound = tolerance * (start if start > 0 else unit_goal_cost(task))
     return {
         "reached": bool(np.isfinite(final) and final <= bound),
         "goal_cost_final": finite_or_none(final),
@@ -196,7 +264,7 @@ def optimum_stage(res, key: jax.Array):
     def compute():
         params, sid = solver_params(cfg, record_trajectories)
         k_init, k_d2c = jax.random.split(key)
-        U0 = initial_controls(k_init, task.T, system.nu, sc.init, sc.init_scale, None, task.x0.dtype)
+        U0 = start_controls(system, task, sc.init, sc.init_scale, k_init)
         t0 = time.perf_counter()
         with progress.meter("D2C optimum", sc.max_iter, cfg.experiment.progress) as pm:
             names = ("U_star", "X_star", "K_star")

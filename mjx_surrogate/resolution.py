@@ -16,6 +16,7 @@ from mjx_surrogate.config import Config, SystemConfig, validate_static
 from mjx_surrogate.cost import BLOWUP
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.ilqr import ILQRParams
+from mjx_surrogate.model_defaults import default_init, default_n_samples, default_sigma
 from mjx_surrogate.surrogates.registry import get_surrogate, library_specs
 from mjx_surrogate.sysid import SysIdParams
 from mjx_surrogate.systems import System, from_mjcf, make_system
@@ -78,11 +79,6 @@ def build_system_from_config(sc: SystemConfig, mesh: Mesh | None = None) -> Syst
     return _REGISTERED[key]
 
 
-def default_n_samples(nx: int, nu: int) -> int:
-    """Identification samples per time step when solver.n_samples is unset."""
-    return max(20, 2 * (nx + nu))
-
-
 def check_magnitude(field: str, x, dtype, sigma_x: float) -> None:
     """Reject a state the solver cannot work from by its size alone: beyond the bound where
     a trajectory counts as diverged, or so large that the perturbations sigma_x drown in the
@@ -136,21 +132,6 @@ def check_start(system: System, task: Task, sigma_x: float) -> None:
             f"MuJoCo cannot simulate from this state "
             f"({', '.join(hit) or 'non-finite state'} in the first step)",
         )
-
-
-def default_sigma(registered: bool) -> float:
-    """Identification perturbation std when the config leaves it unset.
-
-    Registered systems keep D2C 2.0's 1e-3 (the paper's setting). A user's model gets 1e-6
-    in float64 (D2C 2.0 later used 1e-7) and 1e-3 in float32: perturbations of 1e-3
-    straddle contact events, and the LTV fitted across them is a smoothed model that
-    stalls iLQR far from the optimum (half-cheetah: 140x the oracle's cost at 1e-3, 3 %
-    below it at 1e-6; docs/performance.md). 1e-6 is far above float64 round-off (relative
-    error eps / sigma = 2e-10) but not in float32 (0.1).
-    """
-    if registered or np.finfo(jnp.result_type(float)).eps > 1e-10:
-        return SysIdParams().sigma_x
-    return 1e-6
 
 
 def check_memory(cfg: Config, system: System, T: int, n_samples: int) -> None:
@@ -243,7 +224,8 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     ex = dataclasses.replace(
         cfg.experiment, exact_oracle=(cfg.system.name != "mjcf") if oracle is None else oracle
     )
-    solver = dataclasses.replace(cfg.solver, n_samples=n_samples, sigma_x=sigma_x, sigma_u=sigma_u)
+    init = cfg.solver.init or default_init(cfg.system.name)
+    solver = dataclasses.replace(cfg.solver, n_samples=n_samples, sigma_x=sigma_x, sigma_u=sigma_u, init=init)
     resolved = dataclasses.replace(cfg, system=sc, task=tc, experiment=ex, solver=solver)
     return Resolved(resolved, system, task)
 

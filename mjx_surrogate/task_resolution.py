@@ -1,7 +1,8 @@
 """Task resolution: a TaskConfig plus a system -> every task field filled and checked.
 
 Sources, in order: the field itself, a keyframe of the model, the task preset, the
-model (actuator ctrlrange for the control limits, qpos0 for a custom task's start).
+model (actuator ctrlrange for the control limits, qpos0 for a custom or hold task's start;
+the ``hold`` preset's goal, weights and control reference: ``model_defaults.hold_task``).
 Every check raises :class:`~mjx_surrogate.errors.ConfigError` naming the field.
 """
 
@@ -12,6 +13,7 @@ import numpy as np
 
 from mjx_surrogate.config import TaskConfig, check_finite
 from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.model_defaults import HOLD_T, hold_task
 from mjx_surrogate.systems import System, task_presets
 from mjx_surrogate.systems.kinematics import make_points_fn, point_ids
 from mjx_surrogate.systems.registry import preset_fits
@@ -21,19 +23,22 @@ from mjx_surrogate.tasks import Task, make_task
 MAX_T = 100_000
 
 
+MODEL_PRESETS = ("custom", "hold")  # built from the model itself, for every system
+
+
 def preset_fields(tc: TaskConfig, system: System) -> dict:
-    if tc.preset == "custom":
-        return {}
+    if tc.preset in MODEL_PRESETS:
+        return {"T": HOLD_T} if tc.preset == "hold" else {}
     presets = task_presets()
     if tc.preset not in presets:
-        valid = ", ".join(list(presets) + ["custom"])
+        valid = ", ".join(list(presets) + list(MODEL_PRESETS))
         raise ConfigError("task.preset", f"unknown task {tc.preset!r}; valid: {valid}")
     preset = presets[tc.preset]
     if not preset_fits(preset, system.name):
         raise ConfigError(
             "task.preset",
             f"{tc.preset!r} is a task for {preset.system!r}, "
-            f"not {system.name!r}; use a task of that system or 'custom'",
+            f"not {system.name!r}; use a task of that system, 'hold' (keep the start) or 'custom'",
         )
     return {"state_error": "euclidean", **preset.build(system.nq, system.nv, system.nu)}
 
@@ -191,9 +196,12 @@ def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
             len(tc.x_goal) != len(key_goal) or not np.allclose(tc.x_goal, key_goal, atol=1e-12)
         ):
             raise ConfigError("task.goal_keyframe", "give task.x_goal or task.goal_keyframe, not both")
-    custom = tc.preset == "custom"
+    custom = tc.preset in MODEL_PRESETS
     qpos0 = model_state(m, m.qpos0)
     x0 = _state(tc, "x0", labels, key_x0 if key_x0 is not None else base.get("x0", qpos0 if custom else None))
+    u_min, u_max = _limits(tc, m, base)
+    if tc.preset == "hold":
+        base = hold_task(m, x0, u_min, u_max)
     goal_default = key_goal if key_goal is not None else base.get("x_goal", x0 if tc.goals else None)
     x_goal = _state(tc, "x_goal", labels, goal_default)
     if x_goal is None:
@@ -203,14 +211,12 @@ def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
     zeros = {"Q": np.zeros((nx, nx)), "Q_f": np.zeros((nx, nx))} if (custom and tc.goals) else {}
     Q, Q_f = _matrix(tc, {**zeros, **base}, "Q", nx), _matrix(tc, {**zeros, **base}, "Q_f", nx)
     R = _matrix(tc, base, "R", nu)
-    u_min, u_max = _limits(tc, m, base)
     if tc.u_ref is not None:
         if len(tc.u_ref) != nu:
             raise ConfigError("task.u_ref", f"needs nu={nu} entries, got {len(tc.u_ref)}")
         check_finite("task.u_ref", tc.u_ref)
-    u_ref = np.asarray(
-        tc.u_ref if tc.u_ref is not None else (key_ctrl if key_ctrl is not None else np.zeros(nu))
-    )
+    u_ref_default = key_ctrl if key_ctrl is not None else base.get("u_ref", np.zeros(nu))
+    u_ref = np.asarray(tc.u_ref if tc.u_ref is not None else u_ref_default)
     state_error = tc.state_error or base.get("state_error", "geodesic")
     hinges, quats = geodesic_indices(m) if state_error == "geodesic" else ((), ())
     points = _points(system, tc)

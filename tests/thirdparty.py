@@ -24,6 +24,20 @@ ROOTS = {
 }
 
 
+# The models with controls in the pinned wheels, as users download them (the test that
+# steps every model checks this list against the unpacked files).
+SUITE_MODELS = {
+    "dm_control": (
+        "acrobot ball_in_cup cartpole cheetah dog finger fish hopper humanoid humanoid_CMU "
+        "manipulator pendulum point_mass quadruped reacher stacker walker"
+    ).split(),
+    "gymnasium": (
+        "ant half_cheetah hopper humanoid humanoidstandup inverted_double_pendulum "
+        "inverted_pendulum point pusher pusher_v5 reacher swimmer walker2d walker2d_v5"
+    ).split(),
+}
+
+
 def model_dir(package: str) -> str | None:
     """The unpacked folder of ``package``'s MJCF files, or None if it cannot be fetched."""
     version = WHEELS[package]

@@ -1,0 +1,134 @@
+"""Defaults derived from the model: what a field left unset means, in one place.
+
+Registered systems (pendulum, cartpole, fish, swimmer) keep the paper's settings. A user's
+MJCF model (``system.name = "mjcf"``) gets settings that hold on robots as downloaded
+(contacts, servos, free joints), each documented in docs/configs.md:
+
+* precision: float64 (float32 round-off swamps the small perturbations that contacts need;
+  the dm_control humanoid made no progress in float32);
+* identification: n_samples = max(20, 2 (nx + nu)), sigma = 1e-6 in float64;
+* start: the controls that hold x0 still (:func:`hold_controls`);
+* task preset ``hold``: keep x0 (the model's qpos0 or ``task.x0_keyframe``) for 50 control
+  steps, weights scaled to the actuators' ranges (:func:`hold_task`).
+"""
+
+from __future__ import annotations
+
+import copy
+
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from scipy.optimize import lsq_linear
+
+from mjx_surrogate.sysid import SysIdParams
+
+HOLD_T = 50  # control steps of the hold task
+
+
+def default_n_samples(nx: int, nu: int) -> int:
+    """Identification samples per time step when solver.n_samples is unset."""
+    return max(20, 2 * (nx + nu))
+
+
+def default_sigma(registered: bool) -> float:
+    """Identification perturbation std when the config leaves it unset.
+
+    Registered systems keep D2C 2.0's 1e-3 (the paper's setting). A user's model gets 1e-6
+    in float64 (D2C 2.0 later used 1e-7) and 1e-3 in float32: perturbations of 1e-3
+    straddle contact events, and the LTV fitted across them is a smoothed model that
+    stalls iLQR far from the optimum (half-cheetah: 140x the oracle's cost at 1e-3, 3 %
+    below it at 1e-6; docs/performance.md). 1e-6 is far above float64 round-off (relative
+    error eps / sigma = 2e-10) but not in float32 (0.1).
+    """
+    if registered or np.finfo(jnp.result_type(float)).eps > 1e-10:
+        return SysIdParams().sigma_x
+    return 1e-6
+
+
+def default_x64(system_name: str) -> bool:
+    """experiment.x64 when unset: float64 for a user's model, float32 for registered ones."""
+    return system_name == "mjcf"
+
+
+def default_init(system_name: str) -> str:
+    """solver.init when unset: "hold" for a user's model (zero controls send position
+    servos to joint angle 0), "zeros" for registered ones (the paper's start)."""
+    return "hold" if system_name == "mjcf" else "zeros"
+
+
+def _data_at(m: mujoco.MjModel, x: np.ndarray) -> mujoco.MjData:
+    d = mujoco.MjData(m)
+    d.qpos[:], d.qvel[:] = x[: m.nq], x[m.nq : m.nq + m.nv]
+    if m.na:
+        d.act[:] = x[m.nq + m.nv :]
+    mujoco.mj_forward(m, d)
+    return d
+
+
+def hold_controls(m: mujoco.MjModel, x: np.ndarray, u_min: np.ndarray, u_max: np.ndarray) -> np.ndarray:
+    """Controls [nu] inside [u_min, u_max] whose actuator forces come closest (least squares
+    in generalized forces) to what holds state ``x`` [nx] with zero acceleration: gravity,
+    Coriolis, springs and contact forces by inverse dynamics (``mj_inverse``).
+
+    Actuator force is affine in the control for actuators without activation dynamics
+    (motors, position and velocity servos); its slope is taken by a difference in the
+    control with the force limits off (a limit clips the force the controls ask for, it
+    does not change which controls those are). Actuators with activation dynamics (the
+    force follows the activation in the state, not the control) and controls that move
+    no joint get the in-range control nearest 0. Exact where the actuators span the
+    needed forces within their limits (a gravity-compensated arm); the least-squares
+    compromise otherwise.
+    """
+    x = np.asarray(x, float)
+    lo, hi = np.asarray(u_min, float), np.asarray(u_max, float)
+    if m.nu == 0:
+        return np.zeros(0)
+    d = _data_at(m, x)
+    d.qacc[:] = 0.0
+    mujoco.mj_inverse(m, d)
+    tau = d.qfrc_inverse.copy()
+    free = copy.copy(m)  # force limits off: the force is then exactly affine in the control
+    free.actuator_forcelimited[:] = 0
+    d = _data_at(free, x)
+    centre = np.clip(np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0), lo, hi)
+    half = np.where(np.isfinite(hi - lo), 0.5 * (hi - lo), 1.0)
+    step = 1e-4 * np.maximum(half, 1e-12)
+
+    def forces(u: np.ndarray) -> np.ndarray:
+        d.ctrl[:] = u
+        mujoco.mj_fwdActuation(free, d)
+        return d.qfrc_actuator.copy()
+
+    f0 = forces(centre)
+    G = np.zeros((m.nv, m.nu))
+    direct = m.actuator_dyntype == mujoco.mjtDyn.mjDYN_NONE
+    for j in np.flatnonzero(direct):
+        u = centre.copy()
+        u[j] += step[j] if centre[j] + step[j] <= hi[j] else -step[j]
+        G[:, j] = (forces(u) - f0) / (u[j] - centre[j])
+    nearest0 = np.clip(0.0, lo, hi)
+    scale = max(float(np.abs(G).max(initial=0.0)), 1e-12)
+    ridge = 1e-6 * scale  # picks the control nearest 0 along directions that move nothing
+    A = np.vstack([G, ridge * np.eye(m.nu)])
+    b = np.concatenate([tau - f0 + G @ centre, ridge * nearest0])
+    u = lsq_linear(A, b, bounds=(lo, hi), method="bvls" if np.all(np.isfinite(lo + hi)) else "trf").x
+    return np.clip(np.where(direct, u, nearest0), lo, hi)
+
+
+def hold_task(m: mujoco.MjModel, x0: np.ndarray, u_min: np.ndarray, u_max: np.ndarray) -> dict:
+    """Task fields of the ``hold`` preset: stay at x0 for HOLD_T control steps.
+
+    Q weighs positions 1 and velocities 0.01 (per coordinate of the state error), Q_f ten
+    times Q, R 0.01 per squared half control range (0.01 for an unlimited control), and the
+    R term pulls towards the hold controls (:func:`hold_controls`), not towards zero."""
+    q = np.concatenate([np.ones(m.nq), 0.01 * np.ones(m.nv), np.zeros(m.na)])
+    half = np.where(np.isfinite(u_max - u_min), 0.5 * (u_max - u_min), 1.0)
+    return {
+        "T": HOLD_T,
+        "x_goal": np.asarray(x0, float),
+        "Q": np.diag(q),
+        "Q_f": 10.0 * np.diag(q),
+        "R": np.diag(0.01 / np.maximum(half, 1e-6) ** 2),
+        "u_ref": hold_controls(m, x0, u_min, u_max),
+    }

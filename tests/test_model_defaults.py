@@ -1,0 +1,133 @@
+"""Defaults derived from the model: hold controls, the hold task, distinct starts, and the
+command line and the API agreeing on one config."""
+
+import glob
+
+import jax
+import mujoco
+import numpy as np
+import pytest
+
+from mjx_surrogate import model_defaults, pipeline
+from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.resolution import resolve
+
+ARM = """
+<mujoco>
+  <option timestep="0.01"/>
+  <worldbody>
+    <body name="upper" pos="0 0 1">
+      <joint name="shoulder" type="hinge" axis="0 1 0" damping="0.1"/>
+      <geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.04" mass="1.5"/>
+      <body name="fore" pos="0.4 0 0">
+        <joint name="elbow" type="hinge" axis="0 1 0" springref="0.3" stiffness="2"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="0.8"/>
+        <site name="tip" pos="0.3 0 0"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    {actuators}
+  </actuator>
+  <keyframe><key name="bent" qpos="0.4 -0.7"/></keyframe>
+</mujoco>
+"""
+MOTORS = (
+    '<motor joint="shoulder" gear="2" ctrlrange="-20 20"/><motor joint="elbow" gear="1" ctrlrange="-20 20"/>'
+)
+SERVOS = (
+    '<position joint="shoulder" kp="200" ctrlrange="-3 3"/>'
+    '<position joint="elbow" kp="100" kv="2" ctrlrange="-3 3" forcerange="-50 50"/>'
+)
+
+
+def _model(actuators: str) -> mujoco.MjModel:
+    return mujoco.MjModel.from_xml_string(ARM.format(actuators=actuators))
+
+
+def _qacc(m, x, u) -> np.ndarray:
+    d = mujoco.MjData(m)
+    d.qpos[:], d.qvel[:], d.ctrl[:] = x[: m.nq], x[m.nq :], u
+    mujoco.mj_forward(m, d)
+    return d.qacc.copy()
+
+
+@pytest.mark.parametrize("actuators", [MOTORS, SERVOS], ids=["motors", "position servos"])
+def test_hold_controls_hold_the_state_still(actuators):
+    m = _model(actuators)
+    x = np.concatenate([m.key_qpos[0], np.zeros(m.nv)])
+    lo, hi = m.actuator_ctrlrange.T
+    u = model_defaults.hold_controls(m, x, lo, hi)
+    assert np.all(np.abs(_qacc(m, x, u)) < 1e-6), _qacc(m, x, u)
+    assert np.abs(_qacc(m, x, np.zeros(m.nu))).max() > 1.0  # zero controls do not hold it
+    if actuators == MOTORS:  # closed form: gear * u = gravity + Coriolis - springs - damping
+        d = mujoco.MjData(m)
+        d.qpos[:] = x[: m.nq]
+        mujoco.mj_forward(m, d)
+        want = (d.qfrc_bias - d.qfrc_passive) / np.array([2.0, 1.0])
+        np.testing.assert_allclose(u, want, rtol=1e-6, atol=1e-9)
+
+
+def test_hold_controls_respect_limits_and_leave_unactuated_joints_alone():
+    m = _model('<motor joint="shoulder" gear="1" ctrlrange="-1 1"/><motor joint="elbow" ctrlrange="-20 20"/>')
+    x = np.concatenate([m.key_qpos[0], np.zeros(m.nv)])
+    lo, hi = m.actuator_ctrlrange.T
+    u = model_defaults.hold_controls(m, x, lo, hi)
+    assert u[0] == pytest.approx(1.0) or u[0] == pytest.approx(-1.0)  # the shoulder saturates
+    assert np.all(u >= lo) and np.all(u <= hi)
+    # one motor on the elbow only: no control moves the shoulder, the elbow is held
+    m1 = _model('<motor joint="elbow" ctrlrange="-20 20"/>')
+    u1 = model_defaults.hold_controls(m1, x, *m1.actuator_ctrlrange.T)
+    assert np.isfinite(u1).all() and u1.shape == (1,)
+
+
+def _hold_cfg(path, **solver) -> Config:
+    return Config(
+        system=SystemConfig(name="mjcf", mjcf_path=path, backend="native"),
+        task=TaskConfig(preset="hold", x0_keyframe="bent"),
+        solver=SolverConfig(max_iter=3, **solver),
+        experiment=ExperimentConfig(progress=False),
+    )
+
+
+def test_the_hold_task_starts_at_rest_and_multi_starts_are_distinct(tmp_path):
+    path = str(tmp_path / "arm.xml")
+    open(path, "w").write(ARM.format(actuators=SERVOS))
+    res = resolve(_hold_cfg(path, n_starts=3))
+    cfg, system, task = res
+    assert cfg.task.T == model_defaults.HOLD_T and cfg.solver.init == "hold"
+    np.testing.assert_array_equal(np.asarray(task.x_goal), np.asarray(task.x0))
+    U0s = pipeline.start_controls(system, task, "hold", 0.1, jax.random.key(0), 3)
+    hold = model_defaults.hold_controls(system.mj_model, np.asarray(task.x0), task.u_min, task.u_max)
+    np.testing.assert_allclose(np.asarray(U0s[0]), np.broadcast_to(hold, (task.T, system.nu)))
+    assert not np.allclose(U0s[1], U0s[0]) and not np.allclose(U0s[2], U0s[1])
+    lo, hi = np.asarray(task.u_min), np.asarray(task.u_max)
+    assert np.all(np.asarray(U0s) >= lo) and np.all(np.asarray(U0s) <= hi)
+    np.testing.assert_array_equal(np.asarray(task.u_ref), hold)  # R pulls towards holding
+    # Held from the start: the first cost is tiny, and the goal test means something.
+    timed, U0, costs = pipeline.solve_config(res)
+    assert costs is not None and len(costs) == 3
+    X, J = pipeline.black_box_trajectory(system, task, timed.out.U)
+    assert pipeline.goal_test(task, X, cfg.task.goal_tolerance)["reached"]
+
+
+def test_the_command_line_and_the_api_give_the_same_solve(tmp_path):
+    from experiments import run as cli
+    from mjx_surrogate.results import load_run
+
+    path = str(tmp_path / "arm.xml")
+    open(path, "w").write(ARM.format(actuators=MOTORS))
+    argv = ["default", "--system.name", "mjcf", "--system.mjcf_path", path, "--task.preset", "hold"]
+    argv += ["--task.x0_keyframe", "bent", "--solver.max_iter", "3", "--experiment.seed", "7"]
+    assert cli.main(argv + ["--out", str(tmp_path / "runs"), "--experiment.no-progress"]) == 0
+    (folder,) = glob.glob(str(tmp_path / "runs" / "*_default"))
+    metrics, arrays = load_run(folder)
+    cfg = Config(
+        system=SystemConfig(name="mjcf", mjcf_path=path),
+        task=TaskConfig(preset="hold", x0_keyframe="bent"),
+        solver=SolverConfig(max_iter=3),
+        experiment=ExperimentConfig(seed=7),
+    )
+    timed, U0, _ = pipeline.solve_config(resolve(cfg))
+    np.testing.assert_array_equal(np.asarray(timed.out.U), arrays["d2c_U"])
+    assert float(timed.out.cost) == metrics["d2c"]["cost_solver"]
