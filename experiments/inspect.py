@@ -29,7 +29,7 @@ def main(argv: list[str] | None = None) -> int:
         if spec.endswith(".xml") or os.path.sep in spec:
             if not os.path.isfile(spec):
                 raise ConfigError("MODEL", f"no such file {spec!r}")
-            model, _ = compile_mjcf(None, "MODEL", path=spec)
+            model, _ = compile_mjcf(None, "MODEL", path=spec, need_controls=False)
         else:
             model, _ = compile_mjcf(default_config(spec).xml(), "MODEL")
     except ConfigError as exc:

@@ -128,16 +128,16 @@ class SolverConfig:
     at most reuse_max iterations in a row (``mjx_surrogate.ilqr``); 0: always identify.
     """
 
-    # Defaults come from the solver's own parameter types (one source of truth).
-    max_iter: int = _ILQR.max_iter
-    rel_tol: float = _ILQR.rel_tol
-    k_tol: float = _ILQR.k_tol
-    mu_init: float = _ILQR.mu_init
-    mu_min: float = _ILQR.mu_min
-    mu_max: float = _ILQR.mu_max
-    mu_factor: float = _ILQR.mu_factor
-    n_alphas: int = _ILQR.n_alphas
-    accept_ratio: float = _ILQR.accept_ratio
+    # (defaults: the solver's own ILQRParams, one source of truth)
+    max_iter: int = _ILQR.max_iter  # iLQR iterations at most
+    rel_tol: float = _ILQR.rel_tol  # stop when the relative cost decrease is at most this
+    k_tol: float = _ILQR.k_tol  # stop when max |k| <= k_tol (1 + max |U|)
+    mu_init: float = _ILQR.mu_init  # the Levenberg-Marquardt regularisation at the start
+    mu_min: float = _ILQR.mu_min  # mu is kept at least this
+    mu_max: float = _ILQR.mu_max  # stop (stalled) when a step needs more regularisation than this
+    mu_factor: float = _ILQR.mu_factor  # mu shrinks / grows by this factor
+    n_alphas: int = _ILQR.n_alphas  # line-search step sizes, tried in one batch
+    accept_ratio: float = _ILQR.accept_ratio  # accept a step when actual / promised decrease > this
     alpha_factor: float = _ILQR.alpha_factor  # step sizes alpha_factor ** (0 .. n_alphas - 1)
     mu_raise_alpha: float = _ILQR.mu_raise_alpha  # accepted step sizes below this raise mu
     sysid: str = "central_difference"  # a registered scheme (mjx_surrogate.sysid.SCHEMES)

@@ -87,7 +87,7 @@ def cost_vs_noise(noise: np.ndarray, costs: dict[str, np.ndarray], title: str = 
         ax.plot(noise, med, marker="o", label=name)
         ax.fill_between(noise, lo, hi, alpha=0.2)
     ax.set_yscale("log")
-    ax.set_xlabel("process noise std (fraction of max |u*|)")
+    ax.set_xlabel("control noise std (fraction of U_max: the actuator limit, else max |u*|)")
     ax.set_ylabel("cost J")
     ax.set_title(title, fontsize=10)
     ax.legend(fontsize=8)

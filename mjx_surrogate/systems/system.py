@@ -146,10 +146,15 @@ def can_have_constraints(m: mujoco.MjModel) -> bool:
 
 
 def compile_mjcf(
-    xml: str | None, field: str = "system.mjcf", timestep: float | None = None, path: str | None = None
+    xml: str | None,
+    field: str = "system.mjcf",
+    timestep: float | None = None,
+    path: str | None = None,
+    need_controls: bool = True,
 ) -> tuple[mujoco.MjModel, str]:
     """Compile MJCF text (or the file at ``path``, its includes and assets resolved next to
-    it), disabling the constraint solver where nothing can be constrained.
+    it), disabling the constraint solver where nothing can be constrained. A model without
+    actuators is refused unless ``need_controls`` is false (``inspect`` describes any model).
 
     Returns the model and the exact MJCF that was compiled (after the option changes).
     """
@@ -161,8 +166,9 @@ def compile_mjcf(
     except Exception as exc:  # mujoco raises ValueError with a multi-line message
         msg = " ".join(str(exc).split())
         raise ConfigError(field, f"invalid MJCF ({msg})") from None
-    if model.nu == 0:
-        raise ConfigError(field, "the model has no actuators; at least one control is needed")
+    if model.nu == 0 and need_controls:
+        mocap = " (its mocap bodies are positioned by the user, not by controls)" if model.nmocap else ""
+        raise ConfigError(field, f"the model has no actuators{mocap}; at least one control is needed")
     if not can_have_constraints(model):
         spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
         model = spec.compile()
