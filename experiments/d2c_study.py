@@ -160,6 +160,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             "closed_loop_median": np.median(closed, axis=1).tolist(),
             "open_loop_median": np.median(opened, axis=1).tolist(),
         }
+        m["gains"] = pipeline.gains_verdict(ex.noise_levels, m["closed_loop_median"], m["open_loop_median"])
         return m, {"feedback_closed_costs": closed, "feedback_open_costs": opened}
 
     _, a_fb = record.stage("feedback", feedback_stage)

@@ -21,7 +21,7 @@ import sys
 import tempfile
 import threading
 
-from mjx_surrogate.config import Config, from_dict, to_dict, validate_static
+from mjx_surrogate.config import Config, PointGoal, from_dict, to_dict, validate_static
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.runtime import configure_runtime
 
@@ -76,11 +76,12 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
     import tyro
 
     argv, out = _take_out(list(argv))
+    argv, goals = _take_goals(argv)
     spec = DEFAULT_PRESET
     if argv and not argv[0].startswith("-"):
         spec = argv.pop(0)
     base = load_config(spec)
-    description = (__doc__ or "") + "\nPresets: " + ", ".join(preset_names())
+    description = (__doc__ or "") + "\nPresets: " + ", ".join(preset_names()) + GOALS_HELP
     if any(a in ("-h", "--help") for a in argv):
         tyro.cli(
             Config,
@@ -103,6 +104,8 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
         raise _one_line_tyro_error(err.getvalue(), argv) from None
     if out is not None:
         cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(cfg.experiment, out_dir=out))
+    if goals is not None:
+        cfg = dataclasses.replace(cfg, task=dataclasses.replace(cfg.task, goals=goals))
     return cfg, run_name(spec)
 
 
@@ -138,6 +141,52 @@ def _take_out(argv: list[str]) -> tuple[list[str], str | None]:
     if outs and not outs[0]:
         raise ConfigError("--out", "needs a directory")
     return rest, (outs[0] if outs else None)
+
+
+GOALS_HELP = (
+    "\n\n--task.goals KIND:NAME:X,Y,Z[:WEIGHT[:FINAL_WEIGHT]] ...: point goals on sites or "
+    "bodies (KIND site or body; WEIGHT on the running cost, default 0; FINAL_WEIGHT on the "
+    "terminal cost, default 1), e.g. --task.goals site:tip:0.1,0.1,0.01:0:1000"
+)
+
+
+def parse_goal(text: str) -> PointGoal:
+    """``KIND:NAME:X,Y,Z[:WEIGHT[:FINAL_WEIGHT]]`` -> PointGoal (ConfigError if malformed)."""
+    parts = text.split(":")
+    form = "KIND:NAME:X,Y,Z[:WEIGHT[:FINAL_WEIGHT]] with KIND site or body"
+    if not 3 <= len(parts) <= 5 or parts[0] not in ("site", "body") or not parts[1]:
+        raise ConfigError("task.goals", f"{text!r} is not {form}")
+    try:
+        target = tuple(float(v) for v in parts[2].split(","))
+        weights = [float(v) for v in parts[3:]]
+    except ValueError:
+        raise ConfigError(
+            "task.goals", f"{text!r}: the target and weights must be numbers ({form})"
+        ) from None
+    if len(target) != 3:
+        raise ConfigError("task.goals", f"{text!r}: the target needs 3 numbers X,Y,Z, got {len(target)}")
+    weight, final_weight = (weights + [0.0, 1.0][len(weights) :])[:2]
+    return PointGoal(name=parts[1], target=target, weight=weight, final_weight=final_weight, kind=parts[0])
+
+
+def _take_goals(argv: list[str]) -> tuple[list[str], tuple[PointGoal, ...] | None]:
+    """Remove ``--task.goals G ...`` (the tokens up to the next option) from argv."""
+    rest, goals, i = [], None, 0
+    while i < len(argv):
+        a = argv[i]
+        if a in ("--task.goals", "--task-goals") or a.startswith(("--task.goals=", "--task-goals=")):
+            if goals is not None:
+                raise ConfigError("task.goals", "given twice; list every goal after one --task.goals")
+            tokens = [a.split("=", 1)[1]] if "=" in a else []
+            i += 1
+            while i < len(argv) and not argv[i].startswith("--"):
+                tokens.append(argv[i])
+                i += 1
+            goals = tuple(parse_goal(t) for t in tokens)
+            continue
+        rest.append(a)
+        i += 1
+    return rest, goals
 
 
 def check_out_dir(path: str) -> None:
@@ -420,6 +469,9 @@ def summary_screen(metrics: dict, path: str) -> str:
             + f") {reached}"
             + (f"; goal cost {goal.get('goal_cost_start')} -> {goal.get('goal_cost_final')}" if goal else "")
         )
+    gains = (metrics.get("feedback") or {}).get("gains")
+    if gains:
+        lines.append(f"  feedback gains: {gains}")
     return "\n".join(lines)
 
 

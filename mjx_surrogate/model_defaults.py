@@ -116,6 +116,13 @@ def hold_controls(m: mujoco.MjModel, x: np.ndarray, u_min: np.ndarray, u_max: np
     return np.clip(np.where(direct, u, nearest0), lo, hi)
 
 
+def control_weights(u_min: np.ndarray, u_max: np.ndarray) -> np.ndarray:
+    """R [nu, nu] when a task gives none: 0.01 per squared half control range (0.01 where a
+    control is unlimited), so that every actuator's full range costs alike."""
+    half = np.where(np.isfinite(u_max - u_min), 0.5 * (u_max - u_min), 1.0)
+    return np.diag(0.01 / np.maximum(half, 1e-6) ** 2)
+
+
 def hold_task(m: mujoco.MjModel, x0: np.ndarray, u_min: np.ndarray, u_max: np.ndarray) -> dict:
     """Task fields of the ``hold`` preset: stay at x0 for HOLD_T control steps.
 
@@ -123,12 +130,11 @@ def hold_task(m: mujoco.MjModel, x0: np.ndarray, u_min: np.ndarray, u_max: np.nd
     times Q, R 0.01 per squared half control range (0.01 for an unlimited control), and the
     R term pulls towards the hold controls (:func:`hold_controls`), not towards zero."""
     q = np.concatenate([np.ones(m.nq), 0.01 * np.ones(m.nv), np.zeros(m.na)])
-    half = np.where(np.isfinite(u_max - u_min), 0.5 * (u_max - u_min), 1.0)
     return {
         "T": HOLD_T,
         "x_goal": np.asarray(x0, float),
         "Q": np.diag(q),
         "Q_f": 10.0 * np.diag(q),
-        "R": np.diag(0.01 / np.maximum(half, 1e-6) ** 2),
+        "R": control_weights(u_min, u_max),
         "u_ref": hold_controls(m, x0, u_min, u_max),
     }

@@ -96,6 +96,16 @@ def solve_config(res, progress: ProgressMeter = NO_PROGRESS) -> ConfigSolve:
     return ConfigSolve(chunked.solve(system, task, U0, k_d2c, params, sid_params, "d2c", progress), U0, None)
 
 
+def gains_verdict(levels, closed_median, open_median) -> str:
+    """Whether the stored gains are to be used: "help" when the closed loop u = U + K dx
+    costs no more than the open loop (median over draws) at every noise level > 0, else
+    which levels they make worse."""
+    worse = [lv for lv, c, o in zip(levels, closed_median, open_median) if lv > 0 and not c <= o]
+    if not worse:
+        return "help"
+    return f"do not use: the closed loop costs more than the open loop at noise level(s) {worse}"
+
+
 def simulation_curve(
     identified: np.ndarray,
     iterations: int,

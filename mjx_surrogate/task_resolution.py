@@ -13,9 +13,9 @@ import numpy as np
 
 from mjx_surrogate.config import TaskConfig, check_finite
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.model_defaults import HOLD_T, hold_task
+from mjx_surrogate.model_defaults import HOLD_T, control_weights, hold_controls, hold_task
 from mjx_surrogate.systems import System, task_presets
-from mjx_surrogate.systems.kinematics import make_points_fn, point_ids
+from mjx_surrogate.systems.kinematics import make_points_fn, native_points_fn, point_ids
 from mjx_surrogate.systems.registry import preset_fits
 from mjx_surrogate.systems.system import state_labels
 from mjx_surrogate.tasks import Task, make_task
@@ -161,8 +161,9 @@ def _points(system: System, tc: TaskConfig):
         return None
     ids = tuple(point_ids(system.mj_model, tc.goals))
     cache = system.__dict__.setdefault("_points_fns", {})  # one function per goal set
-    if ids not in cache:
-        cache[ids] = make_points_fn(system.mj_model, list(ids))
+    if ids not in cache:  # native kinematics with a native simulator: nothing to compile
+        make = native_points_fn if system.backend == "native" else make_points_fn
+        cache[ids] = make(system.mj_model, list(ids))
     return cache[ids]
 
 
@@ -210,12 +211,17 @@ def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
         )
     zeros = {"Q": np.zeros((nx, nx)), "Q_f": np.zeros((nx, nx))} if (custom and tc.goals) else {}
     Q, Q_f = _matrix(tc, {**zeros, **base}, "Q", nx), _matrix(tc, {**zeros, **base}, "Q_f", nx)
-    R = _matrix(tc, base, "R", nu)
+    R = _matrix(tc, {"R": control_weights(u_min, u_max), **base} if custom else base, "R", nu)
     if tc.u_ref is not None:
         if len(tc.u_ref) != nu:
             raise ConfigError("task.u_ref", f"needs nu={nu} entries, got {len(tc.u_ref)}")
         check_finite("task.u_ref", tc.u_ref)
-    u_ref_default = key_ctrl if key_ctrl is not None else base.get("u_ref", np.zeros(nu))
+    if key_ctrl is not None:
+        u_ref_default = key_ctrl
+    elif "u_ref" in base:
+        u_ref_default = base["u_ref"]
+    else:  # a custom task: the controls that hold x0 (zero controls send servos to angle 0)
+        u_ref_default = hold_controls(m, x0, u_min, u_max) if custom else np.zeros(nu)
     u_ref = np.asarray(tc.u_ref if tc.u_ref is not None else u_ref_default)
     state_error = tc.state_error or base.get("state_error", "geodesic")
     hinges, quats = geodesic_indices(m) if state_error == "geodesic" else ((), ())

@@ -47,11 +47,39 @@ BAD = [
     (["smoke_analysis", "--analysis.convergence_library", "foo"], "analysis.convergence_library"),
     (["smoke_analysis", "--analysis.variance_libraries", "poly3"], "analysis.variance_levels"),
     (["smoke_theory", "--analysis.theory_max_order", "20"], "analysis.theory_max_order"),
+    (["smoke_rollout", "--task.goals", "site:tip"], "task.goals"),
+    (["smoke_rollout", "--task.goals", "joint:tip:0,0,1"], "task.goals"),
+    (["smoke_rollout", "--task.goals", "site:tip:0,1"], "task.goals"),
+    (["smoke_rollout", "--task.goals", "site:tip:0,0,x"], "task.goals"),
+    (["smoke_rollout", "--task.goals", "site:nosuchsite:0,0,1"], "task.goals[0].name"),
     (
         ["smoke_rollout", "--system.name", "mjcf", "--system.mjcf_path", "/nonexistent.xml"],
         "system.mjcf_path",
     ),
 ]
+
+
+def test_point_goals_from_the_command_line():
+    cfg, _ = cli.parse_args(
+        ["default", "--task.goals", "site:tip:0.1,-0.2,0.01:0.5:1000", "body:hand:1,2,3", "--task.T", "9"]
+    )
+    tip, hand = cfg.task.goals
+    assert (tip.kind, tip.name, tip.target, tip.weight, tip.final_weight) == (
+        "site",
+        "tip",
+        (0.1, -0.2, 0.01),
+        0.5,
+        1000,
+    )
+    assert (hand.kind, hand.name, hand.target, hand.weight, hand.final_weight) == (
+        "body",
+        "hand",
+        (1, 2, 3),
+        0.0,
+        1.0,
+    )
+    assert cfg.task.T == 9  # the options after the goals are read as usual
+    assert "--task.goals KIND:NAME:X,Y,Z" in cli.GOALS_HELP
 
 
 @pytest.mark.parametrize("argv,field", BAD)

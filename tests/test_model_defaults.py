@@ -131,3 +131,24 @@ def test_the_command_line_and_the_api_give_the_same_solve(tmp_path):
     timed, U0, _ = pipeline.solve_config(resolve(cfg))
     np.testing.assert_array_equal(np.asarray(timed.out.U), arrays["d2c_U"])
     assert float(timed.out.cost) == metrics["d2c"]["cost_solver"]
+    # The run says whether its gains are to be used, true of its own noise trials.
+    fb = metrics["feedback"]
+    worse = [
+        lv
+        for lv, c, o in zip(fb["noise_levels"], fb["closed_loop_median"], fb["open_loop_median"])
+        if lv > 0 and c > o
+    ]
+    assert (fb["gains"] == "help") == (not worse), fb
+    closed, opened = (
+        np.median(arrays["feedback_closed_costs"], 1),
+        np.median(arrays["feedback_open_costs"], 1),
+    )
+    np.testing.assert_allclose(closed, fb["closed_loop_median"])
+    np.testing.assert_allclose(opened, fb["open_loop_median"])
+
+
+def test_gains_verdict_names_the_levels_where_feedback_hurts():
+    assert pipeline.gains_verdict([0.0, 0.01, 0.05], [1.0, 2.0, 3.0], [1.0, 2.5, 3.5]) == "help"
+    bad = pipeline.gains_verdict([0.0, 0.01, 0.05], [1.0, 2.0, 4.0], [1.0, 2.5, 3.5])
+    assert bad.startswith("do not use") and "[0.05]" in bad
+    assert "do not use" in pipeline.gains_verdict([0.01], [float("nan")], [1.0])

@@ -1,8 +1,11 @@
 """Positions of named sites and bodies as a differentiable function of the state.
 
-Task costs on points (a fingertip at a target, a nose, an end effector) need p(x); it
-comes from MJX forward kinematics on the same model, so the cost stays analytic and
-autodiff gives its derivatives. The dynamics are never differentiated here.
+Task costs on points (a fingertip at a target, a nose, an end effector) need p(x) and its
+Jacobian. Two sources, the same numbers: MJX forward kinematics on the same model
+(traced, autodiff gives the Jacobian), or native ``mj_kinematics`` called from inside the
+trace (``native_points_fn``: every model MuJoCo loads, nothing to compile; the Jacobian
+by central differences in qpos, exact to round-off for the smooth kinematic map). The
+dynamics are never differentiated here.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import io
 import jax
 import jax.numpy as jnp
 import mujoco
+import numpy as np
 
 from mjx_surrogate.errors import ConfigError
 
@@ -56,5 +60,53 @@ def make_points_fn(m: mujoco.MjModel, ids: list[tuple[str, int]], field: str = "
         d = mjx.kinematics(model, data0.replace(qpos=x[:nq].astype(data0.qpos.dtype)))
         rows = [d.site_xpos[j] if k == "site" else d.xpos[j] for k, j in ids]  # k goals, static
         return jnp.stack(rows).astype(x.dtype)
+
+    return points
+
+
+def native_points_fn(m: mujoco.MjModel, ids: list[tuple[str, int]]):
+    """``points(x [nx]) -> [k, 3]`` as :func:`make_points_fn`, by native ``mj_kinematics``
+    through ``jax.pure_callback`` (batched over any leading axes), with a custom JVP whose
+    Jacobian [k, 3, nx] (zero beyond qpos) comes from central differences in qpos."""
+    nq, k = m.nq, len(ids)
+    h = 1e-6
+
+    def at(q: np.ndarray, data: mujoco.MjData) -> np.ndarray:
+        data.qpos[:] = q
+        mujoco.mj_kinematics(m, data)
+        return np.stack([data.site_xpos[j] if kind == "site" else data.xpos[j] for kind, j in ids])
+
+    def host_points(x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x)
+        flat = x.reshape(-1, x.shape[-1]).astype(np.float64)
+        data = mujoco.MjData(m)  # per call: callbacks of several devices may run at once
+        out = np.stack([at(row[:nq], data) for row in flat])
+        return out.reshape(x.shape[:-1] + (k, 3)).astype(x.dtype)
+
+    def host_jacobian(x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x)
+        flat = x.reshape(-1, x.shape[-1]).astype(np.float64)
+        J = np.zeros((flat.shape[0], k, 3, x.shape[-1]))
+        data = mujoco.MjData(m)
+        for b, row in enumerate(flat):
+            for i in range(nq):
+                e = np.zeros(nq)
+                e[i] = h
+                J[b, :, :, i] = (at(row[:nq] + e, data) - at(row[:nq] - e, data)) / (2 * h)
+        return J.reshape(x.shape[:-1] + (k, 3, x.shape[-1])).astype(x.dtype)
+
+    def call(fn, x, shape):
+        out = jax.ShapeDtypeStruct(x.shape[:-1] + shape, x.dtype)
+        return jax.pure_callback(fn, out, x, vmap_method="broadcast_all")
+
+    @jax.custom_jvp
+    def points(x: jax.Array) -> jax.Array:
+        return call(host_points, x, (k, 3))
+
+    @points.defjvp
+    def _jvp(primals, tangents):
+        (x,), (dx,) = primals, tangents
+        J = call(host_jacobian, x, (k, 3, x.shape[-1]))
+        return points(x), jnp.einsum("...kcn,...n->...kc", J, dx)
 
     return points

