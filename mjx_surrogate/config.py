@@ -149,6 +149,7 @@ class SolverConfig:
     n_samples: Optional[int] = None  # None: max(20, 2 (nx + nu))
     sigma_x: Optional[float] = None  # None: model_defaults.default_sigma
     sigma_u: Optional[float] = None
+    sysid_noise_floor: Optional[float] = None  # zero entries below c eps |x| / sigma (None: model_defaults)
     init: Optional[Literal["zeros", "random", "u_ref", "hold"]] = None  # None: model_defaults.default_init
     init_scale: float = 0.1
     n_starts: int = 1
@@ -500,6 +501,7 @@ def validate_static(cfg: Config) -> None:
         "solver.mu_init": s.mu_init,
         "solver.mu_min": s.mu_min,
         "solver.mu_raise_alpha": s.mu_raise_alpha,
+        "solver.sysid_noise_floor": 0.0 if s.sysid_noise_floor is None else s.sysid_noise_floor,
     }.items():
         if not (math.isfinite(v) and v >= 0):
             raise ConfigError(field, f"must be a finite number >= 0, got {v}")

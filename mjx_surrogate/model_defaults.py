@@ -46,6 +46,13 @@ def default_sigma(registered: bool) -> float:
     return 1e-6
 
 
+def default_noise_floor(system_name: str) -> float:
+    """solver.sysid_noise_floor when unset: 10 for a user's model (identified entries below
+    10 eps |x| / sigma are zero: ``sysid.below_resolution``), 0 (off) for registered ones,
+    whose paper settings stay as published."""
+    return 10.0 if system_name == "mjcf" else 0.0
+
+
 def default_x64(system_name: str) -> bool:
     """experiment.x64 when unset: float64 for a user's model, float32 for registered ones."""
     return system_name == "mjcf"

@@ -16,7 +16,7 @@ from mjx_surrogate.config import Config, SystemConfig, validate_static
 from mjx_surrogate.cost import BLOWUP
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.ilqr import ILQRParams
-from mjx_surrogate.model_defaults import default_init, default_n_samples, default_sigma
+from mjx_surrogate.model_defaults import default_init, default_n_samples, default_noise_floor, default_sigma
 from mjx_surrogate.surrogates.registry import get_surrogate, library_specs
 from mjx_surrogate.sysid import SysIdParams
 from mjx_surrogate.systems import System, from_mjcf, make_system
@@ -172,7 +172,13 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
     sx = SysIdParams().sigma_x if s.sigma_x is None else s.sigma_x  # resolve() sets both
     su = SysIdParams().sigma_u if s.sigma_u is None else s.sigma_u
     sysid = SysIdParams(
-        sigma_x=sx, sigma_u=su, scheme=s.sysid, n_samples=n, every=s.sysid_every, design=s.sysid_design
+        sigma_x=sx,
+        sigma_u=su,
+        scheme=s.sysid,
+        n_samples=n,
+        every=s.sysid_every,
+        design=s.sysid_design,
+        noise_floor=s.sysid_noise_floor or 0.0,
     )
     return ilqr, sysid
 
@@ -225,7 +231,11 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
         cfg.experiment, exact_oracle=(cfg.system.name != "mjcf") if oracle is None else oracle
     )
     init = cfg.solver.init or default_init(cfg.system.name)
-    solver = dataclasses.replace(cfg.solver, n_samples=n_samples, sigma_x=sigma_x, sigma_u=sigma_u, init=init)
+    floor = cfg.solver.sysid_noise_floor
+    floor = default_noise_floor(cfg.system.name) if floor is None else floor
+    solver = dataclasses.replace(
+        cfg.solver, n_samples=n_samples, sigma_x=sigma_x, sigma_u=sigma_u, init=init, sysid_noise_floor=floor
+    )
     resolved = dataclasses.replace(cfg, system=sc, task=tc, experiment=ex, solver=solver)
     return Resolved(resolved, system, task)
 

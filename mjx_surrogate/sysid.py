@@ -51,6 +51,7 @@ class SysIdParams:
     n_samples: int = struct.field(pytree_node=False, default=20)
     every: int = struct.field(pytree_node=False, default=1)  # identify every k-th step (sysid_knots)
     design: str = struct.field(pytree_node=False, default="gaussian")  # or "orthogonal"
+    noise_floor: float = struct.field(pytree_node=False, default=0.0)  # see :func:`below_resolution`
 
 
 def normal_equations(
@@ -289,8 +290,33 @@ def _mesh(system) -> Mesh | None:
 
 def ltv_linearize(system, p: SysIdParams) -> LinearizeFn:
     """The linearize hook of scheme ``p.scheme`` on ``system``'s black-box step, at every
-    ``p.every``-th step and interpolated between (one-step schemes)."""
-    return sysid_knots.at_knots(get_scheme(p.scheme).make_linearize(system, p), p.every)
+    ``p.every``-th step and interpolated between (one-step schemes); with
+    ``p.noise_floor`` > 0, entries below the difference quotients' resolution are zero
+    (:func:`below_resolution`)."""
+    linearize = sysid_knots.at_knots(get_scheme(p.scheme).make_linearize(system, p), p.every)
+    if p.noise_floor == 0:
+        return linearize
+
+    def floored(X, U, K, key):
+        A, B = linearize(X, U, K, key)
+        return below_resolution(A, B, X, p)
+
+    return floored
+
+
+def below_resolution(A: jax.Array, B: jax.Array, X: jax.Array, p: SysIdParams) -> tuple[jax.Array, jax.Array]:
+    """Zero the entries of A [T, nx, nx], B [T, nx, nu] that a difference quotient of the
+    black box cannot resolve: |entry| <= noise_floor * eps * max(|x_{t+1,i}|, 1) / sigma
+    (row i; sigma_x for A, sigma_u for B), the round-off of the next state divided by the
+    perturbation. An actuator that a force limit saturates moves nothing (its B column is
+    exactly 0), but least squares returns round-off of about 1e-10 there; with a small R
+    the Riccati gains divide by it (UR5e: |K| 291 at the last step, 1.4 for the oracle),
+    and the closed loop under noise cost 20x the open loop."""
+    eps = jnp.finfo(X.dtype).eps
+    level = p.noise_floor * eps * jnp.maximum(jnp.abs(X[1:]), 1.0)[:, :, None]  # [T, nx, 1]
+    A = jnp.where(jnp.abs(A) <= level / p.sigma_x, 0.0, A)
+    B = jnp.where(jnp.abs(B) <= level / p.sigma_u, 0.0, B)
+    return A, B
 
 
 def fine_params(p: SysIdParams) -> SysIdParams | None:

@@ -4,6 +4,7 @@ command line and the API agreeing on one config."""
 import glob
 
 import jax
+import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
@@ -152,3 +153,29 @@ def test_gains_verdict_names_the_levels_where_feedback_hurts():
     bad = pipeline.gains_verdict([0.0, 0.01, 0.05], [1.0, 2.0, 4.0], [1.0, 2.5, 3.5])
     assert bad.startswith("do not use") and "[0.05]" in bad
     assert "do not use" in pipeline.gains_verdict([0.01], [float("nan")], [1.0])
+
+
+def test_a_saturated_actuator_identifies_as_exactly_zero_with_the_noise_floor(tmp_path):
+    """A position servo held at its force limit moves nothing: its B column is exactly 0.
+    Least squares leaves round-off there, which the user-model default noise floor zeroes
+    (and nothing else: the other entries are as identified)."""
+    from mjx_surrogate import sysid
+    from mjx_surrogate.resolution import solver_params
+
+    path = str(tmp_path / "arm.xml")
+    open(path, "w").write(ARM.format(actuators=SERVOS.replace('forcerange="-50 50"', 'forcerange="-1 1"')))
+    res = resolve(_hold_cfg(path))
+    cfg, system, task = res
+    assert cfg.solver.sysid_noise_floor == 10.0
+    _, sid = solver_params(cfg)
+    T = 5
+    U = jnp.tile(jnp.asarray([0.4, 2.5]), (T, 1))  # the elbow's target 3.2 rad away: force-limited
+    X = jnp.tile(jnp.asarray(task.x0), (T + 1, 1))
+    key = jax.random.key(3)
+    A, B = jax.jit(sysid.ltv_linearize(system, sid))(X, U, None, key)
+    A0, B0 = jax.jit(sysid.ltv_linearize(system, sid.replace(noise_floor=0.0)))(X, U, None, key)
+    assert np.all(np.asarray(B[:, :, 1]) == 0.0)
+    assert 0 < np.abs(np.asarray(B0[:, :, 1])).max() < 1e-8  # round-off without the floor
+    kept = np.abs(np.asarray(B0)) > 1e-6
+    np.testing.assert_array_equal(np.asarray(B)[kept], np.asarray(B0)[kept])
+    assert np.abs(np.asarray(B[:, :, 0])).max() > 1e-3  # the free shoulder servo is identified
