@@ -341,28 +341,32 @@ def test_every_suite_model_solves_its_hold_task_with_the_documented_defaults(mod
 
 
 @pytest.mark.slow
-def test_the_readme_user_model_recipe_runs_a_model_with_sensors(tmp_path):
-    """dm_control's walker (nx + nu = 24, sensors) through the README's command line,
-    with the documented defaults (nothing about samples or sensors given)."""
+def test_the_readme_user_model_command_runs_the_dm_control_humanoid(tmp_path):
+    """The README's user-model line, as written there, on dm_control's humanoid (sensors,
+    contacts, a free joint, nx + nu = 76): nothing about samples, precision, starts or
+    weights given."""
+    import shlex
+
     from experiments import run as cli
     from mjx_surrogate.results import load_run
 
-    path = model_path("dm_control", "walker.xml")
+    path = model_path("dm_control", "humanoid.xml")
     if path is None:
         pytest.skip("dm_control wheel not reachable")
-    m = mujoco.MjModel.from_xml_path(path)
-    nx, nu = m.nq + m.nv + m.na, m.nu
-    assert m.nsensordata > 0 and nx + nu > 20
-    nums = lambda v, n: [str(v)] * n  # noqa: E731
-    argv = ["default", "--system.name", "mjcf", "--system.mjcf_path", path, "--system.backend", "native"]
-    argv += ["--task.preset", "custom", "--task.T", "20", "--system.control_dt", "0.02"]
-    argv += ["--task.x_goal", *nums(0, nx), "--task.Q_diag", *nums(0, nx), "--task.Q_f_diag", *nums(1, nx)]
-    argv += ["--task.R_diag", *nums(0.01, nu), "--solver.max_iter", "2", "--out", str(tmp_path)]
-    assert cli.main(argv + ["--experiment.no-progress"]) == 0
+    readme = open(os.path.join(os.path.dirname(os.path.dirname(__file__)), "README.md")).read()
+    (line,) = [ln for ln in readme.splitlines() if "experiments.run" in ln and "--task.preset hold" in ln]
+    argv = shlex.split(line.replace("my_robot.xml", path))
+    assert argv[:3] == ["python", "-m", "experiments.run"]
+    assert cli.main(argv[3:] + ["--out", str(tmp_path), "--experiment.no-progress"]) == 0
     (folder,) = glob.glob(str(tmp_path / "*_default"))
     metrics, arrays = load_run(folder)
-    assert metrics["status"] in ("converged", "stalled", "max_iter") and metrics["d2c"]["iterations"] >= 1
-    assert metrics["d2c"]["controls_within_limits"]
-    assert json.load(open(os.path.join(folder, "config.json")))["solver"]["n_samples"] == max(
-        20, 2 * (nx + nu)
-    )
+    m = mujoco.MjModel.from_xml_path(path)
+    nx, nu = m.nq + m.nv + m.na, m.nu
+    assert m.nsensordata > 0 and nx + nu == 76
+    d2c = metrics["d2c"]
+    assert metrics["status"] in ("converged", "stalled", "max_iter") and d2c["iterations"] >= 10
+    assert d2c["controls_within_limits"] and d2c["goal"]["reached"]
+    assert d2c["cost"] < 0.2 * float(arrays["d2c_cost_history"][0])  # it fell 52 -> 3.5 when written
+    config = json.load(open(os.path.join(folder, "config.json")))
+    assert config["solver"]["n_samples"] == max(20, 2 * (nx + nu)) and config["experiment"]["x64"]
+    assert config["solver"]["init"] == "hold" and config["task"]["T"] == 50
