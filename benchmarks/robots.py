@@ -94,7 +94,7 @@ TASKS = {
         ("gymnasium", "pusher.xml"),
         {"preset": "custom", "T": 50},
         {"control_dt": 0.05},
-        ("body", "tips_arm", None, (-0.1, 0.1, -0.1)),
+        ("body", "tips_arm", None, (0.0, 0.1, 0.0)),
     ),
     "ur5e servos (reach)": (
         ("menagerie", "ur5e.xml"),
