@@ -472,7 +472,24 @@ def summary_screen(metrics: dict, path: str) -> str:
     gains = (metrics.get("feedback") or {}).get("gains")
     if gains:
         lines.append(f"  feedback gains: {gains}")
+    times = time_line(metrics)
+    if times:
+        lines.append(times)
     return "\n".join(lines)
+
+
+def time_line(metrics: dict) -> str:
+    """Where the wall time went: each stage (compiles included), then the rest (loading,
+    checks, the model and figure files)."""
+    stages = {
+        k: v["wall_s"] for k, v in (metrics.get("stages") or {}).items() if isinstance(v.get("wall_s"), float)
+    }
+    total = metrics.get("wall_time_s")
+    if not stages or not isinstance(total, (int, float)):
+        return ""
+    parts = [f"{k} {v:.1f} s" for k, v in stages.items()]
+    parts.append(f"setup and files {max(total - sum(stages.values()), 0.0):.1f} s")
+    return f"  time: {', '.join(parts)} (total {total:.1f} s)"
 
 
 def summary_line(metrics: dict, path: str) -> str:

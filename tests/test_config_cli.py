@@ -227,3 +227,9 @@ def test_every_solver_field_named_like_an_ilqr_parameter_reaches_it():
     changed = {n: getattr(default, n) + 1 if isinstance(getattr(default, n), int) else 0.375 for n in names}
     params, _ = solver_params(Config(solver=SolverConfig(**changed)))
     assert {n: getattr(params, n) for n in names} == changed
+
+
+def test_the_summary_accounts_for_the_wall_time():
+    metrics = {"stages": {"d2c": {"wall_s": 1.0}, "feedback": {"wall_s": 2.5}}, "wall_time_s": 4.0}
+    assert cli.time_line(metrics) == "  time: d2c 1.0 s, feedback 2.5 s, setup and files 0.5 s (total 4.0 s)"
+    assert cli.time_line({"wall_time_s": 4.0}) == ""
