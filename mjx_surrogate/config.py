@@ -150,6 +150,7 @@ class SolverConfig:
     sigma_x: Optional[float] = None  # None: model_defaults.default_sigma
     sigma_u: Optional[float] = None
     sysid_noise_floor: Optional[float] = None  # zero entries below c eps |x| / sigma (None: model_defaults)
+    sysid_perturb_x0: Optional[bool] = None  # one-step schemes perturb the given start (None: model_defaults)
     init: Optional[Literal["zeros", "random", "u_ref", "hold"]] = None  # None: model_defaults.default_init
     init_scale: float = 0.1
     n_starts: int = 1

@@ -53,6 +53,13 @@ def default_noise_floor(system_name: str) -> float:
     return 10.0 if system_name == "mjcf" else 0.0
 
 
+def default_perturb_x0(system_name: str) -> bool:
+    """solver.sysid_perturb_x0 when unset: False for a user's model (x_0 is given, so the
+    one-step schemes identify B_0 alone: ``sysid._one_step_perturbations``), True for
+    registered ones (D2C 2.0's design, as published)."""
+    return system_name != "mjcf"
+
+
 def default_x64(system_name: str) -> bool:
     """experiment.x64 when unset: float64 for a user's model, float32 for registered ones."""
     return system_name == "mjcf"

@@ -16,7 +16,13 @@ from mjx_surrogate.config import Config, SystemConfig, validate_static
 from mjx_surrogate.cost import BLOWUP
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.ilqr import ILQRParams
-from mjx_surrogate.model_defaults import default_init, default_n_samples, default_noise_floor, default_sigma
+from mjx_surrogate.model_defaults import (
+    default_init,
+    default_n_samples,
+    default_noise_floor,
+    default_perturb_x0,
+    default_sigma,
+)
 from mjx_surrogate.surrogates.registry import get_surrogate, library_specs
 from mjx_surrogate.sysid import SysIdParams
 from mjx_surrogate.systems import System, from_mjcf, make_system
@@ -179,6 +185,7 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
         every=s.sysid_every,
         design=s.sysid_design,
         noise_floor=s.sysid_noise_floor or 0.0,
+        perturb_x0=True if s.sysid_perturb_x0 is None else s.sysid_perturb_x0,
     )
     return ilqr, sysid
 
@@ -231,10 +238,17 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
         cfg.experiment, exact_oracle=(cfg.system.name != "mjcf") if oracle is None else oracle
     )
     init = cfg.solver.init or default_init(cfg.system.name)
-    floor = cfg.solver.sysid_noise_floor
+    floor, perturb_x0 = cfg.solver.sysid_noise_floor, cfg.solver.sysid_perturb_x0
     floor = default_noise_floor(cfg.system.name) if floor is None else floor
+    perturb_x0 = default_perturb_x0(cfg.system.name) if perturb_x0 is None else perturb_x0
     solver = dataclasses.replace(
-        cfg.solver, n_samples=n_samples, sigma_x=sigma_x, sigma_u=sigma_u, init=init, sysid_noise_floor=floor
+        cfg.solver,
+        n_samples=n_samples,
+        sigma_x=sigma_x,
+        sigma_u=sigma_u,
+        init=init,
+        sysid_noise_floor=floor,
+        sysid_perturb_x0=perturb_x0,
     )
     resolved = dataclasses.replace(cfg, system=sc, task=tc, experiment=ex, solver=solver)
     return Resolved(resolved, system, task)

@@ -53,6 +53,25 @@ def test_orthogonal_minimal_design_recovers_a_linear_system(scheme):
     np.testing.assert_allclose(B, np.broadcast_to(B_TRUE, B.shape), atol=1e-10)
 
 
+@pytest.mark.parametrize("design", ["gaussian", "orthogonal"])
+@pytest.mark.parametrize("scheme", ["central_difference", "forward_difference"])
+def test_a_given_start_identifies_b0_alone(scheme, design):
+    """perturb_x0 off: t = 0 from control perturbations only (A_0 = 0, B_0 exact), every
+    other step bit for bit as with the start perturbed (the same draws)."""
+    T = 6
+    U = jnp.asarray(rng.standard_normal((T, 2)))
+    X = simulate(linear_step, jnp.ones(3), U)
+    fn = sysid.central_difference if scheme == "central_difference" else sysid.forward_difference
+    p = sysid.SysIdParams(sigma_x=0.1, sigma_u=0.1, scheme=scheme, n_samples=10, design=design)
+    A, B = fn(linear_step, X, U, jax.random.key(5), p.replace(perturb_x0=False))
+    A1, B1 = fn(linear_step, X, U, jax.random.key(5), p)
+    assert np.all(np.asarray(A[0]) == 0.0)
+    np.testing.assert_allclose(B[0], B_TRUE, atol=1e-10)
+    np.testing.assert_array_equal(A[1:], A1[1:])
+    np.testing.assert_array_equal(B[1:], B1[1:])
+    np.testing.assert_allclose(A1[0], A_TRUE, atol=1e-10)
+
+
 @pytest.mark.parametrize("n", [5, 10, 7])
 def test_orthogonal_designs_give_numpy_least_squares_on_a_nonlinear_step(n):
     """Whole orthogonal blocks (n a multiple of nx + nu = 5: Z'Z diagonal, the regression a
