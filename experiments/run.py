@@ -154,11 +154,16 @@ def parse_goal(text: str) -> PointGoal:
     """``KIND:NAME:X,Y,Z[:WEIGHT[:FINAL_WEIGHT]]`` -> PointGoal (ConfigError if malformed)."""
     parts = text.split(":")
     form = "KIND:NAME:X,Y,Z[:WEIGHT[:FINAL_WEIGHT]] with KIND site or body"
-    if not 3 <= len(parts) <= 5 or parts[0] not in ("site", "body") or not parts[1]:
+    at = [i for i, part in enumerate(parts) if "," in part]  # the target; NAME may hold ':'
+    j = at[-1] if at else -1
+    if j < 2 or len(parts) - j > 3 or parts[0] not in ("site", "body"):
+        raise ConfigError("task.goals", f"{text!r} is not {form}")
+    name = ":".join(parts[1:j])
+    if not name:
         raise ConfigError("task.goals", f"{text!r} is not {form}")
     try:
-        target = tuple(float(v) for v in parts[2].split(","))
-        weights = [float(v) for v in parts[3:]]
+        target = tuple(float(v) for v in parts[j].split(","))
+        weights = [float(v) for v in parts[j + 1 :]]
     except ValueError:
         raise ConfigError(
             "task.goals", f"{text!r}: the target and weights must be numbers ({form})"
@@ -166,7 +171,7 @@ def parse_goal(text: str) -> PointGoal:
     if len(target) != 3:
         raise ConfigError("task.goals", f"{text!r}: the target needs 3 numbers X,Y,Z, got {len(target)}")
     weight, final_weight = (weights + [0.0, 1.0][len(weights) :])[:2]
-    return PointGoal(name=parts[1], target=target, weight=weight, final_weight=final_weight, kind=parts[0])
+    return PointGoal(name=name, target=target, weight=weight, final_weight=final_weight, kind=parts[0])
 
 
 def _take_goals(argv: list[str]) -> tuple[list[str], tuple[PointGoal, ...] | None]:

@@ -48,6 +48,7 @@ BAD = [
     (["smoke_analysis", "--analysis.variance_libraries", "poly3"], "analysis.variance_levels"),
     (["smoke_theory", "--analysis.theory_max_order", "20"], "analysis.theory_max_order"),
     (["smoke_rollout", "--task.goals", "site:tip"], "task.goals"),
+    (["smoke_rollout", "--task.goals", "site::1,2,3"], "task.goals"),
     (["smoke_rollout", "--task.goals", "joint:tip:0,0,1"], "task.goals"),
     (["smoke_rollout", "--task.goals", "site:tip:0,1"], "task.goals"),
     (["smoke_rollout", "--task.goals", "site:tip:0,0,x"], "task.goals"),
@@ -79,6 +80,12 @@ def test_point_goals_from_the_command_line():
         1.0,
     )
     assert cfg.task.T == 9  # the options after the goals are read as usual
+    (hand,) = cli.parse_args(["default", "--task.goals", "site:robot0:S_fftip:1,2,3:0:5"])[0].task.goals
+    assert (hand.name, hand.target, hand.final_weight) == (
+        "robot0:S_fftip",
+        (1, 2, 3),
+        5,
+    )  # gymnasium-robotics names
     assert "--task.goals KIND:NAME:X,Y,Z" in cli.GOALS_HELP
 
 
