@@ -6,7 +6,9 @@ MJCF model (``system.name = "mjcf"``) gets settings that hold on robots as downl
 
 * precision: float64 (float32 round-off swamps the small perturbations that contacts need;
   the dm_control humanoid made no progress in float32);
-* identification: n_samples = max(20, 2 (nx + nu)), sigma = 1e-6 in float64;
+* identification: n_samples = max(20, 2 (nx + nu)), sigma = 1e-6 in float64, the noise
+  floor (entries below the difference quotients' resolution are zero), and the given start
+  x_0 not perturbed (t = 0 identifies B_0 alone);
 * start: the controls that hold x0 still (:func:`hold_controls`);
 * task preset ``hold``: keep x0 (the model's qpos0 or ``task.x0_keyframe``) for 50 control
   steps, weights scaled to the actuators' ranges (:func:`hold_task`).
@@ -71,6 +73,13 @@ def default_init(system_name: str) -> str:
     return "hold" if system_name == "mjcf" else "zeros"
 
 
+def half_ranges(u_min: np.ndarray, u_max: np.ndarray) -> np.ndarray:
+    """[nu] half of each control's range, 1 where a control is unlimited: the scale of a
+    control in the default weights and start noise."""
+    lo, hi = np.asarray(u_min, float), np.asarray(u_max, float)
+    return np.where(np.isfinite(hi - lo), 0.5 * (hi - lo), 1.0)
+
+
 def _data_at(m: mujoco.MjModel, x: np.ndarray) -> mujoco.MjData:
     d = mujoco.MjData(m)
     d.qpos[:], d.qvel[:] = x[: m.nq], x[m.nq : m.nq + m.nv]
@@ -106,8 +115,7 @@ def hold_controls(m: mujoco.MjModel, x: np.ndarray, u_min: np.ndarray, u_max: np
     free.actuator_forcelimited[:] = 0
     d = _data_at(free, x)
     centre = np.clip(np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0), lo, hi)
-    half = np.where(np.isfinite(hi - lo), 0.5 * (hi - lo), 1.0)
-    step = 1e-4 * np.maximum(half, 1e-12)
+    step = 1e-4 * np.maximum(half_ranges(lo, hi), 1e-12)
 
     def forces(u: np.ndarray) -> np.ndarray:
         d.ctrl[:] = u
@@ -133,8 +141,7 @@ def hold_controls(m: mujoco.MjModel, x: np.ndarray, u_min: np.ndarray, u_max: np
 def control_weights(u_min: np.ndarray, u_max: np.ndarray) -> np.ndarray:
     """R [nu, nu] when a task gives none: 0.01 per squared half control range (0.01 where a
     control is unlimited), so that every actuator's full range costs alike."""
-    half = np.where(np.isfinite(u_max - u_min), 0.5 * (u_max - u_min), 1.0)
-    return np.diag(0.01 / np.maximum(half, 1e-6) ** 2)
+    return np.diag(0.01 / np.maximum(half_ranges(u_min, u_max), 1e-6) ** 2)
 
 
 def hold_task(m: mujoco.MjModel, x0: np.ndarray, u_min: np.ndarray, u_max: np.ndarray) -> dict:

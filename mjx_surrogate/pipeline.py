@@ -19,7 +19,7 @@ from mjx_surrogate import chunked, data, native_replay, progress
 from mjx_surrogate import sysid as sid
 from mjx_surrogate.evaluation import finite_or_none
 from mjx_surrogate.ilqr import ILQRParams, ILQRResult, StopReason, verdict
-from mjx_surrogate.model_defaults import hold_controls
+from mjx_surrogate.model_defaults import half_ranges, hold_controls
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.resolution import solver_params
 from mjx_surrogate.systems import System
@@ -61,7 +61,7 @@ def start_controls(
     U = jnp.broadcast_to(jnp.asarray(base, dtype), (task.T, system.nu))
     if n is None:
         return U
-    half = jnp.asarray(np.where(np.isfinite(hi - lo), 0.5 * (hi - lo), 1.0), dtype)
+    half = jnp.asarray(half_ranges(lo, hi), dtype)
     noise = scale * half * jax.random.normal(key, (n, task.T, system.nu), dtype)
     noise = noise.at[0].set(0.0)
     return jnp.clip(U + noise, jnp.asarray(lo, dtype), jnp.asarray(hi, dtype))
