@@ -15,7 +15,9 @@ x0, R from the control ranges, the hold task). Per task, on the native backend:
 * the closed-loop (u = U + K dx) and open-loop median cost under control noise of 1 % of
   the control range (64 draws, the same for both).
 
-    python benchmarks/robots.py [--tasks walker ur5e] [--out docs/robots.json]
+    python benchmarks/robots.py [--tasks walker ur5e] [--significance 3] [--out docs/robots.json]
+
+``--significance T`` sets ``solver.sysid_significance`` (the t-test, off by default).
 """
 
 from __future__ import annotations
@@ -81,11 +83,18 @@ TASKS = {
 }
 
 
-def task_config(name: str):
+def task_config(name: str, significance: float = 0.0):
     """The Config of ``TASKS[name]``, or None if its model cannot be downloaded."""
     from thirdparty import model_path
 
-    from mjx_surrogate.config import Config, ExperimentConfig, PointGoal, SystemConfig, TaskConfig
+    from mjx_surrogate.config import (
+        Config,
+        ExperimentConfig,
+        PointGoal,
+        SolverConfig,
+        SystemConfig,
+        TaskConfig,
+    )
 
     (package, file), task, system, goal = TASKS[name]
     path = model_path(package, file)
@@ -98,11 +107,12 @@ def task_config(name: str):
     return Config(
         system=SystemConfig(name="mjcf", mjcf_path=path, backend="native", **system),
         task=TaskConfig(goals=goals, **task),
+        solver=SolverConfig(sysid_significance=significance),
         experiment=ExperimentConfig(progress=False),
     )
 
 
-def run_task(name: str) -> dict | None:
+def run_task(name: str, significance: float = 0.0) -> dict | None:
     import jax.numpy as jnp
     import numpy as np
 
@@ -110,7 +120,7 @@ def run_task(name: str) -> dict | None:
     from mjx_surrogate.evaluation import evaluate_feedback
     from mjx_surrogate.resolution import resolve, solver_params
 
-    cfg = task_config(name)
+    cfg = task_config(name, significance)
     if cfg is None:
         return None
     t0 = time.perf_counter()
@@ -168,6 +178,7 @@ def table(rows: list[dict]) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--tasks", nargs="*", default=None, help="substrings of task names (default: all)")
+    ap.add_argument("--significance", type=float, default=0.0, help="solver.sysid_significance (0: off)")
     ap.add_argument("--out", default=None, help="also write the rows as JSON here")
     a = ap.parse_args()
     from mjx_surrogate.runtime import configure_runtime
@@ -176,7 +187,7 @@ def main() -> None:
     names = [n for n in TASKS if a.tasks is None or any(s in n for s in a.tasks)]
     rows = []
     for name in names:
-        row = run_task(name)
+        row = run_task(name, a.significance)
         if row is None:
             print(f"{name}: model not reachable, skipped", file=sys.stderr)
             continue

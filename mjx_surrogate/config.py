@@ -151,6 +151,7 @@ class SolverConfig:
     sigma_u: Optional[float] = None
     sysid_noise_floor: Optional[float] = None  # zero entries below c eps |x| / sigma (None: model_defaults)
     sysid_perturb_x0: Optional[bool] = None  # one-step schemes perturb the given start (None: model_defaults)
+    sysid_significance: float = 0.0  # zero identified coefficients with |t| <= this (0: off)
     init: Optional[Literal["zeros", "random", "u_ref", "hold"]] = None  # None: model_defaults.default_init
     init_scale: float = 0.1
     n_starts: int = 1
@@ -503,6 +504,7 @@ def validate_static(cfg: Config) -> None:
         "solver.mu_min": s.mu_min,
         "solver.mu_raise_alpha": s.mu_raise_alpha,
         "solver.sysid_noise_floor": 0.0 if s.sysid_noise_floor is None else s.sysid_noise_floor,
+        "solver.sysid_significance": s.sysid_significance,
     }.items():
         if not (math.isfinite(v) and v >= 0):
             raise ConfigError(field, f"must be a finite number >= 0, got {v}")
@@ -617,6 +619,12 @@ def _check_registered(cfg: Config) -> None:
         raise ConfigError(
             "solver.sysid_every",
             f"> 1 needs a one-step scheme ({one_step}); {cfg.solver.sysid!r} identifies from rollouts",
+        )
+    if cfg.solver.sysid_significance > 0 and not scheme.t_test:
+        tested = ", ".join(n for n, s in SCHEMES.items() if s.t_test)
+        raise ConfigError(
+            "solver.sysid_significance",
+            f"needs a scheme with a t-test ({tested}); {cfg.solver.sysid!r} has none: give 0",
         )
     if cfg.solver.sysid_design != "gaussian" and not scheme.one_step:
         raise ConfigError(

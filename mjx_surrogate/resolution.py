@@ -185,6 +185,7 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
         every=s.sysid_every,
         design=s.sysid_design,
         noise_floor=s.sysid_noise_floor or 0.0,
+        significance=s.sysid_significance or 0.0,
         perturb_x0=True if s.sysid_perturb_x0 is None else s.sysid_perturb_x0,
     )
     return ilqr, sysid

@@ -100,6 +100,33 @@ def backward_pass(A, B, lx, lu, lxx, luu, lux, VxT, VxxT, U, lo, hi, mu):
     return k, K, dv.sum(0), ok, jnp.max(reg)
 
 
+def tvlqr_gains(A, B, lx, lu, lxx, luu, lux, VxT, VxxT, U, lo, hi, mu):
+    """The Riccati sweep of a nominal taken as final (k = 0): K [T, nu, nx] as in
+    :func:`backward_pass`, controls clamped where U sits on a limit and Q_u pushes
+    outwards, and ok (every regularised Q~_uu on the free controls positive definite)."""
+
+    def body(carry, inp):
+        Vx, Vxx, ok = carry
+        At, Bt, lxt, lut, lxxt, luut, luxt, ut = inp
+        Qx, Qu = lxt + At.T @ Vx, lut + Bt.T @ Vx
+        Qxx = lxxt + At.T @ Vxx @ At
+        Quu = luut + Bt.T @ Vxx @ Bt
+        Qux = luxt + Bt.T @ Vxx @ At
+        Quu = 0.5 * (Quu + Quu.T)
+        free = ~(((ut <= lo) & (Qu > 0)) | ((ut >= hi) & (Qu < 0)))
+        eye = jnp.eye(Qu.shape[0], dtype=Qu.dtype)
+        H = jnp.where(free[:, None] & free[None, :], Quu + mu * Bt.T @ Bt, eye)
+        sol, ok_t = spd_solve(H, jnp.where(free[:, None], Qux + mu * Bt.T @ At, 0.0))
+        Kt = -sol
+        Vxx_new = Qxx + Kt.T @ Quu @ Kt + Kt.T @ Qux + Qux.T @ Kt
+        ok_t = ok_t & jnp.all(jnp.isfinite(Kt))
+        return (Qx + Kt.T @ Qu, 0.5 * (Vxx_new + Vxx_new.T), ok & ok_t), Kt
+
+    inputs = (A, B, lx, lu, lxx, luu, lux, U)
+    (_, _, ok), K = jax.lax.scan(body, (VxT, VxxT, jnp.array(True)), inputs, reverse=True)
+    return K, ok
+
+
 def cost_derivatives(cost: Cost, X: jax.Array, U: jax.Array):
     """l_x [T, nx], l_u [T, nu], l_xx, l_uu, l_ux and terminal V_x, V_xx by autodiff (or
     the cost's own ``derivatives``)."""

@@ -10,7 +10,10 @@ devices of ``system.mesh`` each device sums its own and one ``psum`` adds them
 (:mod:`mjx_surrogate.sharding`). Columns of Z are then scaled to unit RMS (G to a unit
 diagonal) and the normal equations G W = F solved by elimination (:mod:`mjx_surrogate.linalg`:
 no batched LAPACK, which can deadlock jaxlib 0.10 on CPU). With random perturbations and
-n >= nx + nu the scaled Gram matrix is well conditioned.
+n >= nx + nu the scaled Gram matrix is well conditioned. With ``significance`` > 0 the
+coefficients that a t-test on the regression's residuals cannot tell from zero are zero
+(:mod:`mjx_surrogate.sysid_significance`); with ``noise_floor`` > 0, those below the
+difference quotients' resolution (:func:`below_resolution`).
 
 Schemes (``SysIdParams.scheme``), registered in :data:`SCHEMES` (a new scheme is one
 function plus one :func:`register_scheme` call; docs/extending.md):
@@ -33,7 +36,7 @@ import jax.numpy as jnp
 from flax import struct
 from jax.sharding import Mesh
 
-from mjx_surrogate import sharding, sysid_knots
+from mjx_surrogate import sharding, sysid_knots, sysid_significance
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.linalg import spd_solve
 from mjx_surrogate.trajectory import feedback_rollout
@@ -53,6 +56,7 @@ class SysIdParams:
     design: str = struct.field(pytree_node=False, default="gaussian")  # or "orthogonal"
     noise_floor: float = struct.field(pytree_node=False, default=0.0)  # see :func:`below_resolution`
     perturb_x0: bool = struct.field(pytree_node=False, default=True)  # one-step schemes, t = 0
+    significance: float = struct.field(pytree_node=False, default=0.0)  # t_min, sysid_significance
 
 
 def normal_equations(
@@ -96,16 +100,34 @@ def diagonal_gram(p: SysIdParams, m: int) -> bool:
     return p.design == "orthogonal" and p.n_samples % m == 0
 
 
+def _statistics(Z: jax.Array, Y: jax.Array, w: jax.Array | None, p: SysIdParams, diagonal: bool = False):
+    """(G, F) of :func:`normal_equations`, and with ``p.significance`` > 0 the sum of
+    squares S [T, nx] its t-test needs (:mod:`mjx_surrogate.sysid_significance`)."""
+    G, F = normal_equations(Z, Y, w, diagonal)
+    if p.significance == 0:
+        return G, F
+    return G, F, sysid_significance.sum_of_squares(Y, w)
+
+
+def _fit(stats: tuple, nx: int, p: SysIdParams) -> tuple[jax.Array, jax.Array]:
+    """A, B from the summed :func:`_statistics` of ``p.n_samples`` samples; with
+    ``p.significance`` > 0 the coefficients the data cannot tell from zero are zero."""
+    A, B = solve_normal_equations(stats[0], stats[1], nx)
+    if p.significance == 0:
+        return A, B
+    return sysid_significance.drop_insignificant(*stats, A, B, p.n_samples, p.significance)
+
+
 def lstsq_ltv(Z: jax.Array, Y: jax.Array, nx: int) -> tuple[jax.Array, jax.Array]:
     """Z [T, n, nx+nu], Y [T, n, nx] -> A [T, nx, nx], B [T, nx, nu]."""
     return solve_normal_equations(*normal_equations(Z, Y, None), nx)
 
 
-def _trajectory_statistics(dX: jax.Array, dU: jax.Array, w: jax.Array | None) -> tuple[jax.Array, jax.Array]:
+def _trajectory_statistics(dX: jax.Array, dU: jax.Array, w: jax.Array | None, p: SysIdParams = SysIdParams()):
     """Statistics of the regression of dX[:, t+1] on [dX[:, t], dU[:, t]] (dX [n, T+1, nx],
     dU [n, T, nu], weights w [n])."""
     Z = jnp.swapaxes(jnp.concatenate([dX[:, :-1], dU], axis=-1), 0, 1)
-    return normal_equations(Z, jnp.swapaxes(dX[:, 1:], 0, 1), w)
+    return _statistics(Z, jnp.swapaxes(dX[:, 1:], 0, 1), w, p)
 
 
 def fit_from_trajectories(dX: jax.Array, dU: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -164,10 +186,10 @@ def central_difference(
         us = jnp.concatenate([U[:, None] + du, U[:, None] - du], axis=1)
         f = jax.vmap(step)(xs.reshape(-1, nx), us.reshape(-1, nu)).reshape(T, 2 * b, nx)
         Z = jnp.concatenate([dx, du], axis=-1)
-        return normal_equations(Z, 0.5 * (f[:, :b] - f[:, b:]), w, diagonal_gram(p, nx + nu))
+        return _statistics(Z, 0.5 * (f[:, :b] - f[:, b:]), w, p, diagonal_gram(p, nx + nu))
 
     samples = _one_step_perturbations(key, T, nx, nu, p, X.dtype)
-    return solve_normal_equations(*sharding.sum_over_batch(stats, mesh, samples, (X, U)), nx)
+    return _fit(sharding.sum_over_batch(stats, mesh, samples, (X, U)), nx, p)
 
 
 def forward_difference(
@@ -190,10 +212,10 @@ def forward_difference(
         us = jnp.concatenate([U[:, None], U[:, None] + du], axis=1)
         f = jax.vmap(step)(xs.reshape(-1, nx), us.reshape(-1, nu)).reshape(T, b + 1, nx)
         Z = jnp.concatenate([dx, du], axis=-1)
-        return normal_equations(Z, f[:, 1:] - f[:, :1], w, diagonal_gram(p, nx + nu))
+        return _statistics(Z, f[:, 1:] - f[:, :1], w, p, diagonal_gram(p, nx + nu))
 
     samples = _one_step_perturbations(key, T, nx, nu, p, X.dtype)
-    return solve_normal_equations(*sharding.sum_over_batch(stats, mesh, samples, (X, U)), nx)
+    return _fit(sharding.sum_over_batch(stats, mesh, samples, (X, U)), nx, p)
 
 
 def _rollout_perturbations(key: jax.Array, X: jax.Array, U: jax.Array, p: SysIdParams):
@@ -212,10 +234,10 @@ def open_loop_rollouts(
     def stats(samples, w, X, U):
         dx0, dU = samples
         Xp = rollout(X[0][None] + dx0, U[None] + dU)
-        return _trajectory_statistics(Xp - X[None], dU, w)
+        return _trajectory_statistics(Xp - X[None], dU, w, p)
 
     samples = _rollout_perturbations(key, X, U, p)
-    return solve_normal_equations(*sharding.sum_over_batch(stats, mesh, samples, (X, U)), X.shape[-1])
+    return _fit(sharding.sum_over_batch(stats, mesh, samples, (X, U)), X.shape[-1], p)
 
 
 def closed_loop_rollouts(
@@ -231,10 +253,10 @@ def closed_loop_rollouts(
 
     def stats(samples, w, X, U, K):
         Xp, Us = jax.vmap(lambda dx0, dU: feedback_rollout(step, X[0] + dx0, X, U, K, dU))(*samples)
-        return _trajectory_statistics(Xp - X[None], Us - U[None], w)
+        return _trajectory_statistics(Xp - X[None], Us - U[None], w, p)
 
     samples = _rollout_perturbations(key, X, U, p)
-    return solve_normal_equations(*sharding.sum_over_batch(stats, mesh, samples, (X, U, K)), X.shape[-1])
+    return _fit(sharding.sum_over_batch(stats, mesh, samples, (X, U, K)), X.shape[-1], p)
 
 
 def exact_jacobians(step: Callable, X: jax.Array, U: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -269,12 +291,15 @@ class IdentificationScheme(NamedTuple):
     simulated_steps(T, n_samples) -> control steps simulated by one identification.
     one_step: identifies each t from one-step simulations alone (then ``every`` > 1 may
       skip steps, :mod:`mjx_surrogate.sysid_knots`).
+    t_test: applies ``SysIdParams.significance`` (a least-squares scheme does through
+      ``_statistics`` and ``_fit``).
     """
 
     make_linearize: Callable[[Any, SysIdParams], LinearizeFn]
     simulated_steps: Callable[[int, int], int]
     description: str = ""
     one_step: bool = False
+    t_test: bool = False
 
 
 SCHEMES: dict[str, IdentificationScheme] = {}
@@ -347,6 +372,7 @@ register_scheme(
         lambda T, n: 2 * n * T,
         "D2C 2.0: one step from (x_t +- dx, u_t +- du) at every t",
         one_step=True,
+        t_test=True,
     ),
 )
 register_scheme(
@@ -356,6 +382,7 @@ register_scheme(
         lambda T, n: (n + 1) * T,
         "one step from (x_t + dx, u_t + du) and from (x_t, u_t)",
         one_step=True,
+        t_test=True,
     ),
 )
 register_scheme(
@@ -366,6 +393,7 @@ register_scheme(
         ),
         lambda T, n: n * T,
         "the paper's: n open-loop perturbed rollouts",
+        t_test=True,
     ),
 )
 register_scheme(
@@ -376,5 +404,6 @@ register_scheme(
         ),
         lambda T, n: n * T,
         "n perturbed rollouts under the current feedback gains",
+        t_test=True,
     ),
 )

@@ -26,6 +26,8 @@ CASES = [
     (["smoke_d2c", "--solver.reuse_tol", "-0.1"], "solver.reuse_tol"),
     (["smoke_d2c", "--solver.reuse_max", "-1"], "solver.reuse_max"),
     (["smoke_d2c", "--solver.mu_raise_alpha", "-0.5"], "solver.mu_raise_alpha"),
+    (["smoke_d2c", "--solver.sysid_significance", "-1"], "solver.sysid_significance"),
+    (["smoke_d2c", "--solver.sysid_significance", "nan"], "solver.sysid_significance"),
     (["smoke_predict", "--surrogate.mlp.stop_rel_tol", "1.5"], "surrogate.mlp.stop_rel_tol"),
     (["smoke_predict", "--surrogate.mlp.stop_window", "-1"], "surrogate.mlp.stop_window"),
     (["cartpole_horizon", "--data.n_traj", "3"], "data.n_traj"),

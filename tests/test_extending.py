@@ -108,3 +108,11 @@ def test_a_registered_scheme_and_surrogate_run_from_the_cli(tmp_path):
 def test_unregistered_names_are_rejected_before_any_compile(tmp_path, capsys):
     assert cli.main(["smoke_predict", "--out", str(tmp_path), "--surrogate.kinds", "gp"]) == 2
     assert capsys.readouterr().err.startswith("error: surrogate.kinds[0]: unknown surrogate kind 'gp'")
+
+
+def test_a_scheme_without_a_t_test_refuses_a_significance(tmp_path, capsys):
+    """``sysid_significance`` > 0 needs a scheme that applies it (``t_test``)."""
+    argv = ["smoke_d2c", "--out", str(tmp_path), "--solver.sysid", "coordinate"]
+    assert cli.main(argv + ["--solver.sysid_significance", "3"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: solver.sysid_significance: needs a scheme with a t-test (central_diff")

@@ -109,6 +109,34 @@ def test_box_limits_match_convex_qp_reference():
     assert float(res.cost) > float(unconstrained.cost)
 
 
+def test_returned_gains_are_the_unregularised_lqr_gains_after_a_regularised_last_step():
+    """A solve whose iterations ran at mu 1e6 returns the discrete LQR gains: the result's K
+    is TVLQR of the final nominal with no regularisation (``ilqr.final_gains``), not the
+    last iteration's, which mu B'B pushes towards -(B'B)^-1 B'A."""
+    L, _, _ = riccati_lqr()
+    res = solve(jnp.zeros((T, 1)), mu_init=1e6, mu_min=1e6, max_iter=2)
+    assert int(res.iterations) == 2 and float(res.mu) >= 1e6
+    np.testing.assert_allclose(res.K, -L, atol=1e-6)
+
+
+def test_tvlqr_gains_equal_the_backward_pass_at_a_box_constrained_optimum():
+    """At an optimum with active limits, :func:`riccati.tvlqr_gains` (k taken as 0, the
+    clamped set read off U and Q_u) gives the backward pass's K, zero rows included."""
+    from mjx_surrogate.riccati import backward_pass, cost_derivatives, tvlqr_gains
+
+    lo, hi = jnp.full(1, -0.5), jnp.full(1, 0.5)
+    res = solve(jnp.zeros((T, 1)), -0.5, 0.5, rel_tol=1e-12, max_iter=200)
+    step, lin, cost = linear_problem()
+    Aa, Ba = lin(res.X, res.U, None, None)
+    derivs = cost_derivatives(cost, res.X, res.U)
+    _, K_bp, _, ok_bp, _ = backward_pass(Aa, Ba, *derivs, res.U, lo, hi, 0.0)
+    K_tv, ok_tv = tvlqr_gains(Aa, Ba, *derivs, res.U, lo, hi, 0.0)
+    assert bool(ok_bp) and bool(ok_tv)
+    clamped = np.isclose(np.abs(np.asarray(res.U)[:, 0]), 0.5)
+    assert clamped.any() and np.all(np.asarray(K_tv)[clamped] == 0.0)
+    np.testing.assert_allclose(K_tv, K_bp, atol=1e-9)
+
+
 @pytest.mark.parametrize("mu", [0.0, 1.0, 1e4, 1e8])
 def test_regularised_step_keeps_an_exact_value_model(mu):
     """On a linear system with a quadratic cost, the full step (alpha 1) of the regularised
