@@ -39,11 +39,13 @@ ORACLES = ("jacfwd", "finite_difference")
 
 
 def exact_linearize(system: System, jacobians: str = "jacfwd") -> sid.LinearizeFn:
-    """linearize(X, U, K, key) -> Jacobians through the differentiable MJX step
-    ("jacfwd") or by coordinate central differences of the black-box step."""
+    """linearize(X, U, K, key) -> Jacobians through the system's differentiable step
+    ("jacfwd": MJX, or a JAX function's own) or by coordinate central differences of the
+    black-box step."""
     if jacobians == "finite_difference":
         return lambda X, U, K, key: sid.finite_difference_jacobians(system.step, X, U)
-    return lambda X, U, K, key: system.mjx_jacobians_batch(X[:-1], U)
+    jac = system.exact_jacobians_batch  # raises ConfigError for a black box without derivatives
+    return lambda X, U, K, key: jac(X[:-1], U)
 
 
 def problem(system: System, task: Task, sysid: sid.SysIdParams, method: str) -> Problem:
@@ -58,9 +60,7 @@ def problem(system: System, task: Task, sysid: sid.SysIdParams, method: str) -> 
     elif method == "finite_difference":
         step, linearize, closed = system.step, exact_linearize(system, method), system.closed_loop
     else:
-        # the MJX physics: on the MJX backend its step is the black box's own
-        step = system.step if system.backend == "mjx" else system.mjx_step
-        linearize, closed = exact_linearize(system), None
+        step, linearize, closed = system.exact_step, exact_linearize(system), None
     if system.mesh is not None:
         closed = sharded_trials(step, closed, system.mesh)
     return Problem(step, linearize, task_cost(task), task.x0, task.u_min, task.u_max, closed, fine)

@@ -196,7 +196,8 @@ def summary(
     separate from the status: a solve can converge to a point that misses the goal;
     ``native_float64`` the costs of the controls replayed on native MuJoCo in float64, open
     loop and closed loop around the replayed X with the solve's gains
-    (:mod:`mjx_surrogate.native_replay`; ``names``: the run's array names of U, X, K), and
+    (:mod:`mjx_surrogate.native_replay`; ``names``: the run's array names of U, X, K; None
+    for a black box that is not a MuJoCo model), and
     ``replay_gap`` the relative difference of the one it judges by from ``cost``.
     Returns (metrics, the replayed X [T+1, nx]).
     """
@@ -215,6 +216,9 @@ def summary(
             and np.all(np.asarray(result.U) <= np.asarray(task.u_max))
         ),
     }
+    if getattr(system, "mj_model", None) is None:  # a function black box: no MuJoCo to replay on
+        out["native_float64"], out["replay_gap"] = None, None
+        return out, X_bb
     native = native_replay.replay_costs(
         lambda X, U: finite_or_none(trajectory_cost(task, jnp.asarray(X), jnp.asarray(U))),
         system.mj_model,

@@ -3,6 +3,7 @@
 import os
 import re
 
+import numpy as np
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -42,3 +43,15 @@ def test_your_model_page_runs_as_written(tmp_path, monkeypatch, capsys):
     # finite-difference oracle gains 2.7 % from there: no "converged" (docs/method.md)
     assert metrics["status"] in ("stalled", "max_iter") and metrics["d2c"]["goal"]["reached"]
     assert os.path.isfile(os.path.join(namespace["folder"], "model.mjb"))
+
+
+def test_function_systems_page_runs_as_written(capsys):
+    text = open(os.path.join(ROOT, "docs", "function_systems.md")).read()
+    (block,) = re.findall(r"```python\n(.*?)```", text, flags=re.S)
+    namespace: dict = {"__name__": "function_systems"}
+    exec(compile(block, "docs/function_systems.md", "exec"), namespace)
+    status, reached, cost, oracle = capsys.readouterr().out.split()
+    assert status == "converged" and reached == "True"
+    assert abs(float(cost) / float(oracle) - 1) < 1e-3
+    U = np.asarray(namespace["d2c"].out.U)
+    assert np.all(np.abs(U) <= 5.0) and np.max(np.abs(U)) > 1.0  # the limit shapes the swing-up

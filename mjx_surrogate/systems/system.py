@@ -111,6 +111,17 @@ class System:
         ``vmap`` of the per-point function exports the unbatched one too)."""
         return getattr(self.mjx_jacobians, "batched", None) or self._mjx_physics.jacobians_batch
 
+    @property
+    def exact_step(self):
+        """The differentiable step the exact oracle iterates on: the black box's own on MJX,
+        the MJX physics of the same model on the native backend."""
+        return self.step if self.backend == "mjx" else self.mjx_step
+
+    @property
+    def exact_jacobians_batch(self):
+        """The exact oracle's batched Jacobians (:attr:`mjx_jacobians_batch`)."""
+        return self.mjx_jacobians_batch
+
     def _exported(self, build, build_batch, tag: str):
         """``build()`` (its batches: ``build_batch()``) on one device as exported programs,
         built only to be exported or differentiated; over a mesh traced as they are."""

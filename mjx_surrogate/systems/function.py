@@ -1,0 +1,221 @@
+"""Black boxes that are not MuJoCo files: a JAX function, or a host (NumPy) function.
+
+What the solver, the identification schemes and the evaluation use of a system is small:
+the sizes ``nx``, ``nu``, the control period ``dt``, ``step(x [nx], u [nu]) -> x_next
+[nx]`` (jittable; batched by ``vmap``), ``rollout(x0 [B, nx], U [B, T, nu]) -> X [B, T+1,
+nx]``, ``closed_loop`` (None: the line search vmaps ``step``), ``mesh`` (None: one
+device), ``compiler_options`` and ``on_one_device``. A :class:`FunctionSystem` provides
+exactly that around a user's function; the exact oracle is ``jax.jacfwd`` through a JAX
+step (``exact_jacobians_batch``), while a host function has none and is judged against
+central differences of its own step (``experiment.oracle = "finite_difference"``).
+
+A host function is called through ``jax.pure_callback`` with ``vmap_method =
+"broadcast_all"``: one call per batch (the identification's thousands of samples, the
+line search's step sizes), on the host. Its contract: ``fn(x [nx], u [nu]) -> x_next
+[nx]``, or with ``vectorized=True`` ``fn(X [N, nx], U [N, nu]) -> X_next [N, nx]``; a
+result of the wrong shape raises ValueError naming the function; a non-finite result is
+passed on and ends a solve ``diverged``, as a MuJoCo instability does.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from concurrent.futures import ThreadPoolExecutor
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh
+
+from mjx_surrogate.errors import ConfigError
+
+StepFn = Callable[[jax.Array, jax.Array], jax.Array]
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class FunctionSystem:
+    """A black box x_{t+1} = step(x_t, u_t) given as a function. Hashes by identity, so it
+    can be a static argument of ``jax.jit``.
+
+    backend: "jax" (a traceable step, differentiable unless ``exact_step`` is None) or
+    "host" (a host function behind a callback). u_min, u_max [nu]: the controls' limits
+    (+-inf where unbounded), which a task takes unless it narrows them."""
+
+    name: str
+    nx: int
+    nu: int
+    dt: float
+    step: StepFn
+    rollout: Callable[[jax.Array, jax.Array], jax.Array]
+    backend: str
+    state_labels: tuple[str, ...]
+    control_labels: tuple[str, ...]
+    u_min: tuple[float, ...]
+    u_max: tuple[float, ...]
+    exact_step: StepFn | None = None
+    closed_loop: Callable | None = None
+    mesh: Mesh | None = None
+
+    @property
+    def compiler_options(self) -> dict | None:
+        return None
+
+    def on_one_device(self) -> "FunctionSystem":
+        return self
+
+    @property
+    def exact_jacobians_batch(self) -> Callable[[jax.Array, jax.Array], tuple[jax.Array, jax.Array]]:
+        """(X [B, nx], U [B, nu]) -> (A [B, nx, nx], B [B, nx, nu]) by ``jax.jacfwd``."""
+        if self.exact_step is None:
+            raise ConfigError(
+                "experiment.oracle",
+                f"system {self.name!r} is a {self.backend} function without derivatives; "
+                "valid: finite_difference",
+            )
+        return jax.vmap(jax.jacfwd(self.exact_step, argnums=(0, 1)))
+
+    def __repr__(self) -> str:
+        sizes = f"nx={self.nx}, nu={self.nu}, dt={self.dt:g}"
+        return f"FunctionSystem({self.name!r}, backend={self.backend!r}, {sizes})"
+
+
+def scan_rollout(step: StepFn) -> Callable[[jax.Array, jax.Array], jax.Array]:
+    """rollout(x0 [B, nx], U [B, T, nu]) -> X [B, T+1, nx] by a scan of ``step``."""
+
+    def one(x0, U):
+        def body(x, u):
+            nxt = step(x, u)
+            return nxt, nxt
+
+        _, X = jax.lax.scan(body, x0, U)
+        return jnp.concatenate([x0[None], X])
+
+    return jax.vmap(one)
+
+
+def _labels(labels, n: int, prefix: str) -> tuple[str, ...]:
+    labels = tuple(labels) if labels is not None else tuple(f"{prefix}{i}" for i in range(n))
+    if len(labels) != n:
+        raise ConfigError("system.labels", f"{len(labels)} {prefix} labels for {n} coordinates")
+    return labels
+
+
+def _limits(lo, hi, nu: int) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    lo = np.full(nu, -np.inf) if lo is None else np.broadcast_to(np.asarray(lo, float), (nu,))
+    hi = np.full(nu, np.inf) if hi is None else np.broadcast_to(np.asarray(hi, float), (nu,))
+    if not np.all(lo < hi):
+        raise ConfigError("system.u_min", f"control limits need u_min < u_max, got {lo} and {hi}")
+    return tuple(float(v) for v in lo), tuple(float(v) for v in hi)
+
+
+def from_jax(
+    step: StepFn,
+    nx: int,
+    nu: int,
+    dt: float,
+    *,
+    name: str = "jax_function",
+    u_min=None,
+    u_max=None,
+    state_labels=None,
+    control_labels=None,
+    differentiable: bool = True,
+) -> FunctionSystem:
+    """A black box from a traceable ``step(x [nx], u [nu]) -> x_next [nx]``; its oracle is
+    ``jax.jacfwd`` through ``step`` unless ``differentiable`` is False."""
+    lo, hi = _limits(u_min, u_max, nu)
+    return FunctionSystem(
+        name,
+        int(nx),
+        int(nu),
+        float(dt),
+        step,
+        scan_rollout(step),
+        "jax",
+        _labels(state_labels, nx, "x"),
+        _labels(control_labels, nu, "u"),
+        lo,
+        hi,
+        exact_step=step if differentiable else None,
+    )
+
+
+def host_step(
+    fn: Callable, nx: int, nu: int, *, vectorized: bool = False, threads: int = 1, name: str = "step"
+) -> StepFn:
+    """A traceable step that calls ``fn`` on the host (module docstring), once per batch;
+    per-sample functions run over the batch in ``threads`` threads (1: a plain loop)."""
+    pool = ThreadPoolExecutor(threads) if threads > 1 else None
+
+    def on_host(x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        lead = x.shape[:-1]
+        xb, ub = np.asarray(x).reshape(-1, nx), np.asarray(u).reshape(-1, nu)
+        if vectorized:
+            out = np.asarray(fn(xb, ub), dtype=float)
+        else:
+            rows = pool.map(fn, xb, ub) if pool is not None else map(fn, xb, ub)
+            out = np.asarray([np.asarray(r, dtype=float).reshape(-1) for r in rows])
+        if out.shape != (xb.shape[0], nx):
+            got = out.shape if vectorized else out.shape[1:]
+            want = (xb.shape[0], nx) if vectorized else (nx,)
+            raise ValueError(f"{name} returned shape {got}, expected {want}")
+        return out.reshape(lead + (nx,)).astype(x.dtype)
+
+    def step(x: jax.Array, u: jax.Array) -> jax.Array:
+        out = jax.ShapeDtypeStruct(x.shape, x.dtype)
+        return jax.pure_callback(on_host, out, x, u, vmap_method="broadcast_all")
+
+    return step
+
+
+def from_numpy(
+    fn: Callable,
+    nx: int,
+    nu: int,
+    dt: float,
+    *,
+    name: str = "host_function",
+    vectorized: bool = False,
+    threads: int = 1,
+    u_min=None,
+    u_max=None,
+    state_labels=None,
+    control_labels=None,
+) -> FunctionSystem:
+    """A black box from a host function (NumPy, a C extension, another simulator in this
+    process): ``fn(x [nx], u [nu]) -> x_next [nx]`` (``vectorized``: [N, nx], [N, nu] ->
+    [N, nx]). No derivatives: its oracle is central differences of its step."""
+    lo, hi = _limits(u_min, u_max, nu)
+    step = host_step(fn, nx, nu, vectorized=vectorized, threads=threads, name=name)
+    return FunctionSystem(
+        name,
+        int(nx),
+        int(nu),
+        float(dt),
+        step,
+        scan_rollout(step),
+        "host",
+        _labels(state_labels, nx, "x"),
+        _labels(control_labels, nu, "u"),
+        lo,
+        hi,
+    )
+
+
+def rk4(vector_field: Callable[[jax.Array, jax.Array], jax.Array], dt: float, substeps: int) -> StepFn:
+    """The step x_{t+1} = Phi_dt(x_t; u_t) of an ODE dx/dt = f(x, u) with u held over the
+    control period dt: ``substeps`` classical Runge-Kutta steps of dt / substeps."""
+    h = dt / substeps
+
+    def step(x, u):
+        def one(x, _):
+            k1 = vector_field(x, u)
+            k2 = vector_field(x + 0.5 * h * k1, u)
+            k3 = vector_field(x + 0.5 * h * k2, u)
+            k4 = vector_field(x + h * k3, u)
+            return x + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4), None
+
+        return jax.lax.scan(one, x, None, length=substeps)[0]
+
+    return step

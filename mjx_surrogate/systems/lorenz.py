@@ -1,0 +1,59 @@
+"""The Lorenz system with control, a black box that is not a MuJoCo model.
+
+Equations and parameters of SINDy-MPC (Kaiser, Kutz and Brunton, "Sparse identification
+of nonlinear dynamics for model predictive control in the low-data limit", Proc. R. Soc.
+A 474: 20180335, 2018, Section 4; Lorenz 1963), the control acting on the first state:
+
+    dx1/dt = sigma (x2 - x1) + u,   dx2/dt = x1 (rho - x3) - x2,   dx3/dt = x1 x2 - beta x3
+
+sigma = 10, rho = 28, beta = 8/3. One control step: u held for ``dt`` (default 0.01 s,
+ten classical Runge-Kutta steps of 1 ms, SINDy-MPC's time step). The task: move from the
+fixed point C- = (-sqrt(beta (rho - 1)), same, rho - 1) to C+ in 2 s (200 steps).
+"""
+
+from __future__ import annotations
+
+import math
+
+import jax.numpy as jnp
+import numpy as np
+
+from mjx_surrogate.systems.function import FunctionSystem, from_jax, rk4
+from mjx_surrogate.tasks import Task, make_task
+
+SIGMA, RHO, BETA = 10.0, 28.0, 8.0 / 3.0
+C_PLUS = np.array([math.sqrt(BETA * (RHO - 1)), math.sqrt(BETA * (RHO - 1)), RHO - 1])
+C_MINUS = C_PLUS * np.array([-1.0, -1.0, 1.0])
+
+
+def vector_field(x, u):
+    """dx/dt [3] at x [3], u [1]."""
+    return jnp.stack([SIGMA * (x[1] - x[0]) + u[0], x[0] * (RHO - x[2]) - x[1], x[0] * x[1] - BETA * x[2]])
+
+
+def make_system(dt: float = 0.01, substeps: int = 10) -> FunctionSystem:
+    return from_jax(
+        rk4(vector_field, dt, substeps),
+        3,
+        1,
+        dt,
+        name="lorenz",
+        state_labels=("x1", "x2", "x3"),
+        control_labels=("u",),
+    )
+
+
+def switch_task(T: int = 200, u_max: float = 50.0) -> Task:
+    """C- -> C+ in T steps: Q_f 100 I at the end, 0.01 I on the way, R 1e-4, |u| <= u_max
+    (SINDy-MPC's bound is 50)."""
+    return make_task(
+        C_MINUS,
+        C_PLUS,
+        0.01 * np.eye(3),
+        100.0 * np.eye(3),
+        1e-4 * np.eye(1),
+        T,
+        -u_max,
+        u_max,
+        u_ref=np.zeros(1),
+    )
