@@ -23,7 +23,7 @@ from mjx_surrogate.model_defaults import half_ranges, hold_controls
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.resolution import solver_params
 from mjx_surrogate.systems import System
-from mjx_surrogate.tasks import Task, goal_cost, trajectory_cost
+from mjx_surrogate.tasks import Task, goal_cost, has_terminal, trajectory_cost
 from mjx_surrogate.trajectory import open_loop
 
 
@@ -153,6 +153,16 @@ def _replay_cost(system: System, task: Task, U: jax.Array) -> tuple[jax.Array, j
     return X, trajectory_cost(task, X, Ua)
 
 
+# one compiled program per task structure, not an eager op per term (113 small programs
+# for the dm_control dog's quaternions: 2 s of each summary)
+_trajectory_cost = jax.jit(trajectory_cost)
+
+
+@functools.partial(jax.jit, static_argnames=("terminal",))
+def _goal_costs(task: Task, x0: jax.Array, xT: jax.Array, terminal: bool) -> tuple[jax.Array, jax.Array]:
+    return goal_cost(task, x0, terminal), goal_cost(task, xT, terminal)
+
+
 def black_box_trajectory(system: System, task: Task, U: jax.Array) -> tuple[jax.Array, float | None]:
     """U [T, nu] replayed from x0 on the black box: (X [T+1, nx], its cost or None)."""
     X, J = _replay_cost(system, task, U)
@@ -171,7 +181,7 @@ def goal_test(task: Task, X: jax.Array, tolerance: float) -> dict:
     """The goal test in the task's own weighted terms (:func:`tasks.goal_cost`): reached
     when goal_cost(x_T) <= tolerance * goal_cost(x_0); for a start at the goal (a hold
     task), when goal_cost(x_T) <= tolerance * :func:`unit_goal_cost`."""
-    start, final = float(goal_cost(task, X[0])), float(goal_cost(task, X[-1]))
+    start, final = (float(v) for v in _goal_costs(task, X[0], X[-1], has_terminal(task)))
     bound = tolerance * (start if start > 0 else unit_goal_cost(task))
     return {
         "reached": bool(np.isfinite(final) and final <= bound),
@@ -220,7 +230,7 @@ def summary(
         out["native_float64"], out["replay_gap"] = None, None
         return out, X_bb
     native = native_replay.replay_costs(
-        lambda X, U: finite_or_none(trajectory_cost(task, jnp.asarray(X), jnp.asarray(U))),
+        lambda X, U: finite_or_none(_trajectory_cost(task, jnp.asarray(X), jnp.asarray(U))),
         system.mj_model,
         system.substeps,
         np.asarray(task.x0),

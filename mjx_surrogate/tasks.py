@@ -96,11 +96,16 @@ def terminal_cost(task: Task, x: jax.Array) -> jax.Array:
     return 0.5 * e @ task.Q_f @ e + _point_terms(task, x, task.final_weights)
 
 
-def goal_cost(task: Task, x: jax.Array) -> jax.Array:
+def has_terminal(task: Task) -> bool:
+    """Whether the task has a terminal term (Q_f or a final point weight); needs concrete arrays."""
+    return bool(np.any(np.asarray(task.Q_f))) or bool(np.any(np.asarray(task.final_weights)))
+
+
+def goal_cost(task: Task, x: jax.Array, terminal: bool | None = None) -> jax.Array:
     """The task's own measure of distance to the goal: l_f(x), or, for a task with no
-    terminal term, the state part of l(x, u_ref)."""
-    has_terminal = bool(np.any(np.asarray(task.Q_f))) or bool(np.any(np.asarray(task.final_weights)))
-    if has_terminal:
+    terminal term, the state part of l(x, u_ref). ``terminal``: :func:`has_terminal`,
+    given when the task's arrays are traced."""
+    if terminal if terminal is not None else has_terminal(task):
         return terminal_cost(task, x)
     e = state_error(task, x)
     return 0.5 * e @ task.Q @ e + _point_terms(task, x, task.weights)

@@ -14,11 +14,12 @@ from mjx_surrogate.systems.function import from_numpy
 
 gymnasium = pytest.importorskip("gymnasium")
 
-# id: (start, goal, horizon); goals from the environments' own docs: Pendulum-v1 upright
-# (theta = 0) at rest; MountainCarContinuous-v0 the flag at position 0.45
+# id: (start, goal state of the task, horizon). Pendulum-v1: upright (theta = 0) at rest
+# from hanging. MountainCarContinuous-v0: from its reset position, aiming just past its
+# flag; the environment's own goal (position >= goal_position, 0.45) is checked below.
 CASES = {
     "Pendulum-v1": ([np.pi, 0.0], [0.0, 0.0], 100),
-    "MountainCarContinuous-v0": ([-0.5, 0.0], [0.45, 0.0], 250),
+    "MountainCarContinuous-v0": ([-0.5, 0.0], [0.5, 0.0], 200),
 }
 
 
@@ -61,3 +62,5 @@ def test_d2c_reaches_the_goal_on_a_gymnasium_numpy_simulator(env_id):
     for u in U:
         replay_env.step(u.astype(np.float32))
     np.testing.assert_allclose(replay_env.state, np.asarray(X[-1]), rtol=1e-6, atol=1e-6)
+    if hasattr(replay_env, "goal_position"):  # the environment's own success test
+        assert float(np.max(np.asarray(X)[:, 0])) >= replay_env.goal_position

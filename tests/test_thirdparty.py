@@ -25,7 +25,17 @@ from mjx_surrogate.d2c import solve_d2c, solve_exact
 from mjx_surrogate.ilqr import verdict
 from mjx_surrogate.pipeline import summary
 from mjx_surrogate.resolution import resolve, solver_params
-from mjx_surrogate.tasks import goal_cost, trajectory_cost
+from mjx_surrogate.tasks import goal_cost as _goal_cost
+from mjx_surrogate.tasks import has_terminal
+from mjx_surrogate.tasks import trajectory_cost as _trajectory_cost
+
+# compiled once per task structure (eager, a quaternion-rich model's cost is ~100 programs)
+trajectory_cost = jax.jit(_trajectory_cost)
+_goal_cost_jit = jax.jit(_goal_cost, static_argnames=("terminal",))
+
+
+def goal_cost(task, x):
+    return _goal_cost_jit(task, x, has_terminal(task))
 
 
 def _qpos0_goal(path, shift):
