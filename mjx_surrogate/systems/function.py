@@ -101,6 +101,15 @@ def _labels(labels, n: int, prefix: str) -> tuple[str, ...]:
     return labels
 
 
+def _system(name, nx, nu, dt, step, backend, u_min, u_max, state_labels, control_labels, exact_step=None):
+    """A :class:`FunctionSystem` with its sizes, limits and labels checked."""
+    lo, hi = _limits(u_min, u_max, nu)
+    labels = _labels(state_labels, nx, "x"), _labels(control_labels, nu, "u")
+    return FunctionSystem(
+        name, int(nx), int(nu), float(dt), step, scan_rollout(step), backend, *labels, lo, hi, exact_step
+    )
+
+
 def _limits(lo, hi, nu: int) -> tuple[tuple[float, ...], tuple[float, ...]]:
     lo = np.full(nu, -np.inf) if lo is None else np.broadcast_to(np.asarray(lo, float), (nu,))
     hi = np.full(nu, np.inf) if hi is None else np.broadcast_to(np.asarray(hi, float), (nu,))
@@ -124,21 +133,8 @@ def from_jax(
 ) -> FunctionSystem:
     """A black box from a traceable ``step(x [nx], u [nu]) -> x_next [nx]``; its oracle is
     ``jax.jacfwd`` through ``step`` unless ``differentiable`` is False."""
-    lo, hi = _limits(u_min, u_max, nu)
-    return FunctionSystem(
-        name,
-        int(nx),
-        int(nu),
-        float(dt),
-        step,
-        scan_rollout(step),
-        "jax",
-        _labels(state_labels, nx, "x"),
-        _labels(control_labels, nu, "u"),
-        lo,
-        hi,
-        exact_step=step if differentiable else None,
-    )
+    exact = step if differentiable else None
+    return _system(name, nx, nu, dt, step, "jax", u_min, u_max, state_labels, control_labels, exact)
 
 
 def host_step(
@@ -186,21 +182,9 @@ def from_numpy(
     """A black box from a host function (NumPy, a C extension, another simulator in this
     process): ``fn(x [nx], u [nu]) -> x_next [nx]`` (``vectorized``: [N, nx], [N, nu] ->
     [N, nx]). No derivatives: its oracle is central differences of its step."""
-    lo, hi = _limits(u_min, u_max, nu)
+    _limits(u_min, u_max, nu)  # checked before the step is built
     step = host_step(fn, nx, nu, vectorized=vectorized, threads=threads, name=name)
-    return FunctionSystem(
-        name,
-        int(nx),
-        int(nu),
-        float(dt),
-        step,
-        scan_rollout(step),
-        "host",
-        _labels(state_labels, nx, "x"),
-        _labels(control_labels, nu, "u"),
-        lo,
-        hi,
-    )
+    return _system(name, nx, nu, dt, step, "host", u_min, u_max, state_labels, control_labels)
 
 
 def rk4(vector_field: Callable[[jax.Array, jax.Array], jax.Array], dt: float, substeps: int) -> StepFn:
