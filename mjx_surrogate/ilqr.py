@@ -475,7 +475,7 @@ def final_gains(problem: Problem, s: ILQRState, p: ILQRParams) -> jax.Array:
     cancel the dynamics: after a stall (mu past mu_max) a closed loop with them cost about
     twice the open loop under 1 % control noise (UR5e, dm_control humanoid)."""
 
-    def gains(c):  # one call site: the backward pass is compiled once more, not twice
+    def gains(c):  # the loop holds the one call site, so the sweep is compiled once
         mu = jnp.where(c[0] < 0, 0.0, jnp.maximum(c[0] * p.mu_factor, p.mu_min))
         K, ok = tvlqr_gains(s.A, s.B, *s.expansion, s.U_model, problem.u_min, problem.u_max, mu)
         return mu, K, ok
