@@ -39,6 +39,17 @@ def spd_solve(A: jax.Array, B: jax.Array) -> tuple[jax.Array, jax.Array]:
     return (X[:, 0] if vec else X), ok & jnp.all(jnp.isfinite(X))
 
 
+def unit_diagonal(G: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """Gram matrices G [T, m, m] scaled to a unit diagonal: (Gs, s, moved) with
+    G = diag(s) Gs diag(s); a zero diagonal entry (a regressor that never moved) keeps
+    s = 1 and gets a unit diagonal in Gs, so its coefficient solves to 0."""
+    d = jnp.diagonal(G, axis1=1, axis2=2)  # [T, m]
+    moved = d > 0
+    s = jnp.where(moved, jnp.sqrt(d), 1.0)
+    Gs = G / (s[:, :, None] * s[:, None, :]) + jax.vmap(jnp.diag)((~moved).astype(G.dtype))
+    return Gs, s, moved
+
+
 def relative_frobenius(M: jax.Array, M_ref: jax.Array) -> jax.Array:
     """||M_t - M_ref_t||_F / ||M_ref_t||_F per leading index: [T, a, b] -> [T]
     (the denominator floored at 1e-12)."""

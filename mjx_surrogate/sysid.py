@@ -38,7 +38,7 @@ from jax.sharding import Mesh
 
 from mjx_surrogate import sharding, sysid_knots, sysid_significance
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.linalg import spd_solve
+from mjx_surrogate.linalg import spd_solve, unit_diagonal
 from mjx_surrogate.trajectory import feedback_rollout
 
 LinearizeFn = sysid_knots.LinearizeFn  # (X [T+1, nx], U [T, nu], K [T, nu, nx], key) -> (A, B)
@@ -82,10 +82,8 @@ def solve_normal_equations(G: jax.Array, F: jax.Array, nx: int) -> tuple[jax.Arr
     if G.ndim == 2:
         W = F / jnp.where(G > 0, G, 1.0)[:, :, None]
     else:
-        d = jnp.diagonal(G, axis1=1, axis2=2)  # [T, m]
-        s = jnp.where(d > 0, jnp.sqrt(d), 1.0)
         # a regressor that never moved (dx_0 with perturb_x0 off) gets coefficient 0
-        Gs = G / (s[:, :, None] * s[:, None, :]) + jax.vmap(jnp.diag)((d <= 0).astype(G.dtype))
+        Gs, s, _ = unit_diagonal(G)
         Fs = F / s[:, :, None]
         W = jax.vmap(lambda g, f: spd_solve(g, f)[0])(Gs, Fs) / s[:, :, None]  # [T, m, nx]
     Wt = jnp.swapaxes(W, 1, 2)  # [T, nx, m]

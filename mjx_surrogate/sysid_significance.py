@@ -28,7 +28,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from mjx_surrogate.linalg import spd_solve
+from mjx_surrogate.linalg import spd_solve, unit_diagonal
 
 
 def sum_of_squares(Y: jax.Array, w: jax.Array | None) -> jax.Array:
@@ -46,10 +46,7 @@ def gram_inverse_diagonal(G: jax.Array) -> tuple[jax.Array, jax.Array]:
     if G.ndim == 2:
         moved = G > 0
         return 1.0 / jnp.where(moved, G, 1.0), moved
-    d = jnp.diagonal(G, axis1=1, axis2=2)
-    moved = d > 0
-    s = jnp.where(moved, jnp.sqrt(d), 1.0)
-    Gs = G / (s[:, :, None] * s[:, None, :]) + jax.vmap(jnp.diag)((~moved).astype(G.dtype))
+    Gs, s, moved = unit_diagonal(G)
     eye = jnp.eye(G.shape[-1], dtype=G.dtype)
     inv = jax.vmap(lambda g: spd_solve(g, eye)[0])(Gs)
     return jnp.diagonal(inv, axis1=1, axis2=2) / s**2, moved
