@@ -109,7 +109,14 @@ def main() -> None:
         cmd = [sys.executable, os.path.abspath(__file__), "--child", str(n)] + [
             f"--{k}={v}" for k, v in vars(a).items() if k not in ("devices", "child") and v is not None
         ]
-        proc = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=ROOT))
+        proc = subprocess.run(
+            cmd,
+            capture_output=True,
+            text=True,
+            env=dict(
+                os.environ, PYTHONPATH=os.pathsep.join(filter(None, [ROOT, os.environ.get("PYTHONPATH")]))
+            ),
+        )
         lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
         if not lines:
             sys.exit(f"{n} devices failed:\n{proc.stderr[-2000:]}")

@@ -19,7 +19,6 @@ from mjx_surrogate.resolution import Resolved, analysis_library_specs
 from mjx_surrogate.results import Run
 from mjx_surrogate.surrogates import mlp, sindy
 from mjx_surrogate.surrogates.registry import library_specs, mlp_spec
-from mjx_surrogate.systems.system import state_labels
 
 
 def _datasets(system, task, X_star, U_star, key, cfg, level):
@@ -58,7 +57,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     if m_opt["cost"] is None:
         return "diverged"
     X_star, U_star = jnp.asarray(a_opt["X_star"]), jnp.asarray(a_opt["U_star"])
-    labels = state_labels(system.mj_model)
+    labels = list(system.state_labels)
     t = np.arange(task.T + 1) * system.dt
     coords = list(range(min(system.nq, 2)))
     x0, U1 = X_star[0][None], U_star[None]

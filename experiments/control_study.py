@@ -18,7 +18,6 @@ from mjx_surrogate.resolution import Resolved, solver_params
 from mjx_surrogate.results import Run
 from mjx_surrogate.surrogate_control import solve_on_model
 from mjx_surrogate.surrogates import FitContext, fit_all
-from mjx_surrogate.systems.system import hinge_state_indices, state_labels
 
 GOAL_RULE = "goal cost at x_T <= task.goal_tolerance x goal cost at x_0 (docs/results.md)"
 
@@ -127,7 +126,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
                     trajectories[f"{r['model']} {100 * level:g}%"] = arrays[f"control_{tag}_s0_X_closed"]
     record.set("surrogate_rows", rows)
     t = np.arange(task.T + 1) * system.dt
-    labels = state_labels(system.mj_model)
+    labels = list(system.state_labels)
     record.figure(
         "ltv_trajectory_evolution.png",
         lambda: plots.trajectory_evolution(
@@ -146,7 +145,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             trajectories,
             list(range(min(system.nq, 2))),
             labels,
-            (hinge_state_indices(system.mj_model) or [None])[0],
+            (list(system.angle_pairs) or [None])[0],
             f"{system.name}: surrogate-based controllers on the black box vs the D2C optimum",
         ),
     )

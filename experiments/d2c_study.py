@@ -17,7 +17,7 @@ from mjx_surrogate.evaluation import evaluate_feedback
 from mjx_surrogate.linalg import ltv_relative_error
 from mjx_surrogate.resolution import Resolved, solver_params
 from mjx_surrogate.results import Interrupted, Run
-from mjx_surrogate.systems.system import actuated_state_indices, state_labels
+from mjx_surrogate.systems.system import actuated_state_indices
 
 
 def ltv_error(system, X, U, K, key, sid_params, jacobians: str = "jacfwd") -> dict:
@@ -52,7 +52,8 @@ def _shown_states(task, mj_model) -> list[int] | None:
     actuated ones; at most 16."""
     w = np.diagonal(np.asarray(task.Q)) + np.diagonal(np.asarray(task.Q_f))
     weighted = [int(i) for i in np.nonzero(w > 0)[0][:8]]
-    return list(dict.fromkeys(weighted + list(actuated_state_indices(mj_model))))[:16] or None
+    actuated = list(actuated_state_indices(mj_model)) if mj_model is not None else []
+    return list(dict.fromkeys(weighted + actuated))[:16] or None
 
 
 def run(res: Resolved, record: Run, key: jax.Array) -> str:
@@ -104,7 +105,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             t,
             Xh,
             np.asarray(task.x_goal),
-            state_labels(system.mj_model),
+            list(system.state_labels),
             f"D2C on {system.name} from {cfg.solver.init} controls",
             _shown_states(task, system.mj_model),
         ),

@@ -21,7 +21,6 @@ from mjx_surrogate.evaluation import prediction_errors
 from mjx_surrogate.resolution import Resolved
 from mjx_surrogate.results import Run
 from mjx_surrogate.surrogates import FitContext, fit_all
-from mjx_surrogate.systems.system import hinge_state_indices, state_labels
 
 
 def level_stage(res: Resolved, X_star, U_star, level: float, i: int, key: jax.Array):
@@ -103,10 +102,10 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     if m_opt["cost"] is None:
         return "diverged"
     X_star, U_star = jnp.asarray(a_opt["X_star"]), jnp.asarray(a_opt["U_star"])
-    labels = state_labels(system.mj_model)
+    labels = list(system.state_labels)
     t = np.arange(task.T + 1) * system.dt
     coords = list(range(min(system.nq, 3)))
-    phase = (hinge_state_indices(system.mj_model) or [None])[0]
+    phase = (list(system.angle_pairs) or [None])[0]
     results = {}
     for i, (level, k) in enumerate(zip(dc.levels, jax.random.split(k_levels, len(dc.levels)))):
         per_model, arrays = record.stage(f"results/{level:g}", level_stage(res, X_star, U_star, level, i, k))

@@ -13,7 +13,6 @@ from mjx_surrogate import plots
 from mjx_surrogate.resolution import Resolved
 from mjx_surrogate.results import Run
 from mjx_surrogate.rollout import perturbed_rollouts, rollout
-from mjx_surrogate.systems.system import state_labels
 from mjx_surrogate.tasks import trajectory_cost
 
 
@@ -37,7 +36,11 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         cost = jax.jit(jax.vmap(trajectory_cost, in_axes=(None, 0, 0)))
         costs = np.asarray(cost(task, out.X, U[None] + out.dU))
         # Independent check: replay every perturbed control sequence on native MuJoCo.
-        X_native = system.native(np.asarray(task.x0[None] + out.dx0), np.asarray(U[None] + out.dU))
+        X_native = (
+            system.native(np.asarray(task.x0[None] + out.dx0), np.asarray(U[None] + out.dU))
+            if system.mj_model is not None
+            else None  # a function black box: no MuJoCo to replay on
+        )
         finite = np.isfinite(costs)
         m = {
             "nominal": {"cost": float(trajectory_cost(task, X_nom, U))},
@@ -52,7 +55,9 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
                 "run_s": run_s,
                 "control_steps_per_s": ex.n_rollouts * task.T / run_s,
             },
-            "native_replay_max_abs_diff": _max_diff(X_native, np.asarray(out.X)),
+            "native_replay_max_abs_diff": None
+            if X_native is None
+            else _max_diff(X_native, np.asarray(out.X)),
         }
         arrays = {
             "x0": task.x0,
@@ -72,7 +77,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             t,
             arrays["perturbed_X"],
             arrays["nominal_X"],
-            state_labels(system.mj_model),
+            list(system.state_labels),
             title=f"{system.name}: {ex.n_rollouts} perturbed rollouts",
         ),
     )

@@ -45,7 +45,7 @@ def load_config(spec: str) -> Config:
                 data = json.load(f)
             except json.JSONDecodeError as exc:
                 raise ConfigError("CONFIG", f"{spec!r} is not valid JSON ({exc})") from None
-        return from_dict(Config, data, complete=True)
+        return _replayed_model(from_dict(Config, data, complete=True), spec)
     if spec.endswith(".py"):
         if not os.path.isfile(spec):
             raise ConfigError("CONFIG", f"no such file {spec!r}")
@@ -69,6 +69,17 @@ def load_config(spec: str) -> Config:
     if not isinstance(cfg, Config):
         raise ConfigError("CONFIG", f"{spec!r} defines no CONFIG of type mjx_surrogate.config.Config")
     return cfg
+
+
+def _replayed_model(cfg: Config, spec: str) -> Config:
+    """A run's config.json replays the run's own compiled model (``model.mjb`` beside it,
+    as ``system.model_copy``), never the MJCF file at the original path, which may have
+    been edited since; the replay is named after the run (:func:`run_name`)."""
+    cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(cfg.experiment, name=None))
+    mjb = os.path.join(os.path.dirname(os.path.abspath(spec)), "model.mjb")
+    if cfg.system.name != "mjcf" or cfg.system.model_copy is not None or not os.path.isfile(mjb):
+        return cfg
+    return dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, model_copy=mjb))
 
 
 def parse_args(argv: list[str]) -> tuple[Config, str]:
@@ -410,8 +421,13 @@ def _write_inputs(folder, res, parallel: dict) -> None:
     from mjx_surrogate.results import versions
 
     folder.write_json("config.json", to_dict(res.config))
-    folder.write_text("model.xml", res.system.xml)
-    folder.write_bytes("model.mjb", model_bytes(res.system.mj_model))
+    if res.system.mj_model is not None:
+        if res.system.xml:  # a replay's model, loaded from a run's model.mjb, has no MJCF text
+            folder.write_text("model.xml", res.system.xml)
+        folder.write_bytes("model.mjb", model_bytes(res.system.mj_model))
+    elif res.system.source is not None:  # a user's function: its file, as the run used it
+        with open(res.system.source, "rb") as f:
+            folder.write_bytes("system_source.py", f.read())
     folder.write_json("versions.json", versions() | {"parallel": parallel | _devices(res.system)})
 
 

@@ -28,9 +28,18 @@ Matrix = Optional[Tuple[Tuple[float, ...], ...]]
 class SystemConfig:
     """Which black box to simulate and how.
 
-    name: a registered system (pendulum, cartpole, fish, swimmerN) or "mjcf".
+    name: a registered system (pendulum, cartpole, fish, swimmerN; the function black
+      boxes lorenz, f8), "mjcf" (the user's MJCF file) or "python" (the user's function).
     mjcf_path: the user's MJCF file, with name="mjcf".
-    backend: "mjx", "native", or "auto" (the measured faster one on the CPU).
+    model_copy: a compiled copy of that model (a run folder's model.mjb), simulated instead
+      of the file at mjcf_path, which may have changed since; a replay sets it.
+    entry: with name="python", the user's black box as MODULE:ATTRIBUTE or
+      FILE.py:ATTRIBUTE, a FunctionSystem or a function returning one (from_numpy,
+      from_jax; docs/function_systems.md).
+    source_sha256: the SHA-256 of the entry's file, recorded by a run; a replay refuses
+      to run when the file has changed.
+    backend: "mjx", "native", or "auto" (the measured faster one on the CPU); a function
+      black box runs as it is given ("auto").
     substeps: physics steps per control step (None: the system's default, 1 for "mjcf").
     control_dt: the control time step in seconds instead of substeps (a multiple of the
       physics time step).
@@ -40,6 +49,9 @@ class SystemConfig:
 
     name: str = "pendulum"
     mjcf_path: Optional[str] = None
+    model_copy: Optional[str] = None
+    entry: Optional[str] = None
+    source_sha256: Optional[str] = None
     backend: Literal["auto", "mjx", "native"] = "auto"
     substeps: Optional[int] = None
     control_dt: Optional[float] = None
@@ -522,6 +534,7 @@ def validate_static(cfg: Config) -> None:
         raise ConfigError(
             "system.native_threads", f"must be >= 1 (or unset: all cores), got {sy.native_threads}"
         )
+    _check_function_system(sy)
     t = cfg.task
     if not (math.isfinite(t.goal_tolerance) and 0 < t.goal_tolerance <= 1):
         raise ConfigError("task.goal_tolerance", f"must be in (0, 1], got {t.goal_tolerance}")
@@ -636,3 +649,25 @@ def _check_registered(cfg: Config) -> None:
         raise ConfigError("surrogate.kinds", "give one or more surrogate kinds")
     for i, name in enumerate(cfg.surrogate.kinds):
         get_surrogate(name, f"surrogate.kinds[{i}]")
+
+
+def _check_function_system(sy: SystemConfig) -> None:
+    """A function black box (system.entry, lorenz, f8) has no MuJoCo settings."""
+    from mjx_surrogate.systems.registry import USER_FUNCTION, is_function_system
+
+    if (sy.name == USER_FUNCTION) != (sy.entry is not None):
+        field, need = ("system.entry", "required") if sy.entry is None else ("system.entry", "only valid")
+        raise ConfigError(
+            field, f"{need} with system.name='{USER_FUNCTION}' (a MODULE:ATTRIBUTE or FILE.py:ATTRIBUTE)"
+        )
+    if sy.model_copy is not None and sy.name != "mjcf":
+        raise ConfigError("system.model_copy", "only valid with system.name='mjcf'")
+    if not is_function_system(sy.name):
+        return
+    for field in ("mjcf_path", "model_copy", "substeps", "control_dt", "timestep", "native_threads"):
+        if getattr(sy, field) is not None:
+            raise ConfigError(
+                f"system.{field}", f"a MuJoCo setting; {sy.name!r} is a function black box, leave it unset"
+            )
+    if sy.backend != "auto":
+        raise ConfigError("system.backend", f"{sy.name!r} is a function black box: valid: auto")

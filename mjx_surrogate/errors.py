@@ -7,3 +7,14 @@ class ConfigError(ValueError):
     def __init__(self, field: str, message: str):
         self.field = field
         super().__init__(f"{field}: {message}")
+
+
+def describe(exc: BaseException) -> str:
+    """``Type: message`` of an exception. An exception raised inside a host callback (a
+    user's black box) reaches the caller as a runtime error holding the whole traceback;
+    its last line, the original exception, is what it says."""
+    text = f"{type(exc).__name__}: {exc}"
+    if "callback" in text and "Traceback" in text:
+        lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+        return f"{type(exc).__name__} in a host callback: {lines[-1]}"
+    return text

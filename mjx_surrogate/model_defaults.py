@@ -26,6 +26,8 @@ from scipy.optimize import lsq_linear
 from mjx_surrogate.sysid import SysIdParams
 
 HOLD_T = 50  # control steps of the hold task
+USER_SYSTEMS = ("mjcf", "python")  # a user's MJCF model, a user's function black box
+FUNCTION_SYSTEMS = ("lorenz", "f8", "python")  # black boxes given as functions
 
 
 def default_n_samples(nx: int, nu: int) -> int:
@@ -52,25 +54,27 @@ def default_noise_floor(system_name: str) -> float:
     """solver.sysid_noise_floor when unset: 10 for a user's model (identified entries below
     10 eps |x| / sigma are zero: ``sysid.below_resolution``), 0 (off) for registered ones,
     whose paper settings stay as published."""
-    return 10.0 if system_name == "mjcf" else 0.0
+    return 10.0 if system_name in USER_SYSTEMS else 0.0
 
 
 def default_perturb_x0(system_name: str) -> bool:
     """solver.sysid_perturb_x0 when unset: False for a user's model (x_0 is given, so the
     one-step schemes identify B_0 alone: ``sysid._one_step_perturbations``), True for
     registered ones (D2C 2.0's design, as published)."""
-    return system_name != "mjcf"
+    return system_name not in USER_SYSTEMS
 
 
 def default_x64(system_name: str) -> bool:
-    """experiment.x64 when unset: float64 for a user's model, float32 for registered ones."""
-    return system_name == "mjcf"
+    """experiment.x64 when unset: float64 for a user's model and every function black box
+    (a step costs microseconds), float32 for the registered MuJoCo systems."""
+    return system_name in USER_SYSTEMS + FUNCTION_SYSTEMS
 
 
 def default_init(system_name: str) -> str:
-    """solver.init when unset: "hold" for a user's model (zero controls send position
-    servos to joint angle 0), "zeros" for registered ones (the paper's start)."""
-    return "hold" if system_name == "mjcf" else "zeros"
+    """solver.init when unset: "hold" for a user's MJCF model (zero controls send position
+    servos to joint angle 0), "u_ref" for a user's function (the task's control
+    reference, zeros unless given), "zeros" for registered ones (the paper's start)."""
+    return {"mjcf": "hold", "python": "u_ref"}.get(system_name, "zeros")
 
 
 def half_ranges(u_min: np.ndarray, u_max: np.ndarray) -> np.ndarray:

@@ -14,9 +14,10 @@ from jax.sharding import Mesh
 from mjx_surrogate import sharding
 from mjx_surrogate.config import Config, SystemConfig, validate_static
 from mjx_surrogate.cost import BLOWUP
-from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.errors import ConfigError, describe
 from mjx_surrogate.ilqr import ILQRParams
 from mjx_surrogate.model_defaults import (
+    USER_SYSTEMS,
     default_init,
     default_n_samples,
     default_noise_floor,
@@ -25,8 +26,14 @@ from mjx_surrogate.model_defaults import (
 )
 from mjx_surrogate.surrogates.registry import get_surrogate, library_specs
 from mjx_surrogate.sysid import SysIdParams
-from mjx_surrogate.systems import System, from_mjcf, make_system
-from mjx_surrogate.systems.registry import default_config
+from mjx_surrogate.systems import FunctionSystem, System, from_mjcf, make_system
+from mjx_surrogate.systems.entry import entry_source, load_entry, source_digest
+from mjx_surrogate.systems.registry import (
+    USER_FUNCTION,
+    default_config,
+    is_function_system,
+    make_function_system,
+)
 from mjx_surrogate.systems.system import compile_mjcf
 from mjx_surrogate.task_resolution import resolve_task
 from mjx_surrogate.tasks import Task
@@ -66,23 +73,56 @@ def _substeps(sc: SystemConfig) -> int | None:
 _REGISTERED: dict = {}  # (system config, float64?, mesh) -> System, registered systems only
 
 
-def build_system_from_config(sc: SystemConfig, mesh: Mesh | None = None) -> System:
+def build_system_from_config(sc: SystemConfig, mesh: Mesh | None = None) -> System | FunctionSystem:
     """The system of ``sc``, its batched work spread over ``mesh``. A registered system is
     built once per process, precision and mesh: a System is immutable and hashes by
     identity, so experiments of one process (a reproduction, a notebook) share its
-    compiled programs. A user's MJCF, whose files may change between calls, is built
-    afresh."""
+    compiled programs. A user's MJCF or function, whose files may change between calls,
+    is built afresh."""
+    if is_function_system(sc.name):
+        return _function_system(sc, mesh)
     substeps = _substeps(sc)
     if sc.name == "mjcf":
         if not sc.mjcf_path:
             raise ConfigError("system.mjcf_path", "required when system.name is 'mjcf'")
-        return from_mjcf(sc.mjcf_path, sc.backend, substeps or 1, sc.timestep, sc.native_threads, mesh)
+        return from_mjcf(
+            sc.mjcf_path, sc.backend, substeps or 1, sc.timestep, sc.native_threads, mesh, sc.model_copy
+        )
     if sc.mjcf_path:
         raise ConfigError("system.mjcf_path", f"only valid with system.name='mjcf', not {sc.name!r}")
     key = (repr(sc), bool(jax.config.jax_enable_x64), mesh)
     if key not in _REGISTERED:
         _REGISTERED[key] = make_system(sc.name, sc.backend, substeps, sc.timestep, sc.native_threads, mesh)
     return _REGISTERED[key]
+
+
+def _function_system(sc: SystemConfig, mesh: Mesh | None) -> FunctionSystem:
+    """A function black box: registered (built once per process and mesh) or the user's
+    entry point, whose file must still be the one a replayed run recorded."""
+    if sc.name == USER_FUNCTION:
+        if sc.source_sha256 is not None:
+            path = entry_source(sc.entry)
+            now = source_digest(path)
+            if now != sc.source_sha256:
+                raise ConfigError(
+                    "system.source_sha256",
+                    f"{path!r} has changed since the run (SHA-256 {str(now)[:12]}, recorded "
+                    f"{sc.source_sha256[:12]}); restore the file (the run folder keeps a copy) or unset "
+                    "system.source_sha256 to run the new code",
+                )
+        system = load_entry(sc.entry)
+    else:
+        key = (sc.name, mesh)
+        if key in _REGISTERED:
+            return _REGISTERED[key]
+        system = make_function_system(sc.name)
+    if mesh is not None:  # a host function runs on one device per process, as native MuJoCo
+        system = dataclasses.replace(
+            system, mesh=mesh if system.backend == "jax" else sharding.one_device_per_process(mesh)
+        )
+    if sc.name != USER_FUNCTION:
+        _REGISTERED[(sc.name, mesh)] = system
+    return system
 
 
 def check_magnitude(field: str, x, dtype, sigma_x: float) -> None:
@@ -118,6 +158,9 @@ def check_start(system: System, task: Task, sigma_x: float) -> None:
     m = system.mj_model
     for field, x in (("task.x0", task.x0), ("task.x_goal", task.x_goal)):
         check_magnitude(field, x, dtype, sigma_x)
+    if m is None:
+        check_function_step(system, task)
+        return
     d = mujoco.MjData(m)
     x = np.asarray(task.x0, float)
     d.qpos[:], d.qvel[:] = x[: m.nq], x[m.nq : m.nq + m.nv]
@@ -138,6 +181,21 @@ def check_start(system: System, task: Task, sigma_x: float) -> None:
             f"MuJoCo cannot simulate from this state "
             f"({', '.join(hit) or 'non-finite state'} in the first step)",
         )
+
+
+def check_function_step(system: FunctionSystem, task: Task) -> None:
+    """One step of a function black box from the start: an exception, a wrong shape or a
+    non-finite state is bad input (one line naming the field), found before any solve."""
+    field = "system.entry" if system.source is not None else "system.name"
+    u = jnp.clip(task.u_ref, task.u_min, task.u_max)
+    try:
+        x1 = np.asarray(jax.jit(system.step)(task.x0, u))
+    except Exception as exc:  # the user's code, through a callback or a trace
+        raise ConfigError(field, f"the black box's step failed: {describe(exc)[:300]}") from None
+    if x1.shape != (system.nx,):
+        raise ConfigError(field, f"the step returned shape {x1.shape}, expected ({system.nx},)")
+    if not np.all(np.isfinite(x1)):
+        raise ConfigError("task.x0", "the black box's step returned a non-finite state from the start")
 
 
 def check_memory(cfg: Config, system: System, T: int, n_samples: int) -> None:
@@ -198,7 +256,7 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     (of every process; ``local``: of this process only, for an experiment that one
     process of a sweep runs alone)."""
     validate_static(cfg)
-    sigma = default_sigma(cfg.system.name != "mjcf")
+    sigma = default_sigma(cfg.system.name not in USER_SYSTEMS)
     sigma_x = sigma if cfg.solver.sigma_x is None else cfg.solver.sigma_x
     for field in ("x0", "x_goal"):  # as given, before anything is built or compiled
         if getattr(cfg.task, field) is not None:
@@ -227,18 +285,30 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     check_start(system, task, sigma_x)
     if kind in ("predict", "analysis", "control"):
         _check_surrogates(cfg, system, int(tc.T))
-    sc = dataclasses.replace(
-        cfg.system,
-        backend=system.backend,
-        substeps=system.substeps,
-        control_dt=None,
-        timestep=float(system.mj_model.opt.timestep),
-    )
+    if system.mj_model is None:
+        sc = dataclasses.replace(cfg.system, source_sha256=source_digest(system.source))
+    else:
+        sc = dataclasses.replace(
+            cfg.system,
+            backend=system.backend,
+            substeps=system.substeps,
+            control_dt=None,
+            timestep=float(system.mj_model.opt.timestep),
+        )
     oracle = cfg.experiment.exact_oracle
     ex = dataclasses.replace(
-        cfg.experiment, exact_oracle=(cfg.system.name != "mjcf") if oracle is None else oracle
+        cfg.experiment,
+        exact_oracle=(cfg.system.name != "mjcf") if oracle is None else oracle,
+        # a function without derivatives (a host function) is judged against central differences
+        oracle="finite_difference"
+        if system.mj_model is None and system.exact_step is None
+        else cfg.experiment.oracle,
     )
     init = cfg.solver.init or default_init(cfg.system.name)
+    if init == "hold" and system.mj_model is None:
+        raise ConfigError(
+            "solver.init", "'hold' needs a MuJoCo model's actuators; valid: zeros, random, u_ref"
+        )
     floor, perturb_x0 = cfg.solver.sysid_noise_floor, cfg.solver.sysid_perturb_x0
     floor = default_noise_floor(cfg.system.name) if floor is None else floor
     perturb_x0 = default_perturb_x0(cfg.system.name) if perturb_x0 is None else perturb_x0

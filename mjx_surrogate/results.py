@@ -41,6 +41,7 @@ from typing import Any, Callable
 import numpy as np
 
 from mjx_surrogate import progress
+from mjx_surrogate.errors import describe
 
 try:
     import fcntl
@@ -473,7 +474,7 @@ class Run:
             self._ending = True
             self.metrics["status"] = status
             if error is not None:
-                self.metrics["error"] = f"{type(error).__name__}: {error}"
+                self.metrics["error"] = describe(error)
                 if status == "failed" and not isinstance(error, WriteError):
                     self.metrics["traceback"] = "".join(traceback.format_exception(error))
             failure = self._write_end()

@@ -3,7 +3,8 @@
 The CLI, the benchmarks and the tests call :func:`configure_runtime` first; a notebook
 should too, before its first JAX computation:
 
-* ``XLA_FLAGS += --xla_cpu_use_fusion_emitters=false``: XLA's CPU fusion emitters made MJX
+* ``XLA_FLAGS += --xla_cpu_use_fusion_emitters=false`` (jaxlib 0.10, whose XLA knows the
+  flag; jaxlib 0.11's aborts on it, as on the next one): XLA's CPU fusion emitters made MJX
   rollouts up to ~50x slower and compiles minutes long on many-body models
   (docs/performance.md). Only effective before JAX starts its backend; skipped when the
   user's ``XLA_FLAGS`` already names the flag or ``MJX_SURROGATE_KEEP_XLA_FLAGS=1``.
@@ -15,6 +16,9 @@ should too, before its first JAX computation:
   the flag MuJoCo's MJX documentation recommends for GPUs (same rules as above).
 * synchronous CPU dispatch: host callbacks inside jitted while loops (the native backend)
   can hang the CPU runtime at 0 % CPU with asynchronous dispatch (jax-ml/jax#25861).
+* JAX's log of an exception raised inside a host callback (a user's black box, the native
+  simulator) is silenced: the exception itself reaches the caller, and the command line
+  reports it in one line naming the field (``system.entry``) instead of a traceback.
 * MuJoCo's warning hook: a line search provokes many diverged trials, each of which MuJoCo
   would print; they are counted in :data:`MUJOCO_WARNINGS` (and surface as NaN states).
 * JAX's persistent compilation cache in ``$MJX_SURROGATE_CACHE`` (default
@@ -29,6 +33,7 @@ should too, before its first JAX computation:
 
 from __future__ import annotations
 
+import logging
 import os
 
 FUSION_FLAG = "--xla_cpu_use_fusion_emitters=false"
@@ -57,6 +62,13 @@ def default_cache_dir() -> str | None:
     return os.path.join(os.path.expanduser("~"), ".cache", "mjx_surrogate", "jax")
 
 
+def _jaxlib_version() -> tuple[int, ...]:
+    """The installed jaxlib's (major, minor), read without starting JAX."""
+    from importlib.metadata import version
+
+    return tuple(int(p) for p in version("jaxlib").split(".")[:2])
+
+
 def cuda_plugin_installed() -> bool:
     import importlib.util
 
@@ -81,13 +93,16 @@ def configure_runtime(x64: bool | None = None, compile_cache: str | bool | None 
     Returns what was applied, e.g. for a run's ``versions.json``.
     """
     applied: dict = {}
-    _add_flag(FUSION_FLAG, applied)
-    _add_flag(STUCK_FLAG, applied)
+    if _jaxlib_version() < (0, 11):  # jaxlib 0.11's XLA refuses these flags and aborts
+        _add_flag(FUSION_FLAG, applied)
+        _add_flag(STUCK_FLAG, applied)
     if cuda_plugin_installed():
         _add_flag(GPU_FLAG, applied)
     import jax
     import mujoco
 
+    logging.getLogger("jax._src.callback").setLevel(logging.CRITICAL)
+    applied["callback_exception_log"] = "off"
     jax.config.update("jax_cpu_enable_async_dispatch", False)
     applied["jax_cpu_enable_async_dispatch"] = False
     mujoco.set_mju_user_warning(_count_warning)

@@ -113,8 +113,10 @@ def model_limits(m: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def _limits(tc: TaskConfig, m: mujoco.MjModel, base: dict):
-    lo_m, hi_m = model_limits(m)
+def _limits(tc: TaskConfig, lo_m: np.ndarray, hi_m: np.ndarray, base: dict):
+    """The task's control limits: the config's, else the preset's, else the system's, which
+    they may narrow but not widen."""
+    nu = len(lo_m)
     out = []
     for name, model_b, sign in (("u_min", lo_m, -1.0), ("u_max", hi_m, 1.0)):
         b = getattr(tc, name)
@@ -122,8 +124,8 @@ def _limits(tc: TaskConfig, m: mujoco.MjModel, base: dict):
         if b is None:
             out.append(model_b)
             continue
-        if len(b) != m.nu:
-            raise ConfigError(f"task.{name}", f"needs nu={m.nu} entries, got {len(b)}")
+        if len(b) != nu:
+            raise ConfigError(f"task.{name}", f"needs nu={nu} entries, got {len(b)}")
         b = np.asarray(b, float)
         if np.isnan(b).any():
             raise ConfigError(f"task.{name}", "holds NaN; use a number or +-inf")
@@ -176,7 +178,12 @@ def _tolist(v):
 
 def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
     """Fill every task field (preset, keyframes, model) with shape and sign checks; returns
-    the resolved TaskConfig (what config.json holds) and the Task."""
+    the resolved TaskConfig (what config.json holds) and the Task. A function black box's
+    task: :func:`mjx_surrogate.function_task.resolve_function_task`."""
+    if system.mj_model is None:
+        from mjx_surrogate.function_task import resolve_function_task
+
+        return resolve_function_task(tc, system)
     m = system.mj_model
     base = preset_fields(tc, system)
     T = tc.T if tc.T is not None else base.get("T")
@@ -200,7 +207,7 @@ def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
     custom = tc.preset in MODEL_PRESETS
     qpos0 = model_state(m, m.qpos0)
     x0 = _state(tc, "x0", labels, key_x0 if key_x0 is not None else base.get("x0", qpos0 if custom else None))
-    u_min, u_max = _limits(tc, m, base)
+    u_min, u_max = _limits(tc, *model_limits(m), base)
     if tc.preset == "hold":
         base = hold_task(m, x0, u_min, u_max)
     goal_default = key_goal if key_goal is not None else base.get("x_goal", x0 if tc.goals else None)
@@ -244,8 +251,13 @@ def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
         hinges=hinges,
         quats=quats,
     )
+    return resolved_task_config(tc, T, x0, x_goal, Q, Q_f, R, u_min, u_max, u_ref, state_error), task
+
+
+def resolved_task_config(tc, T, x0, x_goal, Q, Q_f, R, u_min, u_max, u_ref, state_error) -> TaskConfig:
+    """Every field filled: what config.json holds."""
     limited = lambda b: None if np.all(np.isinf(b)) else _tolist(b)  # noqa: E731
-    resolved = TaskConfig(
+    return TaskConfig(
         preset=tc.preset,
         T=int(T),
         x0=_tolist(x0),
@@ -259,7 +271,6 @@ def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
         goal_keyframe=tc.goal_keyframe,
         u_ref=_tolist(u_ref),
         state_error=state_error,
-        goals=goals,
+        goals=tc.goals,
         goal_tolerance=tc.goal_tolerance,
     )
-    return resolved, task

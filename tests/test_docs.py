@@ -1,7 +1,10 @@
 """The quickstart's code runs as written (docs/quickstart.md)."""
 
+import glob
+import json
 import os
 import re
+import shlex
 
 import numpy as np
 import pytest
@@ -47,7 +50,7 @@ def test_your_model_page_runs_as_written(tmp_path, monkeypatch, capsys):
 
 def test_function_systems_page_runs_as_written(capsys):
     text = open(os.path.join(ROOT, "docs", "function_systems.md")).read()
-    (block,) = re.findall(r"```python\n(.*?)```", text, flags=re.S)
+    block = re.findall(r"```python\n(.*?)```", text, flags=re.S)[0]
     namespace: dict = {"__name__": "function_systems"}
     exec(compile(block, "docs/function_systems.md", "exec"), namespace)
     status, reached, cost, oracle = capsys.readouterr().out.split()
@@ -55,3 +58,36 @@ def test_function_systems_page_runs_as_written(capsys):
     assert abs(float(cost) / float(oracle) - 1) < 1e-3
     U = np.asarray(namespace["d2c"].out.U)
     assert np.all(np.abs(U) <= 5.0) and np.max(np.abs(U)) > 1.0  # the limit shapes the swing-up
+
+
+@pytest.mark.slow
+def test_function_systems_command_line_runs_as_written_and_replays(tmp_path, monkeypatch, capsys):
+    """The page's module and command: D2C converges to the central-difference oracle's
+    cost, the folder keeps the source, the replay gives the same cost, and once the
+    module is edited the replay refuses with one line."""
+    from experiments import run as cli
+
+    text = open(os.path.join(ROOT, "docs", "function_systems.md")).read()
+    module = next(b for b in re.findall(r"```python\n(.*?)```", text, flags=re.S) if b.startswith("# my_"))
+    (command,) = re.findall(r"```bash\n(.*?)```", text, flags=re.S)
+    argv = shlex.split(command.replace("\\\n", " "))
+    assert argv[:3] == ["python", "-m", "experiments.run"]
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "my_pendulum.py").write_text(module)
+    assert cli.main(argv[3:] + ["--out", "runs"]) == 0
+    (folder,) = glob.glob("runs/*_my_pendulum")
+    metrics = json.load(open(os.path.join(folder, "metrics.json")))
+    config = json.load(open(os.path.join(folder, "config.json")))
+    assert metrics["d2c"]["status"] == "converged" and metrics["d2c"]["goal"]["reached"]
+    assert abs(metrics["d2c_vs_exact_relative_gap"]) < 1e-3
+    assert config["experiment"]["oracle"] == "finite_difference" and config["experiment"]["x64"]
+    assert open(os.path.join(folder, "system_source.py")).read() == module
+    replay = os.path.join(folder, "config.json")
+    assert cli.main([replay, "--out", "runs"]) == 0
+    (again,) = glob.glob("runs/*_my_pendulum_replay")
+    assert json.load(open(os.path.join(again, "metrics.json")))["d2c"]["cost"] == metrics["d2c"]["cost"]
+    capsys.readouterr()
+    (tmp_path / "my_pendulum.py").write_text(module.replace("0.1 * omega", "0.2 * omega"))
+    assert cli.main([replay, "--out", "runs"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: system.source_sha256: ")

@@ -54,11 +54,12 @@ def test_steps_match_scipys_integrator(mod, rhs, scale):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("mod,make", [(lorenz, lorenz.switch_task), (f8, f8.recovery_task)])
-def test_d2c_reaches_the_jacfwd_oracle_on_the_sindy_mpc_systems(mod, make):
-    """The presets' tasks: D2C (central differences, 1e-6, float64) converges to the exact
-    oracle's cost within 0.01 %, reaches the goal and keeps the controls in their limits."""
-    s, task = mod.make_system(), make()
+def test_d2c_reaches_the_jacfwd_oracle_on_the_f8_through_the_api():
+    """The F-8 preset's task from Python (the Lorenz preset runs from the command line in
+    tests/test_function_cli.py): D2C (central differences, 1e-6, float64) converges to the
+    exact oracle's cost within 0.01 %, reaches the goal and keeps the controls in their
+    limits (saturated)."""
+    s, task = f8.make_system(), f8.recovery_task()
     U0 = jnp.zeros((task.T, s.nu))
     params = ILQRParams(max_iter=200)
     d2c = chunked.solve(
@@ -70,7 +71,7 @@ def test_d2c_reaches_the_jacfwd_oracle_on_the_sindy_mpc_systems(mod, make):
         metrics["status"] == "converged" and metrics["goal"]["reached"] and metrics["controls_within_limits"]
     )
     assert metrics["native_float64"] is None  # no MuJoCo model to replay on
-    assert float(d2c.cost) == pytest.approx(float(exact.cost), rel=1e-4)  # F-8: -1.6e-5, saturated
+    assert float(d2c.cost) == pytest.approx(float(exact.cost), rel=1e-4)  # -1.6e-5, saturated
 
 
 def numpy_lorenz_step(x, u, dt=0.01, n=10):

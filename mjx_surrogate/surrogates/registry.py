@@ -80,10 +80,9 @@ def fit_all(ctx: FitContext, train, test, key: jax.Array, meter=None) -> dict[st
 
 
 def hinge_angles(system) -> tuple[int, ...]:
-    """State indices of hinge-joint angles (the default trig coordinates)."""
-    from mjx_surrogate.systems.system import hinge_state_indices
-
-    return tuple(q for q, _ in hinge_state_indices(system.mj_model))
+    """State indices of hinge-joint angles, a function black box's ``angle_pairs`` (the
+    default trig coordinates)."""
+    return tuple(q for q, _ in system.angle_pairs)
 
 
 def library_specs(

@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate.systems.function import FunctionSystem, from_jax, rk4
-from mjx_surrogate.tasks import Task, make_task
+from mjx_surrogate.tasks import Task, TaskPreset, make_task
 
 
 def vector_field(x, u):
@@ -70,16 +70,31 @@ def make_system(dt: float = 0.02, substeps: int = 4) -> FunctionSystem:
     )
 
 
-def recovery_task(T: int = 250) -> Task:
-    """alpha 0.4655 rad -> level flight (x = 0) in T steps: Q I, Q_f 1000 I, R 0.01."""
-    return make_task(
-        np.array([0.4655, 0.0, 0.0]),
-        np.zeros(3),
-        np.eye(3),
-        1000.0 * np.eye(3),
-        0.01 * np.eye(1),
-        T,
-        -0.3,
-        0.3,
+def recovery_fields(T: int = 250) -> dict:
+    """alpha 0.4655 rad -> level flight (x = 0) in T steps: Q I, Q_f 1000 I, R 0.01,
+    |u| <= 0.3 rad."""
+    return dict(
+        x0=np.array([0.4655, 0.0, 0.0]),
+        x_goal=np.zeros(3),
+        Q=np.eye(3),
+        Q_f=1000.0 * np.eye(3),
+        R=0.01 * np.eye(1),
+        T=T,
+        u_min=np.array([-0.3]),
+        u_max=np.array([0.3]),
         u_ref=np.zeros(1),
     )
+
+
+def recovery_task(T: int = 250) -> Task:
+    """The task of :func:`recovery_fields`."""
+    return make_task(**recovery_fields(T))
+
+
+TASKS = {
+    "f8_recovery": TaskPreset(
+        "f8",
+        lambda nq, nv, nu: recovery_fields(),
+        "F-8 (Garrard and Jordan): alpha 26.7 deg -> level flight in 5 s",
+    ),
+}

@@ -40,7 +40,9 @@ class FunctionSystem:
 
     backend: "jax" (a traceable step, differentiable unless ``exact_step`` is None) or
     "host" (a host function behind a callback). u_min, u_max [nu]: the controls' limits
-    (+-inf where unbounded), which a task takes unless it narrows them."""
+    (+-inf where unbounded), which a task takes unless it narrows them. angle_pairs:
+    (angle, angular rate) state indices, the default sin/cos coordinates of a SINDy
+    library (a MuJoCo system's hinge joints)."""
 
     name: str
     nx: int
@@ -56,6 +58,19 @@ class FunctionSystem:
     exact_step: StepFn | None = None
     closed_loop: Callable | None = None
     mesh: Mesh | None = None
+    angle_pairs: tuple[tuple[int, int], ...] = ()
+    source: str | None = None  # the file that defines it, recorded by a run folder
+
+    mj_model = None  # not a MuJoCo model: nothing runs ``mujoco`` for it
+
+    @property
+    def nq(self) -> int:
+        """Every coordinate counts as a position (plots show the first ones)."""
+        return self.nx
+
+    @property
+    def nv(self) -> int:
+        return 0
 
     @property
     def compiler_options(self) -> dict | None:
@@ -101,12 +116,26 @@ def _labels(labels, n: int, prefix: str) -> tuple[str, ...]:
     return labels
 
 
-def _system(name, nx, nu, dt, step, backend, u_min, u_max, state_labels, control_labels, exact_step=None):
-    """A :class:`FunctionSystem` with its sizes, limits and labels checked."""
+def _system(name, nx, nu, dt, step, backend, u_min, u_max, state_labels, control_labels, exact_step, angles):
+    """A :class:`FunctionSystem` with its sizes, limits, labels and angles checked."""
     lo, hi = _limits(u_min, u_max, nu)
     labels = _labels(state_labels, nx, "x"), _labels(control_labels, nu, "u")
+    pairs = tuple((int(a), int(b)) for a, b in angles)
+    if any(not (0 <= i < nx) for pair in pairs for i in pair):
+        raise ConfigError("system.angle_pairs", f"state indices must be in [0, {nx}), got {pairs}")
     return FunctionSystem(
-        name, int(nx), int(nu), float(dt), step, scan_rollout(step), backend, *labels, lo, hi, exact_step
+        name,
+        int(nx),
+        int(nu),
+        float(dt),
+        step,
+        scan_rollout(step),
+        backend,
+        *labels,
+        lo,
+        hi,
+        exact_step,
+        angle_pairs=pairs,
     )
 
 
@@ -129,12 +158,15 @@ def from_jax(
     u_max=None,
     state_labels=None,
     control_labels=None,
+    angle_pairs=(),
     differentiable: bool = True,
 ) -> FunctionSystem:
     """A black box from a traceable ``step(x [nx], u [nu]) -> x_next [nx]``; its oracle is
-    ``jax.jacfwd`` through ``step`` unless ``differentiable`` is False."""
+    ``jax.jacfwd`` through ``step`` unless ``differentiable`` is False. angle_pairs:
+    (angle, rate) state index pairs, the default sin/cos coordinates of SINDy libraries."""
     exact = step if differentiable else None
-    return _system(name, nx, nu, dt, step, "jax", u_min, u_max, state_labels, control_labels, exact)
+    labels = state_labels, control_labels
+    return _system(name, nx, nu, dt, step, "jax", u_min, u_max, *labels, exact, angle_pairs)
 
 
 def host_step(
@@ -178,13 +210,16 @@ def from_numpy(
     u_max=None,
     state_labels=None,
     control_labels=None,
+    angle_pairs=(),
 ) -> FunctionSystem:
     """A black box from a host function (NumPy, a C extension, another simulator in this
     process): ``fn(x [nx], u [nu]) -> x_next [nx]`` (``vectorized``: [N, nx], [N, nu] ->
-    [N, nx]). No derivatives: its oracle is central differences of its step."""
+    [N, nx]). No derivatives: its oracle is central differences of its step. angle_pairs
+    as for :func:`from_jax`."""
     _limits(u_min, u_max, nu)  # checked before the step is built
     step = host_step(fn, nx, nu, vectorized=vectorized, threads=threads, name=name)
-    return _system(name, nx, nu, dt, step, "host", u_min, u_max, state_labels, control_labels)
+    labels = state_labels, control_labels
+    return _system(name, nx, nu, dt, step, "host", u_min, u_max, *labels, None, angle_pairs)
 
 
 def rk4(vector_field: Callable[[jax.Array, jax.Array], jax.Array], dt: float, substeps: int) -> StepFn:

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate.systems.function import FunctionSystem, from_jax, rk4
-from mjx_surrogate.tasks import Task, make_task
+from mjx_surrogate.tasks import Task, TaskPreset, make_task
 
 SIGMA, RHO, BETA = 10.0, 28.0, 8.0 / 3.0
 C_PLUS = np.array([math.sqrt(BETA * (RHO - 1)), math.sqrt(BETA * (RHO - 1)), RHO - 1])
@@ -43,17 +43,31 @@ def make_system(dt: float = 0.01, substeps: int = 10) -> FunctionSystem:
     )
 
 
-def switch_task(T: int = 200, u_max: float = 50.0) -> Task:
+def switch_fields(T: int = 200, u_max: float = 50.0) -> dict:
     """C- -> C+ in T steps: Q_f 100 I at the end, 0.01 I on the way, R 1e-4, |u| <= u_max
     (SINDy-MPC's bound is 50)."""
-    return make_task(
-        C_MINUS,
-        C_PLUS,
-        0.01 * np.eye(3),
-        100.0 * np.eye(3),
-        1e-4 * np.eye(1),
-        T,
-        -u_max,
-        u_max,
+    return dict(
+        x0=C_MINUS,
+        x_goal=C_PLUS,
+        Q=0.01 * np.eye(3),
+        Q_f=100.0 * np.eye(3),
+        R=1e-4 * np.eye(1),
+        T=T,
+        u_min=np.array([-u_max]),
+        u_max=np.array([u_max]),
         u_ref=np.zeros(1),
     )
+
+
+def switch_task(T: int = 200, u_max: float = 50.0) -> Task:
+    """The task of :func:`switch_fields`."""
+    return make_task(**switch_fields(T, u_max))
+
+
+TASKS = {
+    "lorenz_switch": TaskPreset(
+        "lorenz",
+        lambda nq, nv, nu: switch_fields(),
+        "SINDy-MPC's Lorenz: C- -> C+ in 2 s (200 steps), |u| <= 50",
+    ),
+}

@@ -3,7 +3,10 @@
 A system module (``pendulum.py``, ``cartpole.py``, ``fish.py``, ``swimmer.py``) holds its
 MJCF (``xml``), its ``default_config()`` and its task presets (``TASKS``). A new system is
 one such module plus one :func:`register_system` call (docs/extending.md); a family with a
-size in its name (``swimmer<N>``) is registered with a pattern.
+size in its name (``swimmer<N>``) is registered with a pattern. A black box that is a
+function (``lorenz.py``, ``f8.py``: ``make_system()`` and ``TASKS``) is registered with
+:func:`register_function_system`; a user's function is named by ``system.entry``
+(``system.name = "python"``, :mod:`.entry`).
 """
 
 from __future__ import annotations
@@ -17,7 +20,8 @@ from typing import Callable
 from jax.sharding import Mesh
 
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.systems import cartpole, fish, pendulum, swimmer
+from mjx_surrogate.systems import cartpole, f8, fish, lorenz, pendulum, swimmer
+from mjx_surrogate.systems.function import FunctionSystem
 from mjx_surrogate.systems.spec import SystemDefaults
 from mjx_surrogate.systems.system import System, build_system
 from mjx_surrogate.tasks import TaskPreset
@@ -25,6 +29,8 @@ from mjx_surrogate.tasks import TaskPreset
 _SYSTEMS: dict[str, Callable[[], SystemDefaults]] = {}
 _FAMILIES: dict[str, tuple[re.Pattern, Callable[[int], SystemDefaults]]] = {}
 _TASKS: dict[str, TaskPreset] = {}
+_FUNCTIONS: dict[str, Callable[[], FunctionSystem]] = {}
+USER_FUNCTION = "python"  # system.name of a user's function, named by system.entry
 
 
 def register_system(
@@ -46,6 +52,32 @@ def register_family(
     _TASKS.update(tasks or {})
 
 
+def register_function_system(
+    name: str, make: Callable[[], FunctionSystem], tasks: dict[str, TaskPreset] | None = None
+) -> None:
+    """Register a black box given as a function (``make()`` builds it) and its presets."""
+    _FUNCTIONS[name] = make
+    _TASKS.update(tasks or {})
+
+
+def is_function_system(name: str) -> bool:
+    """Whether ``system.name`` names a function black box (registered, or the user's)."""
+    return name in _FUNCTIONS or name == USER_FUNCTION
+
+
+def make_function_system(name: str) -> FunctionSystem:
+    """A registered function black box, built once per process (so that its jitted
+    programs are reused)."""
+    if name not in _FUNCTIONS:
+        raise ConfigError("system.name", f"unknown system {name!r}; valid: {', '.join(system_names())}")
+    return _built_function(name)
+
+
+@functools.lru_cache(maxsize=None)
+def _built_function(name: str) -> FunctionSystem:
+    return _FUNCTIONS[name]()
+
+
 def _register_module(name: str, module: ModuleType) -> None:
     register_system(name, module.default_config, module.TASKS)
 
@@ -55,10 +87,12 @@ for _name, _module in (("pendulum", pendulum), ("cartpole", cartpole), ("fish", 
 register_family(
     "swimmer<N> (N >= 2, e.g. swimmer6)", r"^swimmer(\d+)$", swimmer.default_config, swimmer.TASKS
 )
+for _name, _module in (("lorenz", lorenz), ("f8", f8)):
+    register_function_system(_name, _module.make_system, _module.TASKS)
 
 
 def system_names() -> tuple[str, ...]:
-    return tuple(_SYSTEMS) + tuple(_FAMILIES) + ("mjcf",)
+    return tuple(_SYSTEMS) + tuple(_FAMILIES) + tuple(_FUNCTIONS) + ("mjcf", USER_FUNCTION)
 
 
 def task_presets() -> dict[str, TaskPreset]:
@@ -77,6 +111,8 @@ def default_config(name: str) -> SystemDefaults:
     """Defaults of a registered system; raises ConfigError for an unknown name."""
     if name in _SYSTEMS:
         return _SYSTEMS[name]()
+    if is_function_system(name):
+        raise ConfigError("system.name", f"{name!r} is a function black box, not a MuJoCo model")
     for pattern, make in _FAMILIES.values():
         match = pattern.match(name)
         if match and int(match.group(1)) >= 2:
@@ -136,12 +172,15 @@ def from_mjcf(
     timestep: float | None = None,
     native_threads: int | None = None,
     mesh: Mesh | None = None,
+    model_copy: str | None = None,
 ) -> System:
     """Build a system from the user's MJCF file (includes and meshes resolved next to it).
     ``auto`` picks ``native``: it runs every MuJoCo feature and won on 2 cores for all but
-    the smallest models we measured."""
-    if not os.path.isfile(path):
-        raise ConfigError("system.mjcf_path", f"no such file {path!r}; give a path to an MJCF .xml")
+    the smallest models we measured. ``model_copy``: a compiled copy of the model (a run
+    folder's ``model.mjb``) to simulate instead of the file, which then need not exist."""
+    field = "system.mjcf_path" if model_copy is None else "system.model_copy"
+    if not os.path.isfile(model_copy or path):
+        raise ConfigError(field, f"no such file {model_copy or path!r}; give a path to an MJCF .xml")
     name = os.path.splitext(os.path.basename(path))[0]
     return build_system(
         name,
@@ -150,7 +189,7 @@ def from_mjcf(
         "native" if backend == "auto" else backend,
         timestep,
         native_threads,
-        field="system.mjcf_path",
-        path=path,
+        field=field,
+        path=model_copy or path,
         mesh=mesh,
     )

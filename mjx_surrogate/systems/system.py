@@ -68,6 +68,21 @@ class System:
         return float(self.mj_model.opt.timestep) * self.substeps
 
     @property
+    def state_labels(self) -> tuple[str, ...]:
+        """Names of the state coordinates [qpos, qvel, act] from the model's joints."""
+        return tuple(state_labels(self.mj_model))
+
+    @property
+    def control_labels(self) -> tuple[str, ...]:
+        m = self.mj_model
+        return tuple(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or f"u{i}" for i in range(m.nu))
+
+    @property
+    def angle_pairs(self) -> tuple[tuple[int, int], ...]:
+        """(angle, angular velocity) state indices of every hinge joint."""
+        return tuple(hinge_state_indices(self.mj_model))
+
+    @property
     def compiler_options(self) -> dict | None:
         """XLA options for a solve's programs on this system. Native-backend programs hold a
         host callback, which JAX's persistent cache never keeps, so they compile on every
@@ -167,8 +182,18 @@ def compile_mjcf(
     it), disabling the constraint solver where nothing can be constrained. A model without
     actuators is refused unless ``need_controls`` is false (``inspect`` describes any model).
 
-    Returns the model and the exact MJCF that was compiled (after the option changes).
+    Returns the model and the exact MJCF that was compiled (after the option changes). A
+    ``path`` ending in ``.mjb`` is a compiled model as a run folder keeps it
+    (``model.mjb``: meshes included), loaded as it is; its MJCF text is "".
     """
+    if path is not None and path.endswith(".mjb"):
+        try:
+            model = mujoco.MjModel.from_binary_path(path)
+        except Exception as exc:
+            raise ConfigError(field, f"invalid MJB file ({' '.join(str(exc).split())})") from None
+        if timestep is not None:
+            model.opt.timestep = timestep
+        return model, ""
     try:
         spec = mujoco.MjSpec.from_file(path) if path is not None else mujoco.MjSpec.from_string(xml)
         if timestep is not None:
