@@ -91,3 +91,28 @@ def test_function_systems_command_line_runs_as_written_and_replays(tmp_path, mon
     assert cli.main([replay, "--out", "runs"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: system.source_sha256: ")
+
+
+@pytest.mark.slow
+def test_function_systems_module_runs_predict_and_control_from_the_command_line(
+    tmp_path, monkeypatch, capsys
+):
+    """The page's NumPy module through the host callback, at tiny sizes: the prediction
+    study and the surrogate-based controllers judged on the black box finish."""
+    from experiments import run as cli
+
+    text = open(os.path.join(ROOT, "docs", "function_systems.md")).read()
+    module = next(b for b in re.findall(r"```python\n(.*?)```", text, flags=re.S) if b.startswith("# my_"))
+    (command,) = re.findall(r"```bash\n(.*?)```", text, flags=re.S)
+    argv = shlex.split(command.replace("\\\n", " "))[3:]
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "my_pendulum.py").write_text(module)
+    tiny = ["--data.n_traj", "40", "--surrogate.mlp.epochs", "2", "--data.levels", "0.1", "--out", "runs"]
+    tiny += ["--surrogate.sindy.libraries", "cubic_trig"]
+    for kind in ("predict", "control"):
+        kind_argv = [a if a != "d2c" else kind for a in argv]
+        assert cli.main(kind_argv + tiny + ["--experiment.name", kind]) == 0, kind
+        (folder,) = glob.glob(f"runs/*_{kind}")
+        metrics = json.load(open(os.path.join(folder, "metrics.json")))
+        assert metrics["status"] in ("converged", "stalled"), metrics["status"]
+        assert metrics["optimum" if kind == "predict" else "d2c"]["goal"]["reached"]
