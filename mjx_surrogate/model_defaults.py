@@ -118,7 +118,10 @@ def hold_controls(m: mujoco.MjModel, x: np.ndarray, u_min: np.ndarray, u_max: np
     free = copy.copy(m)  # force limits off: the force is then exactly affine in the control
     free.actuator_forcelimited[:] = 0
     d = _data_at(free, x)
-    centre = np.clip(np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0), lo, hi)
+    bounded = np.isfinite(lo) & np.isfinite(hi)
+    centre = np.clip(
+        np.where(bounded, 0.5 * (np.where(bounded, lo, 0.0) + np.where(bounded, hi, 0.0)), 0.0), lo, hi
+    )
     step = 1e-4 * np.maximum(half_ranges(lo, hi), 1e-12)
 
     def forces(u: np.ndarray) -> np.ndarray:
@@ -138,7 +141,7 @@ def hold_controls(m: mujoco.MjModel, x: np.ndarray, u_min: np.ndarray, u_max: np
     ridge = 1e-6 * scale  # picks the control nearest 0 along directions that move nothing
     A = np.vstack([G, ridge * np.eye(m.nu)])
     b = np.concatenate([tau - f0 + G @ centre, ridge * nearest0])
-    u = lsq_linear(A, b, bounds=(lo, hi), method="bvls" if np.all(np.isfinite(lo + hi)) else "trf").x
+    u = lsq_linear(A, b, bounds=(lo, hi), method="bvls" if np.all(bounded) else "trf").x
     return np.clip(np.where(direct, u, nearest0), lo, hi)
 
 
