@@ -39,7 +39,14 @@ def systems():
 
 # The longest tests first, so that with two xdist workers none of them starts last and
 # leaves one worker idle at the end (the order is otherwise unchanged).
-_LONGEST_FIRST = ("test_reproduce.py", "test_sharding.py", "test_docs.py", "test_thirdparty.py")
+_LONGEST_FIRST = (
+    "test_reproduce.py",
+    "test_sharding.py",
+    "test_docs.py",
+    "test_thirdparty.py",
+    "test_function_cli.py",
+    "test_notebook.py",
+)
 
 
 def pytest_collection_modifyitems(config, items):
