@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import chunked, pipeline, plots, progress, sysid
+from mjx_surrogate import chunked, pipeline, plots, progress, sysid, sysid_reduced
 from mjx_surrogate.d2c import exact_linearize
 from mjx_surrogate.evaluation import evaluate_feedback
 from mjx_surrogate.linalg import ltv_relative_error
@@ -22,11 +22,19 @@ from mjx_surrogate.systems.system import actuated_state_indices
 
 def ltv_error(system, X, U, K, key, sid_params, jacobians: str = "jacfwd") -> dict:
     """Relative Frobenius error of the LTV estimate [A B] against the oracle's Jacobians
-    (jacfwd through MJX, or coordinate central differences), per t."""
-    A, B = jax.jit(sysid.ltv_linearize(system, sid_params))(X, U, K, key)
+    (jacfwd through MJX, or coordinate central differences), per t; a reduced model is
+    compared with the Jacobians projected on its basis, V_{t+1}' [A_t B_t] (V_t 0; I)."""
+    model = jax.jit(sysid.ltv_linearize(system, sid_params))(X, U, K, key)
     Ae, Be = jax.jit(exact_linearize(system, jacobians))(X, U, K, key)
+    out = {"scheme": sid_params.scheme}
+    if len(model) == 3:
+        A, B, V = model
+        Ae, Be = jax.jit(sysid_reduced.project_model)(Ae, Be, V)
+        out["basis_rank"] = [int(r) for r in sysid_reduced.basis_rank(V)]
+    else:
+        A, B = model
     rel = np.asarray(ltv_relative_error(A, B, Ae, Be))
-    return {"median": float(np.median(rel)), "max": float(np.max(rel)), "scheme": sid_params.scheme}
+    return {"median": float(np.median(rel)), "max": float(np.max(rel)), **out}
 
 
 def _names(prefix: str) -> tuple[str, str, str]:
@@ -87,7 +95,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     X_d2c, U_d2c, K_d2c = (jnp.asarray(a_d2c[k]) for k in ("d2c_X", "d2c_U", "d2c_K"))
     U0 = jnp.asarray(a_d2c["d2c_U0"])
     d2c_hist = a_d2c["d2c_cost_history"][: m_d2c["iterations"] + 1]
-    per_id = pipeline.steps_per_identification(sid_params, task.T)
+    per_id = pipeline.steps_per_identification(sid_params, task.T, task.u_min.shape[-1])
     n_it = m_d2c["iterations"]
     curve = pipeline.simulation_curve(a_d2c["d2c_identified"], n_it, task.T, sc.n_alphas, *per_id)
     record.figure(

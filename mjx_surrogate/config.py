@@ -29,7 +29,8 @@ class SystemConfig:
     """Which black box to simulate and how.
 
     name: a registered system (pendulum, cartpole, fish, swimmerN; the function black
-      boxes lorenz, f8), "mjcf" (the user's MJCF file) or "python" (the user's function).
+      boxes lorenz, f8, and the PDEs burgersN, allen_cahnN, allen_cahn2dN on N cells per
+      side), "mjcf" (the user's MJCF file) or "python" (the user's function).
     mjcf_path: the user's MJCF file, with name="mjcf".
     model_copy: a compiled copy of that model (a run folder's model.mjb), simulated instead
       of the file at mjcf_path, which may have changed since; a replay sets it.
@@ -123,8 +124,12 @@ class SolverConfig:
     sysid: a registered identification scheme: "central_difference" (D2C 2.0 one-step
     scheme), "forward_difference" (one-sided, half the simulator calls, first-order
     accurate), "rollout" (the paper's open-loop perturbed rollouts), "closed_loop"
-    (perturbed rollouts under the current feedback gains), or one registered with
+    (perturbed rollouts under the current feedback gains), "reduced" (RO-D2C for
+    black boxes with many states, e.g. PDEs: a snapshot basis of n_samples rollouts and
+    central differences in it, ``mjx_surrogate.sysid_reduced``), or one registered with
     ``mjx_surrogate.sysid.register_scheme``.
+    sysid_rank_tol: with sysid="reduced", the fraction of the snapshots' energy the basis
+    may leave out (its rank is at most n_samples).
     sysid_every: with a one-step scheme, identify only every k-th time step (and the
     last) and interpolate linearly between (``mjx_surrogate.sysid_knots``).
     sysid_design: a one-step scheme's perturbations: "gaussian" (D2C 2.0: i.i.d.
@@ -158,12 +163,13 @@ class SolverConfig:
     sysid_refine_tol: float = _ILQR.refine_tol  # sysid_every > 1: every step once a step gains <= this
     reuse_tol: float = _ILQR.reuse_tol  # carry the model over when |ratio - 1| <= this
     reuse_max: int = _ILQR.reuse_max  # ... at most this many iterations in a row
-    n_samples: Optional[int] = None  # None: max(20, 2 (nx + nu))
+    n_samples: Optional[int] = None  # None: max(20, 2 (nx + nu)); reduced: min(nx, max(16, 4 nu))
     sigma_x: Optional[float] = None  # None: model_defaults.default_sigma
     sigma_u: Optional[float] = None
     sysid_noise_floor: Optional[float] = None  # zero entries below c eps |x| / sigma (None: model_defaults)
     sysid_perturb_x0: Optional[bool] = None  # one-step schemes perturb the given start (None: model_defaults)
     sysid_significance: float = 0.0  # zero identified coefficients with |t| <= this (0: off)
+    sysid_rank_tol: float = _SYSID.rank_tol  # reduced scheme: energy the snapshot basis leaves out
     init: Optional[Literal["zeros", "random", "u_ref", "hold"]] = None  # None: model_defaults.default_init
     init_scale: float = 0.1
     n_starts: int = 1
@@ -517,6 +523,7 @@ def validate_static(cfg: Config) -> None:
         "solver.mu_raise_alpha": s.mu_raise_alpha,
         "solver.sysid_noise_floor": 0.0 if s.sysid_noise_floor is None else s.sysid_noise_floor,
         "solver.sysid_significance": s.sysid_significance,
+        "solver.sysid_rank_tol": s.sysid_rank_tol,
     }.items():
         if not (math.isfinite(v) and v >= 0):
             raise ConfigError(field, f"must be a finite number >= 0, got {v}")
@@ -638,6 +645,14 @@ def _check_registered(cfg: Config) -> None:
         raise ConfigError(
             "solver.sysid_significance",
             f"needs a scheme with a t-test ({tested}); {cfg.solver.sysid!r} has none: give 0",
+        )
+    if cfg.solver.sysid_rank_tol >= 1:
+        raise ConfigError("solver.sysid_rank_tol", f"must be in [0, 1), got {cfg.solver.sysid_rank_tol}")
+    if cfg.solver.sysid_rank_tol != _SYSID.rank_tol and not scheme.reduced:
+        reduced = ", ".join(n for n, s in SCHEMES.items() if s.reduced)
+        raise ConfigError(
+            "solver.sysid_rank_tol",
+            f"only a reduced scheme ({reduced}) has a basis; {cfg.solver.sysid!r} has none",
         )
     if cfg.solver.sysid_design != "gaussian" and not scheme.one_step:
         raise ConfigError(

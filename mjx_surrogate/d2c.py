@@ -19,7 +19,10 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from mjx_surrogate import sharding
+from mjx_surrogate import (
+    sharding,
+    sysid_reduced,  # noqa: F401  (registers the "reduced" scheme)
+)
 from mjx_surrogate import sysid as sid
 from mjx_surrogate.ilqr import (
     ClosedLoopFn,
@@ -52,8 +55,9 @@ def problem(system: System, task: Task, sysid: sid.SysIdParams, method: str) -> 
     """The iLQR problem of one solve: "d2c" on the black box (LTV models, the backend's own
     line-search rollouts), "exact" on the MJX step with ``jax.jacfwd`` Jacobians, or
     "finite_difference" on the black box with coordinate central differences."""
-    fine = None
+    fine, rank = None, None
     if method == "d2c":
+        rank = sysid.n_samples if sid.get_scheme(sysid.scheme).reduced else None
         step, linearize, closed = system.step, sid.ltv_linearize(system, sysid), system.closed_loop
         if (fine_sysid := sid.fine_params(sysid)) is not None:  # every k-th step, then every step
             fine = sid.ltv_linearize(system, fine_sysid)
@@ -63,7 +67,8 @@ def problem(system: System, task: Task, sysid: sid.SysIdParams, method: str) -> 
         step, linearize, closed = system.exact_step, exact_linearize(system), None
     if system.mesh is not None:
         closed = sharded_trials(step, closed, system.mesh)
-    return Problem(step, linearize, task_cost(task), task.x0, task.u_min, task.u_max, closed, fine)
+    cost = task_cost(task)
+    return Problem(step, linearize, cost, task.x0, task.u_min, task.u_max, closed, fine, rank)
 
 
 def _solve(

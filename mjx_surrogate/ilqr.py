@@ -5,6 +5,10 @@ The solver sees only functions:
 * ``step(x[nx], u[nu]) -> x_next[nx]``: the (black-box) dynamics, used by the forward pass;
 * ``linearize(X[T+1, nx], U[T, nu], K[T, nu, nx], key) -> (A[T, nx, nx], B[T, nx, nu])``:
   the local LTV model of the nominal (exact Jacobians, LTV least squares, a surrogate...);
+  or, with ``Problem.model_rank`` r, a reduced model (A[T, r, r], B[T, r, nu], V[T+1, nx,
+  r]) in the coordinates alpha_t = V_t' (x_t - x_bar_t) (:mod:`mjx_surrogate.sysid_reduced`):
+  the backward pass then runs on the cost's derivatives projected on V_t, and the gains
+  K_t V_t' act on the full state;
 * ``cost``: :class:`Cost`, running ``l(x, u)`` and terminal ``l_f(x)``.
 
 Backward pass: :func:`mjx_surrogate.riccati.backward_pass` (the Riccati sweep on the LTV
@@ -202,7 +206,8 @@ class Problem(NamedTuple):
     x0 [nx]; u_min, u_max [nu]. ``trial_rollouts`` replaces the default line-search
     forward pass (``closed_loop`` over ``step``, vmapped over the step sizes) with one call
     for all step sizes: the native backend makes one host call per iteration with it instead
-    of one per time step. ``linearize_fine``: the every-step model a coarse one hands over to."""
+    of one per time step. ``linearize_fine``: the every-step model a coarse one hands over to.
+    ``model_rank``: None for a full-order model, r for a reduced one (module docstring)."""
 
     step: StepFn
     linearize: LinearizeFn
@@ -212,10 +217,12 @@ class Problem(NamedTuple):
     u_max: jax.Array
     trial_rollouts: ClosedLoopFn | None = None
     linearize_fine: LinearizeFn | None = None
+    model_rank: int | None = None
 
 
 class ILQRState(NamedTuple):
-    """The loop's carry: nominal X [T+1, nx], U [T, nu], gains, model [A B], schedules."""
+    """The loop's carry: nominal X [T+1, nx], U [T, nu], gains, model [A B] (in the basis V
+    [T+1, nx, r] of a reduced model; V is empty for a full-order one), schedules."""
 
     X: jax.Array
     U: jax.Array
@@ -223,6 +230,7 @@ class ILQRState(NamedTuple):
     k: jax.Array
     A: jax.Array
     B: jax.Array
+    V: jax.Array
     J: jax.Array
     mu: jax.Array
     it: jax.Array
@@ -258,6 +266,37 @@ def secant_update(A: jax.Array, B: jax.Array, dX: jax.Array, dU: jax.Array) -> t
     return W[..., :nx], W[..., nx:]
 
 
+def model_coordinates(V: jax.Array, dX: jax.Array) -> jax.Array:
+    """dX [T+1, nx] in the model's coordinates: V_t' dX_t [T+1, r] (dX itself when V is
+    empty: a full-order model)."""
+    return dX if V.size == 0 else jnp.einsum("tn,tnr->tr", dX, V)
+
+
+def reduced_expansion(derivs: tuple, V: jax.Array) -> tuple:
+    """The cost's derivatives (:func:`cost_derivatives`) in the coordinates of the basis V
+    [T+1, nx, r]: l_x V_t, V_t' l_xx V_t, l_ux V_t, V_T' V_x, V_T' V_xx V_T (unchanged when V
+    is empty)."""
+    if V.size == 0:
+        return derivs
+    lx, lu, lxx, luu, lux, VxT, VxxT = derivs
+    W, WT = V[:-1], V[-1]
+    lxx_r = jnp.einsum("tnr,tnm,tms->trs", W, lxx, W)
+    return (
+        jnp.einsum("tn,tnr->tr", lx, W),
+        lu,
+        lxx_r,
+        luu,
+        jnp.einsum("tkn,tnr->tkr", lux, W),
+        WT.T @ VxT,
+        WT.T @ VxxT @ WT,
+    )
+
+
+def full_gains(K: jax.Array, V: jax.Array) -> jax.Array:
+    """Gains K [T, nu, r] on the model's coordinates as gains on the state: K_t V_t'."""
+    return K if V.size == 0 else jnp.einsum("tkr,tnr->tkn", K, V[:-1])
+
+
 def _zero_expansion(cost: Cost, X: jax.Array, U: jax.Array) -> tuple:
     """Zeros in the shapes of :func:`cost_derivatives` at X, U (nothing evaluated)."""
     shapes = jax.eval_shape(lambda X, U: cost_derivatives(cost, X, U), X, U)
@@ -271,6 +310,8 @@ def ilqr_init(problem: Problem, U0: jax.Array, params: ILQRParams, key: jax.Arra
     nx = x0.shape[0]
     dtype = x0.dtype
     U0 = jnp.clip(U0.astype(dtype), u_min, u_max)
+    r = nx if problem.model_rank is None else problem.model_rank
+    V = jnp.zeros((0,) if problem.model_rank is None else (T + 1, nx, r), dtype)
     zeros_K = jnp.zeros((T, nu, nx), dtype)
     zeros_x = jnp.zeros((T + 1, nx), dtype)
     zeros_u = jnp.zeros((T, nu), dtype)
@@ -292,8 +333,9 @@ def ilqr_init(problem: Problem, U0: jax.Array, params: ILQRParams, key: jax.Arra
         U=U0,
         K=zeros_K,
         k=jnp.zeros((T, nu), dtype),
-        A=jnp.zeros((T, nx, nx), dtype),
-        B=jnp.zeros((T, nx, nu), dtype),
+        A=jnp.zeros((T, r, r), dtype),
+        B=jnp.zeros((T, r, nu), dtype),
+        V=V,
         J=J0,
         mu=jnp.asarray(params.mu_init, dtype),
         it=jnp.asarray(0),
@@ -328,25 +370,33 @@ def _iteration(problem: Problem, p: ILQRParams, progress, s: ILQRState) -> ILQRS
     identify = (s.fresh & ~s.reuse_ok) | (~s.fresh & s.stale) | (s.fine & ~s.fine_model)
     update = s.fresh & s.reuse_ok & ~identify
 
+    def with_basis(model):  # (A, B) of a full-order model, (A, B, V) of a reduced one
+        return tuple(model) if problem.model_rank is not None else (*model, s.V)
+
     def identified_model():
         if linearize_fine is None:
-            return linearize(s.X, s.U, s.K, sub)
+            return with_basis(linearize(s.X, s.U, s.K, sub))
         return jax.lax.cond(
-            s.fine, lambda: linearize_fine(s.X, s.U, s.K, sub), lambda: linearize(s.X, s.U, s.K, sub)
+            s.fine,
+            lambda: with_basis(linearize_fine(s.X, s.U, s.K, sub)),
+            lambda: with_basis(linearize(s.X, s.U, s.K, sub)),
         )
 
-    A, B = jax.lax.cond(
+    def carried_model():
+        dX = model_coordinates(s.V, s.X - s.X_model)
+        return (*secant_update(s.A, s.B, dX, s.U - s.U_model), s.V)
+
+    A, B, V = jax.lax.cond(
         identify,
         identified_model,
-        lambda: jax.lax.cond(
-            update, lambda: secant_update(s.A, s.B, s.X - s.X_model, s.U - s.U_model), lambda: (s.A, s.B)
-        ),
+        lambda: jax.lax.cond(update, carried_model, lambda: (s.A, s.B, s.V)),
     )
     stale = ~identify & (update | s.stale)
     fine_model = jnp.where(identify, s.fine, s.fine_model)
     reused = jnp.where(identify, 0, s.reused + update)
     derivs = cost_derivatives(cost, s.X, s.U)
-    k, K, dV, ok, reg = backward_pass(A, B, *derivs, s.U, u_min, u_max, s.mu)
+    k, K, dV, ok, reg = backward_pass(A, B, *reduced_expansion(derivs, V), s.U, u_min, u_max, s.mu)
+    K = full_gains(K, V)
     if problem.trial_rollouts is None:
         Xa, Ua = feedback_rollouts(step, x0, s.X, s.U, K, alphas[:, None, None] * k[None], u_min, u_max)
     else:
@@ -418,6 +468,7 @@ def _iteration(problem: Problem, p: ILQRParams, progress, s: ILQRState) -> ILQRS
         k=jnp.where(any_acc, k, s.k),
         A=A,
         B=B,
+        V=V,
         J=J,
         mu=mu,
         it=it,
@@ -477,8 +528,9 @@ def final_gains(problem: Problem, s: ILQRState, p: ILQRParams) -> jax.Array:
 
     def gains(c):  # the loop holds the one call site, so the sweep is compiled once
         mu = jnp.where(c[0] < 0, 0.0, jnp.maximum(c[0] * p.mu_factor, p.mu_min))
-        K, ok = tvlqr_gains(s.A, s.B, *s.expansion, s.U_model, problem.u_min, problem.u_max, mu)
-        return mu, K, ok
+        expansion = reduced_expansion(s.expansion, s.V)
+        K, ok = tvlqr_gains(s.A, s.B, *expansion, s.U_model, problem.u_min, problem.u_max, mu)
+        return mu, full_gains(K, s.V), ok
 
     start = (-jnp.ones((), s.X.dtype), s.K, jnp.array(False))
     _, K, ok = jax.lax.while_loop(lambda c: ~c[2] & (c[0] <= p.mu_max), gains, start)

@@ -30,8 +30,11 @@ USER_SYSTEMS = ("mjcf", "python")  # a user's MJCF model, a user's function blac
 FUNCTION_SYSTEMS = ("lorenz", "f8", "python")  # black boxes given as functions
 
 
-def default_n_samples(nx: int, nu: int) -> int:
-    """Identification samples per time step when solver.n_samples is unset."""
+def default_n_samples(nx: int, nu: int, reduced: bool = False) -> int:
+    """Identification samples per time step when solver.n_samples is unset; for a reduced
+    scheme the snapshot rollouts (the basis's largest rank), min(nx, max(16, 4 nu))."""
+    if reduced:
+        return min(nx, max(16, 4 * nu))
     return max(20, 2 * (nx + nu))
 
 
@@ -66,8 +69,10 @@ def default_perturb_x0(system_name: str) -> bool:
 
 def default_x64(system_name: str) -> bool:
     """experiment.x64 when unset: float64 for a user's model and every function black box
-    (a step costs microseconds), float32 for the registered MuJoCo systems."""
-    return system_name in USER_SYSTEMS + FUNCTION_SYSTEMS
+    (lorenz, f8, the PDEs), float32 for the registered MuJoCo systems."""
+    from mjx_surrogate.systems.registry import is_function_system
+
+    return system_name in USER_SYSTEMS + FUNCTION_SYSTEMS or is_function_system(system_name)
 
 
 def default_init(system_name: str) -> str:

@@ -125,11 +125,12 @@ def simulation_curve(
     return T + np.concatenate([[0], np.cumsum(n_alphas * T + per)])
 
 
-def steps_per_identification(sysid: sid.SysIdParams, T: int) -> tuple[int, int]:
+def steps_per_identification(sysid: sid.SysIdParams, T: int, nu: int = 0) -> tuple[int, int]:
     """Control steps of one identification of the D2C solve's coarse and fine models
-    (equal unless ``sysid.every`` > 1: then every k-th step first, every step near the end)."""
+    (equal unless ``sysid.every`` > 1: then every k-th step first, every step near the end);
+    nu: the controls (a reduced scheme's one-step samples count them)."""
     fine = sid.fine_params(sysid) or sysid
-    return sid.steps_per_identification(sysid, T), sid.steps_per_identification(fine, T)
+    return sid.steps_per_identification(sysid, T, nu), sid.steps_per_identification(fine, T, nu)
 
 
 def simulation_metrics(result: ILQRResult, T: int, n_alphas: int, sysid: sid.SysIdParams) -> dict:
@@ -137,7 +138,11 @@ def simulation_metrics(result: ILQRResult, T: int, n_alphas: int, sysid: sid.Sys
     simulated until the cost first came within 1 % and 0.1 % of the solve's final cost
     (machine-independent effort; None if the final cost is not finite)."""
     curve = simulation_curve(
-        result.identified, result.iterations, T, n_alphas, *steps_per_identification(sysid, T)
+        result.identified,
+        result.iterations,
+        T,
+        n_alphas,
+        *steps_per_identification(sysid, T, result.U.shape[-1]),
     )
     J = np.asarray(result.cost_history)[: curve.size]
     to = {}

@@ -25,7 +25,7 @@ from mjx_surrogate.model_defaults import (
     default_sigma,
 )
 from mjx_surrogate.surrogates.registry import get_surrogate, library_specs
-from mjx_surrogate.sysid import SysIdParams
+from mjx_surrogate.sysid import SysIdParams, get_scheme
 from mjx_surrogate.systems import FunctionSystem, System, from_mjcf, make_system
 from mjx_surrogate.systems.entry import entry_source, load_entry, source_digest
 from mjx_surrogate.systems.registry import (
@@ -244,6 +244,7 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
         design=s.sysid_design,
         noise_floor=s.sysid_noise_floor or 0.0,
         significance=s.sysid_significance or 0.0,
+        rank_tol=s.sysid_rank_tol,
         perturb_x0=True if s.sysid_perturb_x0 is None else s.sysid_perturb_x0,
     )
     return ilqr, sysid
@@ -266,7 +267,8 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     system = build_system_from_config(cfg.system, mesh)
     tc, task = resolve_task(cfg.task, system)
     kind = cfg.experiment.kind
-    n_samples = cfg.solver.n_samples or default_n_samples(system.nx, system.nu)
+    reduced = get_scheme(cfg.solver.sysid).reduced
+    n_samples = cfg.solver.n_samples or default_n_samples(system.nx, system.nu, reduced)
     if kind == "horizon" and cfg.data.n_traj < system.nx + system.nu:
         raise ConfigError(
             "data.n_traj",
@@ -274,7 +276,13 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
             f"got {cfg.data.n_traj}",
         )
     if kind in ("d2c", "control", "predict", "analysis", "horizon"):
-        if n_samples < system.nx + system.nu:
+        if reduced and not 1 <= n_samples <= system.nx:
+            raise ConfigError(
+                "solver.n_samples",
+                f"the reduced scheme's snapshots (its largest rank) must be between 1 and nx = {system.nx}, "
+                f"got {n_samples}",
+            )
+        if not reduced and n_samples < system.nx + system.nu:
             raise ConfigError(
                 "solver.n_samples",
                 f"must be >= nx + nu = {system.nx + system.nu} "

@@ -57,6 +57,7 @@ class SysIdParams:
     noise_floor: float = struct.field(pytree_node=False, default=0.0)  # see :func:`below_resolution`
     perturb_x0: bool = struct.field(pytree_node=False, default=True)  # one-step schemes, t = 0
     significance: float = struct.field(pytree_node=False, default=0.0)  # t_min, sysid_significance
+    rank_tol: float = 1e-8  # reduced scheme: energy left out of the snapshot basis (sysid_reduced)
 
 
 def normal_equations(
@@ -286,11 +287,15 @@ class IdentificationScheme(NamedTuple):
 
     make_linearize(system, params) -> linearize(X, U, K, key) -> (A, B): the iLQR's
       ``linearize`` hook; ``system`` offers ``step`` (batched under vmap) and ``rollout``.
-    simulated_steps(T, n_samples) -> control steps simulated by one identification.
+    simulated_steps(T, n_samples) -> control steps simulated by one identification
+      (a reduced scheme: simulated_steps(T, n_samples, nu)).
     one_step: identifies each t from one-step simulations alone (then ``every`` > 1 may
       skip steps, :mod:`mjx_surrogate.sysid_knots`).
     t_test: applies ``SysIdParams.significance`` (a least-squares scheme does through
       ``_statistics`` and ``_fit``).
+    reduced: identifies in a basis of ``n_samples`` columns per step: linearize returns
+      (A [T, n, n], B [T, n, nu], V [T+1, nx, n]) (:mod:`mjx_surrogate.sysid_reduced`), and
+      n_samples is that largest rank, not a sample count >= nx + nu.
     """
 
     make_linearize: Callable[[Any, SysIdParams], LinearizeFn]
@@ -298,6 +303,7 @@ class IdentificationScheme(NamedTuple):
     description: str = ""
     one_step: bool = False
     t_test: bool = False
+    reduced: bool = False
 
 
 SCHEMES: dict[str, IdentificationScheme] = {}
@@ -324,8 +330,9 @@ def ltv_linearize(system, p: SysIdParams) -> LinearizeFn:
     ``p.every``-th step and interpolated between (one-step schemes); with
     ``p.noise_floor`` > 0, entries below the difference quotients' resolution are zero
     (:func:`below_resolution`)."""
-    linearize = sysid_knots.at_knots(get_scheme(p.scheme).make_linearize(system, p), p.every)
-    if p.noise_floor == 0:
+    scheme = get_scheme(p.scheme)
+    linearize = sysid_knots.at_knots(scheme.make_linearize(system, p), p.every)
+    if p.noise_floor == 0 or scheme.reduced:
         return linearize
 
     def floored(X, U, K, key):
@@ -356,11 +363,14 @@ def fine_params(p: SysIdParams) -> SysIdParams | None:
     return p.replace(every=1) if p.every > 1 else None
 
 
-def steps_per_identification(p: SysIdParams, T: int) -> int:
-    """Control steps one identification of scheme ``p.scheme`` simulates on a horizon T."""
-    return get_scheme(p.scheme).simulated_steps(
-        sysid_knots.identifications_per_iteration(T, p.every), p.n_samples
-    )
+def steps_per_identification(p: SysIdParams, T: int, nu: int = 0) -> int:
+    """Control steps one identification of scheme ``p.scheme`` simulates on a horizon T
+    (a reduced scheme's count depends on nu, the number of controls, too)."""
+    scheme = get_scheme(p.scheme)
+    identified = sysid_knots.identifications_per_iteration(T, p.every)
+    if scheme.reduced:
+        return scheme.simulated_steps(identified, p.n_samples, nu)
+    return scheme.simulated_steps(identified, p.n_samples)
 
 
 register_scheme(

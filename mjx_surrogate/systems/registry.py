@@ -5,7 +5,9 @@ MJCF (``xml``), its ``default_config()`` and its task presets (``TASKS``). A new
 one such module plus one :func:`register_system` call (docs/extending.md); a family with a
 size in its name (``swimmer<N>``) is registered with a pattern. A black box that is a
 function (``lorenz.py``, ``f8.py``: ``make_system()`` and ``TASKS``) is registered with
-:func:`register_function_system`; a user's function is named by ``system.entry``
+:func:`register_function_system`, a family of them with a size in the name (the PDEs
+``burgers<N>``, ``allen_cahn<N>``, ``allen_cahn2d<N>``) with
+:func:`register_function_family`; a user's function is named by ``system.entry``
 (``system.name = "python"``, :mod:`.entry`).
 """
 
@@ -20,7 +22,7 @@ from typing import Callable
 from jax.sharding import Mesh
 
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.systems import cartpole, f8, fish, lorenz, pendulum, swimmer
+from mjx_surrogate.systems import allen_cahn, burgers, cartpole, f8, fish, lorenz, pendulum, swimmer
 from mjx_surrogate.systems.function import FunctionSystem
 from mjx_surrogate.systems.spec import SystemDefaults
 from mjx_surrogate.systems.system import System, build_system
@@ -30,6 +32,7 @@ _SYSTEMS: dict[str, Callable[[], SystemDefaults]] = {}
 _FAMILIES: dict[str, tuple[re.Pattern, Callable[[int], SystemDefaults]]] = {}
 _TASKS: dict[str, TaskPreset] = {}
 _FUNCTIONS: dict[str, Callable[[], FunctionSystem]] = {}
+_FUNCTION_FAMILIES: dict[str, tuple[re.Pattern, Callable[[int], FunctionSystem]]] = {}
 USER_FUNCTION = "python"  # system.name of a user's function, named by system.entry
 
 
@@ -60,22 +63,47 @@ def register_function_system(
     _TASKS.update(tasks or {})
 
 
+def register_function_family(
+    label: str,
+    pattern: str,
+    make: Callable[[int], FunctionSystem],
+    tasks: dict[str, TaskPreset] | None = None,
+) -> None:
+    """Register function black boxes with a size in their name (``pattern``: one integer
+    group, e.g. the grid of a PDE, ``burgers256``); ``make(size)`` builds one."""
+    _FUNCTION_FAMILIES[label] = (re.compile(pattern), make)
+    _TASKS.update(tasks or {})
+
+
+def _function_family(name: str) -> tuple[Callable[[int], FunctionSystem], int] | None:
+    for pattern, make in _FUNCTION_FAMILIES.values():
+        if m := pattern.match(name):
+            return make, int(m.group(1))
+    return None
+
+
 def is_function_system(name: str) -> bool:
     """Whether ``system.name`` names a function black box (registered, or the user's)."""
-    return name in _FUNCTIONS or name == USER_FUNCTION
+    return name in _FUNCTIONS or name == USER_FUNCTION or _function_family(name) is not None
 
 
 def make_function_system(name: str) -> FunctionSystem:
     """A registered function black box, built once per process (so that its jitted
     programs are reused)."""
-    if name not in _FUNCTIONS:
+    if name not in _FUNCTIONS and _function_family(name) is None:
         raise ConfigError("system.name", f"unknown system {name!r}; valid: {', '.join(system_names())}")
     return _built_function(name)
 
 
 @functools.lru_cache(maxsize=None)
 def _built_function(name: str) -> FunctionSystem:
-    return _FUNCTIONS[name]()
+    if name in _FUNCTIONS:
+        return _FUNCTIONS[name]()
+    make, size = _function_family(name)
+    try:
+        return make(size)
+    except ValueError as e:
+        raise ConfigError("system.name", str(e)) from None
 
 
 def _register_module(name: str, module: ModuleType) -> None:
@@ -89,10 +117,30 @@ register_family(
 )
 for _name, _module in (("lorenz", lorenz), ("f8", f8)):
     register_function_system(_name, _module.make_system, _module.TASKS)
+register_function_family(
+    "burgers<N> (N >= 8 cells, e.g. burgers64)", r"^burgers(\d+)$", burgers.make_system, burgers.TASKS
+)
+register_function_family(
+    "allen_cahn<N> (N >= 8 cells, e.g. allen_cahn64)",
+    r"^allen_cahn(\d+)$",
+    allen_cahn.make_system,
+    allen_cahn.TASKS,
+)
+register_function_family(
+    "allen_cahn2d<N> (N x N cells, N >= 8, e.g. allen_cahn2d16)",
+    r"^allen_cahn2d(\d+)$",
+    lambda n: allen_cahn.make_system(n, dims=2),
+)
 
 
 def system_names() -> tuple[str, ...]:
-    return tuple(_SYSTEMS) + tuple(_FAMILIES) + tuple(_FUNCTIONS) + ("mjcf", USER_FUNCTION)
+    return (
+        tuple(_SYSTEMS)
+        + tuple(_FAMILIES)
+        + tuple(_FUNCTIONS)
+        + tuple(_FUNCTION_FAMILIES)
+        + ("mjcf", USER_FUNCTION)
+    )
 
 
 def task_presets() -> dict[str, TaskPreset]:
