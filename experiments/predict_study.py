@@ -51,6 +51,11 @@ def level_stage(res: Resolved, X_star, U_star, level: float, i: int, key: jax.Ar
         t0 = time.perf_counter()
         steps["LTV"] = step_models.fit_ltv(train, X_star, U_star).step_t
         info["LTV"] = {"fit_s": time.perf_counter() - t0}
+        if cfg.surrogate.reduced_ltv_tol is not None:
+            t0 = time.perf_counter()
+            tol = cfg.surrogate.reduced_ltv_tol
+            steps["LTV reduced"] = step_models.fit_reduced_ltv(train, X_star, U_star, tol).step_t
+            info["LTV reduced"] = {"fit_s": time.perf_counter() - t0}
         meter.advance("prediction errors")
         per_model, arrays = {}, {}
         ok = np.asarray(jnp.isfinite(test.X).all((1, 2)))

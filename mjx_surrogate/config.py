@@ -228,18 +228,35 @@ class MLPConfig:
 
 
 @dataclasses.dataclass(frozen=True)
+class PodSindyConfig:
+    """SINDy on POD coefficients (surrogate kind "pod_sindy", for black boxes with many
+    states such as PDEs): the leading ``rank`` POD modes of the training states, one model
+    per library name (as surrogate.sindy.libraries; no trig terms) on [modes, u]."""
+
+    rank: int = 8
+    libraries: Tuple[str, ...] = ("poly1", "poly2")
+
+
+@dataclasses.dataclass(frozen=True)
 class SurrogateConfig:
     """Global surrogates fitted on the data sets (``mjx_surrogate.surrogates``).
 
-    kinds: registered surrogate kinds to fit, in order (built in: "sindy", "mlp").
+    kinds: registered surrogate kinds to fit, in order (built in: "sindy", "mlp",
+      "pod_sindy").
     increment: models predict x_{t+1} - x_t instead of x_{t+1}.
+    reduced_ltv_tol: the prediction study also fits the local LTV model in the data's own
+      snapshot basis per t (energy rule as solver.sysid_rank_tol), "LTV reduced": for black
+      boxes with many states, whose data around the optimum span few directions per t
+      (docs/pde.md); None: not fitted.
     One nested section per built-in kind.
     """
 
     kinds: Tuple[str, ...] = ("sindy", "mlp")
     increment: bool = False
+    reduced_ltv_tol: Optional[float] = None
     sindy: SindyConfig = SindyConfig()
     mlp: MLPConfig = MLPConfig()
+    pod_sindy: PodSindyConfig = PodSindyConfig()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -582,6 +599,9 @@ def validate_static(cfg: Config) -> None:
     }.items():
         if not (math.isfinite(v) and v >= 0):
             raise ConfigError(field, f"must be a finite number >= 0, got {v}")
+    tol = cfg.surrogate.reduced_ltv_tol
+    if tol is not None and not (math.isfinite(tol) and 0 <= tol < 1):
+        raise ConfigError("surrogate.reduced_ltv_tol", f"must be in [0, 1) (or unset), got {tol}")
     if mp.stop_window < 0:
         raise ConfigError(
             "surrogate.mlp.stop_window", f"must be >= 0 (0: no stopping test), got {mp.stop_window}"

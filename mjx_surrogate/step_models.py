@@ -45,6 +45,16 @@ def fit_ltv(data: Dataset, X_nom: jax.Array, U_nom: jax.Array) -> LTVModel:
     return LTVModel(X_nom, U_nom, A, B)
 
 
+def fit_reduced_ltv(data: Dataset, X_nom: jax.Array, U_nom: jax.Array, rank_tol: float) -> LTVModel:
+    """The local model of :func:`fit_ltv` identified in the data's own snapshot basis per t
+    (:func:`mjx_surrogate.sysid_reduced.fit_in_snapshot_basis`), returned in full order."""
+    from mjx_surrogate import sysid_reduced
+
+    ok = jnp.isfinite(data.X).all((1, 2))
+    A, B, V = sysid_reduced.fit_in_snapshot_basis((data.X - X_nom)[ok], (data.U - U_nom)[ok], rank_tol)
+    return LTVModel(X_nom, U_nom, *sysid_reduced.lift_model(A, B, V))
+
+
 def time_invariant(step: Callable[[jax.Array, jax.Array], jax.Array]) -> StepT:
     """Lift step(x, u) to the time-indexed interface."""
     return lambda t, x, u: step(x, u)

@@ -71,6 +71,21 @@ def project_model(A: jax.Array, B: jax.Array, V: jax.Array) -> tuple[jax.Array, 
     return jnp.einsum("tnr,tnm,tms->trs", V[1:], A, V[:-1]), jnp.einsum("tnr,tnk->trk", V[1:], B)
 
 
+def fit_in_snapshot_basis(
+    dX: jax.Array, dU: jax.Array, rank_tol: float
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """The LTV model of deviation trajectories dX [n, T+1, nx], dU [n, T, nu] in their own
+    per-t snapshot basis V (:func:`snapshot_basis`): the regression of alpha_{t+1} on
+    [alpha_t, du_t], alpha_t = V_t' dx_t; returns A [T, n, n], B [T, n, nu], V [T+1, nx, n].
+    Where the trajectories span fewer than nx directions at t (data around a nominal from a
+    fixed start span at most nu t), the full-order regression is rank-deficient; this one
+    is not."""
+    V = snapshot_basis(dX, rank_tol)
+    A, B = sid.fit_from_trajectories(project(V, dX), dU)
+    kept = jnp.any(V != 0, axis=-2).astype(A.dtype)  # [T+1, n]
+    return A * kept[:-1, None, :] * kept[1:, :, None], B * kept[1:, :, None], V
+
+
 def snapshots(
     rollout, X: jax.Array, U: jax.Array, key: jax.Array, n: int, sigma_u: float, mesh: Mesh | None = None
 ) -> jax.Array:

@@ -198,3 +198,21 @@ def test_the_burgers_preset_runs_reduced_from_the_command_line(tmp_path):
     assert m["ltv_relative_error"]["max"] < 1e-6
     per_iteration = 16 * 20 + 2 * (16 + 8) * 20 + 8 * 20  # snapshots, one-step, line search
     assert 20 + per_iteration <= m["d2c"]["simulated_steps"] <= 20 + m["d2c"]["iterations"] * per_iteration
+
+
+@pytest.mark.slow
+def test_the_burgers_predict_preset_runs_every_model_at_small_size(tmp_path):
+    """``burgers_predict`` on 32 cells at CI scale: every model predicts, the POD model
+    records its energy, and the LTV model in the snapshot basis stays finite."""
+    argv = ["burgers_predict", "--system.name", "burgers32", "--task.T", "20", "--data.n_traj", "50"]
+    argv += ["--data.levels", "0.05", "--surrogate.mlp.epochs", "2", "--surrogate.mlp.batch_size", "64"]
+    assert cli.main(argv + ["--out", str(tmp_path), "--experiment.name", "p"]) == 0
+    (folder,) = glob.glob(str(tmp_path / "*_p"))
+    res = json.load(open(os.path.join(folder, "metrics.json")))["results"]["0.05"]
+    want = {"SINDy poly2", "POD8-SINDy poly1", "POD8-SINDy poly2", "MLP", "LTV", "LTV reduced"}
+    assert want <= set(res), res
+    assert 0.9 < res["POD8-SINDy poly2"]["pod_energy"] <= 1.0
+    assert (
+        np.isfinite(res["LTV reduced"]["multi_step_median"])
+        and res["LTV reduced"]["multi_step_median"] < 1e-2
+    )

@@ -4,7 +4,7 @@ A surrogate kind fits global models of the dynamics from transitions and a key; 
 fitted model is a pytree with a jittable ``step(x [nx], u [nu]) -> x_next [nx]`` (the
 :class:`Surrogate` protocol), so prediction, analysis and control use it unchanged. A new
 kind is one module plus one :func:`register_surrogate` call (docs/extending.md). Kinds
-built in: ``sindy`` (one model per library) and ``mlp``.
+built in: ``sindy`` (one model per library), ``mlp`` and ``pod_sindy`` (SINDy on POD modes).
 """
 
 from __future__ import annotations
@@ -189,7 +189,58 @@ def _validate_mlp(config, system, n_train: int) -> None:
         )
 
 
+def _pod_specs(config, system) -> dict:
+    """surrogate.pod_sindy's libraries, parsed for rank + nu coordinates (ConfigError naming
+    the field on a bad name or rank)."""
+    from mjx_surrogate.surrogates import library
+
+    pc = config.surrogate.pod_sindy
+    if not 1 <= pc.rank <= system.nx:
+        raise ConfigError(
+            "surrogate.pod_sindy.rank", f"must be between 1 and nx = {system.nx}, got {pc.rank}"
+        )
+    out = {}
+    for i, name in enumerate(pc.libraries):
+        try:
+            spec = library.parse(name, (), 1)
+            library.validate(spec, pc.rank + system.nu)
+        except library.SpecError as exc:
+            raise ConfigError(f"surrogate.pod_sindy.libraries[{i}]", exc.message) from None
+        out[name] = spec
+    return out
+
+
+def _fit_pod_sindy(ctx: FitContext, train, test, key) -> dict[str, Fitted]:
+    from mjx_surrogate.surrogates import pod_sindy
+
+    s, pc = ctx.config.surrogate.sindy, ctx.config.surrogate.pod_sindy
+    out = {}
+    for name, spec in _pod_specs(ctx.config, ctx.system).items():
+        model, captured = pod_sindy.fit(
+            spec,
+            train.x,
+            train.u,
+            train.x_next,
+            pc.rank,
+            increment=ctx.config.surrogate.increment,
+            threshold=s.stlsq_threshold,
+            alpha=s.stlsq_alpha,
+            method=s.method,
+        )
+        info = {"n_features": int(model.reduced.coef.shape[0]), "rank": pc.rank, "pod_energy": captured}
+        out[f"POD{pc.rank}-SINDy {name}"] = Fitted(model, info)
+    return out
+
+
 register_surrogate(
     "sindy", SurrogateKind(_fit_sindy, _validate_sindy, "SINDy-style least squares, one model per library")
 )
 register_surrogate("mlp", SurrogateKind(_fit_mlp, _validate_mlp, "Flax MLP, the paper's"))
+register_surrogate(
+    "pod_sindy",
+    SurrogateKind(
+        _fit_pod_sindy,
+        lambda config, system, n_train: _pod_specs(config, system) and None,
+        "SINDy on the leading POD modes of the states (PDEs)",
+    ),
+)
