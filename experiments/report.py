@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 import shutil
 
-from experiments import report_control
+from experiments import report_control, report_pde
 from mjx_surrogate.results import read_json, versions
 
 
@@ -339,6 +339,7 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
         "paper's claim of combinatorial-exponential sample complexity does not hold.",
     )
     report_control.horizon_sections(L, folders, fig, _section, _verdict, _f)
+    report_pde.pde_sections(L, folders, fig, _section, _verdict, _f, _read)
     L += ["## Reading these results", ""]
     for name in ("pendulum_predict", "cartpole_predict", "fish_predict"):
         loc = _load(folders.get(name)).get("locality") or {}

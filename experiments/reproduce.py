@@ -32,6 +32,7 @@ from mjx_surrogate.config import ParallelConfig
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.results import SUCCESS
 from mjx_surrogate.runtime import backend_started, configure_runtime
+from mjx_surrogate.systems.registry import is_function_system
 
 EXPERIMENTS = (
     "pendulum_predict",
@@ -45,6 +46,8 @@ EXPERIMENTS = (
     "cartpole_horizon",
     "swimmer_horizon",
     "swimmer15_d2c",
+    "burgers_ro_d2c",
+    "burgers_predict",
 )
 
 
@@ -55,7 +58,7 @@ def quick(cfg, name: str):
     r = dataclasses.replace
     cfg = r(
         cfg,
-        system=r(cfg.system, backend="native"),
+        system=cfg.system if is_function_system(cfg.system.name) else r(cfg.system, backend="native"),
         solver=r(cfg.solver, max_iter=min(cfg.solver.max_iter, 40)),
         data=r(cfg.data, n_traj=min(cfg.data.n_traj, 40 if name.startswith("fish") else 60), n_seeds=1),
         surrogate=r(cfg.surrogate, mlp=r(cfg.surrogate.mlp, epochs=2, batch_size=64, checkpoints=())),
@@ -76,6 +79,8 @@ def quick(cfg, name: str):
     if name.endswith("_predict"):  # one SINDy library of the preset's
         sindy = cfg.surrogate.sindy
         cfg = r(cfg, surrogate=r(cfg.surrogate, sindy=r(sindy, libraries=sindy.libraries[:1])))
+    if name.startswith("burgers"):  # a coarser grid: 32 cells, nx + nu = 40
+        cfg = r(cfg, system=r(cfg.system, name="burgers32"), data=r(cfg.data, levels=(0.05, 0.6)))
     if name.endswith("_control"):  # the exact oracle's compile (~30 s) is left to full runs
         sindy = cfg.surrogate.sindy
         cfg = r(

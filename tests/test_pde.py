@@ -216,3 +216,38 @@ def test_the_burgers_predict_preset_runs_every_model_at_small_size(tmp_path):
         np.isfinite(res["LTV reduced"]["multi_step_median"])
         and res["LTV reduced"]["multi_step_median"] < 1e-2
     )
+
+
+SHARDED = """
+import dataclasses, json, sys
+import jax
+jax.config.update("jax_num_cpu_devices", 2)
+from mjx_surrogate.runtime import configure_runtime
+configure_runtime(x64=True, compile_cache=False)
+import jax.numpy as jnp, numpy as np
+from mjx_surrogate import d2c, sharding
+from mjx_surrogate.ilqr import ILQRParams
+from mjx_surrogate.sysid import SysIdParams
+from mjx_surrogate.systems import burgers
+from mjx_surrogate.tasks import make_task
+one = burgers.make_system(32)
+two = dataclasses.replace(one, mesh=sharding.device_mesh(2))
+task = make_task(**burgers.damp_fields(32, T=10))
+p = SysIdParams(scheme="reduced", n_samples=15)  # 15 rollouts and 23 one-step samples: padded
+U0, params = jnp.zeros((10, 8)), ILQRParams(max_iter=4)
+r1, r2 = (d2c.solve_d2c(s, task, U0, jax.random.key(0), params, p) for s in (one, two))
+print(json.dumps({"cost": [float(r1.cost), float(r2.cost)], "dX": float(jnp.max(jnp.abs(r1.X - r2.X))),
+                  "devices": len(two.mesh.devices.flat)}))
+"""
+
+
+@pytest.mark.slow
+def test_ro_d2c_spread_over_two_devices_gives_the_one_device_solve():
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", SHARDED], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    assert r["devices"] == 2 and r["dX"] < 1e-10
+    assert r["cost"][1] == pytest.approx(r["cost"][0], rel=1e-12)

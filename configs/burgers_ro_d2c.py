@@ -1,0 +1,12 @@
+"""Reduced-order D2C (RO-D2C) on the viscous Burgers equation on 1024 cells: the
+``burgers_damp`` task, 32 snapshot rollouts per identification, against the jacfwd oracle
+(docs/pde.md). About 90 s on 2 cores, most of it the oracle's full-order backward pass."""
+
+from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+
+CONFIG = Config(
+    system=SystemConfig(name="burgers1024"),
+    task=TaskConfig(preset="burgers_damp"),
+    solver=SolverConfig(sysid="reduced"),
+    experiment=ExperimentConfig(kind="d2c"),
+)
