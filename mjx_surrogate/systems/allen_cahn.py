@@ -21,8 +21,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from mjx_surrogate.systems.function import FunctionSystem, from_jax
-from mjx_surrogate.systems.pde import bumps_1d, bumps_2d, cell_centres, imex_step, implicit_diffusion
+from mjx_surrogate.systems.function import FunctionSystem
+from mjx_surrogate.systems.pde import (
+    bumps_1d,
+    bumps_2d,
+    cell_centres,
+    field_system,
+    field_task,
+    imex_step,
+    implicit_diffusion,
+)
 from mjx_surrogate.tasks import TaskPreset
 
 EPS = 0.05
@@ -42,19 +50,8 @@ def make_system(n: int = DEFAULT_GRID, dims: int = 1) -> FunctionSystem:
     if n < 8:
         raise ValueError(f"allen_cahn needs at least 8 cells per side, got {n}")
     b = bumps_1d(n, 8, 1.0 / 16.0) if dims == 1 else bumps_2d(n, 3, 1.0 / 8.0)
-    nx, nu = b.shape
     step = imex_step(reaction, implicit_diffusion(n, EPS**2, DT / SUBSTEPS, dims), b, DT, SUBSTEPS)
-    return from_jax(
-        step,
-        nx,
-        nu,
-        DT,
-        name=f"allen_cahn{n}" if dims == 1 else f"allen_cahn2d{n}",
-        state_labels=tuple(f"w{i}" for i in range(nx)),
-        control_labels=tuple(f"u{j}" for j in range(nu)),
-        u_min=np.full(nu, -U_MAX),
-        u_max=np.full(nu, U_MAX),
-    )
+    return field_system(step, b, DT, f"allen_cahn{n}" if dims == 1 else f"allen_cahn2d{n}", U_MAX)
 
 
 def target_profile(n: int, dims: int = 1) -> np.ndarray:
@@ -71,16 +68,7 @@ def grow_fields(nx: int, nu: int, T: int = 50) -> dict:
     """The growth task on a system with nx cells (2-D when nu is 9: n = sqrt(nx))."""
     dims = 2 if nu == 9 else 1
     n = int(round(nx ** (1.0 / dims)))
-    h_d = 1.0 / nx  # the cell's length (1-D) or area (2-D)
-    return dict(
-        x0=-np.ones(nx),
-        x_goal=target_profile(n, dims),
-        Q=h_d * np.eye(nx),
-        Q_f=10.0 * h_d * np.eye(nx),
-        R=1e-3 * np.eye(nu),
-        T=T,
-        u_ref=np.zeros(nu),
-    )
+    return field_task(-np.ones(nx), target_profile(n, dims), 1.0 / nx, nu, T)  # 1/nx: a cell's size
 
 
 TASKS = {

@@ -21,8 +21,15 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate.systems.function import FunctionSystem, from_jax
-from mjx_surrogate.systems.pde import bumps_1d, cell_centres, imex_step, implicit_diffusion
+from mjx_surrogate.systems.function import FunctionSystem
+from mjx_surrogate.systems.pde import (
+    bumps_1d,
+    cell_centres,
+    field_system,
+    field_task,
+    imex_step,
+    implicit_diffusion,
+)
 from mjx_surrogate.tasks import TaskPreset
 
 VISCOSITY = 0.01
@@ -52,31 +59,12 @@ def make_system(
     solve = implicit_diffusion(n, viscosity, DT / SUBSTEPS)
     explicit = convection(n) if convective else (lambda w: 0.0 * w)
     step = imex_step(explicit, solve, b, DT, SUBSTEPS)
-    return from_jax(
-        step,
-        n,
-        N_ACTUATORS,
-        DT,
-        name=f"burgers{n}" if convective else f"heat{n}",
-        state_labels=tuple(f"w{i}" for i in range(n)),
-        control_labels=tuple(f"u{j}" for j in range(N_ACTUATORS)),
-        u_min=np.full(N_ACTUATORS, -5.0),
-        u_max=np.full(N_ACTUATORS, 5.0),
-    )
+    return field_system(step, b, DT, f"burgers{n}" if convective else f"heat{n}", 5.0)
 
 
 def damp_fields(n: int, T: int = 50) -> dict:
     """The ``burgers_damp`` task on n cells (module docstring)."""
-    h = 1.0 / n
-    return dict(
-        x0=np.sin(2 * np.pi * cell_centres(n)),
-        x_goal=np.zeros(n),
-        Q=h * np.eye(n),
-        Q_f=10.0 * h * np.eye(n),
-        R=1e-3 * np.eye(N_ACTUATORS),
-        T=T,
-        u_ref=np.zeros(N_ACTUATORS),
-    )
+    return field_task(np.sin(2 * np.pi * cell_centres(n)), np.zeros(n), 1.0 / n, N_ACTUATORS, T)
 
 
 TASKS = {

@@ -20,6 +20,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from mjx_surrogate.systems.function import FunctionSystem, from_jax
+
 
 def cell_centres(n: int) -> np.ndarray:
     """xi [n]: the cell centres of the periodic unit interval."""
@@ -87,3 +89,35 @@ def laplacian_matrix(n: int) -> np.ndarray:
     L = -2.0 * np.eye(n) + np.eye(n, k=1) + np.eye(n, k=-1)
     L[0, -1] = L[-1, 0] = 1.0
     return L * n**2
+
+
+def field_system(step, b: np.ndarray, dt: float, name: str, u_max: float) -> FunctionSystem:
+    """The black box of a field step with actuator shapes b [nx, nu]: states w0.., controls
+    u0.., |u_j| <= u_max."""
+    nx, nu = b.shape
+    return from_jax(
+        step,
+        nx,
+        nu,
+        dt,
+        name=name,
+        state_labels=tuple(f"w{i}" for i in range(nx)),
+        control_labels=tuple(f"u{j}" for j in range(nu)),
+        u_min=np.full(nu, -u_max),
+        u_max=np.full(nu, u_max),
+    )
+
+
+def field_task(x0: np.ndarray, goal: np.ndarray, cell: float, nu: int, T: int) -> dict:
+    """Task fields with the weights as integrals over the domain (``cell``: a cell's length
+    or area): running cell |w - w*|^2, terminal 10 cell |w - w*|^2, 1e-3 |u|^2 per step."""
+    nx = x0.shape[0]
+    return dict(
+        x0=x0,
+        x_goal=goal,
+        Q=cell * np.eye(nx),
+        Q_f=10.0 * cell * np.eye(nx),
+        R=1e-3 * np.eye(nu),
+        T=T,
+        u_ref=np.zeros(nu),
+    )
