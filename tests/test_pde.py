@@ -144,6 +144,7 @@ def test_reduced_backward_pass_with_a_full_basis_equals_the_full_one():
     np.testing.assert_allclose(red.K, full.K, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_ro_d2c_reaches_full_d2c_on_burgers_with_fewer_simulations():
     """Burgers on 32 cells: the reduced scheme (16 snapshots) ends within 1e-6 of the
     full-order central scheme's cost, from the same start, both converged, with less than
@@ -184,6 +185,7 @@ def test_bad_reduced_settings_are_one_line_before_any_compile(argv, needle, tmp_
     assert len(err.splitlines()) == 1 and err.startswith(f"error: {needle}"), err
 
 
+@pytest.mark.slow
 def test_the_burgers_preset_runs_reduced_from_the_command_line(tmp_path):
     """``burgers_d2c`` on 32 cells, 20 steps, RO-D2C: converged within 0.1 % of the jacfwd
     oracle, the basis's rank recorded per t, every black-box step counted."""
