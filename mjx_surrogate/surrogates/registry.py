@@ -115,22 +115,23 @@ def library_specs(
     return out
 
 
+def _sindy_options(config) -> dict:
+    """The least-squares options of surrogate.sindy (and increment), shared by the SINDy kinds."""
+    s = config.surrogate.sindy
+    return dict(
+        increment=config.surrogate.increment,
+        threshold=s.stlsq_threshold,
+        alpha=s.stlsq_alpha,
+        method=s.method,
+    )
+
+
 def _fit_sindy(ctx: FitContext, train, test, key) -> dict[str, Fitted]:
     from mjx_surrogate.surrogates import sindy
 
-    s, inc = ctx.config.surrogate.sindy, ctx.config.surrogate.increment
     out = {}
     for name, spec in library_specs(ctx.config, ctx.system).items():
-        model = sindy.fit(
-            spec,
-            train.x,
-            train.u,
-            train.x_next,
-            increment=inc,
-            threshold=s.stlsq_threshold,
-            alpha=s.stlsq_alpha,
-            method=s.method,
-        )
+        model = sindy.fit(spec, train.x, train.u, train.x_next, **_sindy_options(ctx.config))
         out[f"SINDy {name}"] = Fitted(
             model, {"n_features": int(model.coef.shape[0]), "nonzero": int(jnp.sum(model.coef != 0))}
         )
@@ -213,20 +214,11 @@ def _pod_specs(config, system) -> dict:
 def _fit_pod_sindy(ctx: FitContext, train, test, key) -> dict[str, Fitted]:
     from mjx_surrogate.surrogates import pod_sindy
 
-    s, pc = ctx.config.surrogate.sindy, ctx.config.surrogate.pod_sindy
+    pc = ctx.config.surrogate.pod_sindy
     out = {}
     for name, spec in _pod_specs(ctx.config, ctx.system).items():
-        model, captured = pod_sindy.fit(
-            spec,
-            train.x,
-            train.u,
-            train.x_next,
-            pc.rank,
-            increment=ctx.config.surrogate.increment,
-            threshold=s.stlsq_threshold,
-            alpha=s.stlsq_alpha,
-            method=s.method,
-        )
+        options = _sindy_options(ctx.config)
+        model, captured = pod_sindy.fit(spec, train.x, train.u, train.x_next, pc.rank, **options)
         info = {"n_features": int(model.reduced.coef.shape[0]), "rank": pc.rank, "pod_energy": captured}
         out[f"POD{pc.rank}-SINDy {name}"] = Fitted(model, info)
     return out
