@@ -17,7 +17,7 @@ from mjx_surrogate.config import ParallelConfig
 from mjx_surrogate.errors import ConfigError
 
 T = TypeVar("T")
-_STATE = {"initialized": False}
+_STATE = {"initialized": False, "timeout_s": 300, "barriers": 0}
 
 
 def _from_env(value, name: str, cast=int):
@@ -62,6 +62,7 @@ def initialize(pc: ParallelConfig, timeout_s: int = 300) -> dict:
             msg = " ".join(str(exc).split())[:200]
             raise ConfigError("parallel.distributed", f"could not join the processes ({msg})") from None
         _STATE["initialized"] = True
+        _STATE["timeout_s"] = timeout_s
     return {
         "processes": jax.process_count(),
         "process_index": jax.process_index(),
@@ -92,9 +93,17 @@ def my_share(items: Sequence[T]) -> list[T]:
     return [x for i, x in enumerate(items) if i % process_count() == process_index()]
 
 
-def barrier(name: str) -> None:
-    """Wait until every process reaches the barrier ``name`` (no-op in one process)."""
-    if process_count() > 1:
-        from jax.experimental import multihost_utils
+def barrier(name: str, timeout_s: int | None = None) -> None:
+    """Wait until every process reaches the barrier ``name`` (no-op in one process).
 
-        multihost_utils.sync_global_devices(name)
+    The coordination service's barrier, not a collective: Gloo gives up on a peer that
+    reaches its first collective more than ~30 s after the others (a slower compile, a
+    busy host), so processes meet here first. ``timeout_s`` defaults to the join's.
+    """
+    if process_count() > 1:
+        from jax._src import distributed as jax_distributed
+
+        wait = _STATE["timeout_s"] if timeout_s is None else timeout_s
+        _STATE["barriers"] += 1  # every process passes the same barriers in the same order
+        barrier_id = f"{_STATE['barriers']}: {name}"
+        jax_distributed.global_state.client.wait_at_barrier(barrier_id, int(wait * 1000))

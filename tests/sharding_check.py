@@ -148,7 +148,7 @@ def workloads(backend: str, mesh, parts: list[str]) -> dict:
     import jax
     import jax.numpy as jnp
 
-    from mjx_surrogate import data
+    from mjx_surrogate import data, distributed
     from mjx_surrogate.config import Config, SystemConfig, TaskConfig
     from mjx_surrogate.d2c import solve_d2c, solve_multistart
     from mjx_surrogate.ilqr import ILQRParams
@@ -181,6 +181,7 @@ def workloads(backend: str, mesh, parts: list[str]) -> dict:
         return got
 
     ref = compute(None)
+    distributed.barrier(f"{backend}: references done")  # Gloo waits ~30 s for a late peer
     got = compute(mesh, (ref["d2c_X"], ref["d2c_U"]))
     diffs = {k: _diff(got[k], ref[k]) for k in ref}
     return {

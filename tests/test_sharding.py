@@ -21,9 +21,11 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import socket
 import subprocess
 import sys
+import warnings
 
 import jax
 import jax.numpy as jnp
@@ -74,10 +76,14 @@ def _check_mlp(r: dict) -> None:
     assert r["test_loss"] == 0.0 and r["params"] <= 1e-6, r  # weights: float32 round-off
 
 
-@pytest.mark.slow
-def test_two_processes_with_two_devices_each_give_the_one_device_results(tmp_path):
+# Gloo's TCP transport can give up connecting two processes on a loaded host ("Connect
+# timeout", once in CI with both test workers busy; not reproduced by a 45 s skew between
+# the processes, which the rendezvous absorbs). Such a try is repeated once, with a warning.
+GLOO_CONNECT_FAILURE = "Gloo context initialization failed"
+
+
+def _two_processes(tmp_path, runs, sweep) -> list[tuple[subprocess.Popen, tuple[str, str]]]:
     port = _free_port()
-    runs, sweep = tmp_path / "runs", tmp_path / "sweep"
     script = os.path.join(HERE, "sharding_check.py")
     procs = [
         subprocess.Popen(
@@ -99,6 +105,19 @@ def test_two_processes_with_two_devices_each_give_the_one_device_results(tmp_pat
             if p.poll() is None:
                 p.kill()
                 p.wait()
+    return list(zip(procs, outs))
+
+
+@pytest.mark.slow
+def test_two_processes_with_two_devices_each_give_the_one_device_results(tmp_path):
+    runs, sweep = tmp_path / "runs", tmp_path / "sweep"
+    done = _two_processes(tmp_path, runs, sweep)
+    if any(p.returncode != 0 and GLOO_CONNECT_FAILURE in err for p, (_, err) in done):
+        warnings.warn("Gloo could not connect the two processes; trying once more", stacklevel=1)
+        for path in (runs, sweep):
+            shutil.rmtree(path, ignore_errors=True)
+        done = _two_processes(tmp_path, runs, sweep)
+    procs, outs = zip(*done)
     for p, (_, err) in zip(procs, outs):
         assert p.returncode == 0, err[-3000:]
     p0, p1 = (_result(tmp_path / f"result-{i}.json", o) for i, (o, _) in enumerate(outs))
