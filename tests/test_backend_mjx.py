@@ -50,6 +50,7 @@ def test_batched_step_is_the_vmapped_step_bit_for_bit():
     np.testing.assert_array_equal(physics.step_batch(X, U), jax.jit(jax.vmap(physics.step))(X, U))
 
 
+@pytest.mark.slow
 def test_jacobians_are_jacfwd_through_the_step_with_contacts():
     """The substeps' warmstart is differentiated too: leaving its tangent out (a constant
     warmstart) changes entries of A by up to 0.65 on this box (checked)."""

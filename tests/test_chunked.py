@@ -34,6 +34,7 @@ def assert_same(a, b):
         assert np.array_equal(x, y, equal_nan=True), name
 
 
+@pytest.mark.slow
 def test_chunks_give_the_iterates_of_the_one_program_solve(pendulum):
     system, task, U0 = pendulum
     whole = solve_d2c(system, task, U0, jax.random.key(1), P, SID)

@@ -5,6 +5,7 @@ import os
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from mjx_surrogate.systems import exported_step
 
@@ -14,6 +15,7 @@ def _inputs(system, n=7):
     return 0.3 * jax.random.normal(k[0], (n, system.nx)), jax.random.normal(k[1], (n, system.nu))
 
 
+@pytest.mark.slow
 def test_exported_step_gives_the_plain_steps_numbers_batched_nested_in_scans(systems, tmp_path, monkeypatch):
     monkeypatch.setattr(exported_step, "cache_folder", lambda: str(tmp_path))
     s = systems("pendulum", "mjx")
@@ -80,6 +82,7 @@ def test_exported_jacobians_are_jacfwd_through_the_plain_step_and_step_stays_dif
     np.testing.assert_allclose(B2, B_ref, rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_a_native_systems_oracle_loads_its_programs_without_building_the_mjx_model(tmp_path, monkeypatch):
     """A native system's MJX step and Jacobians (its exact oracle) are exported too, and a
     later system of the same model runs them from disk without building the MJX model."""
@@ -112,6 +115,7 @@ def test_a_native_systems_oracle_loads_its_programs_without_building_the_mjx_mod
     np.testing.assert_array_equal(jax.jit(jax.vmap(second.mjx_jacobians))(x, u)[0], A)
 
 
+@pytest.mark.slow
 def test_the_batch_jacobians_export_only_the_batchs_program(tmp_path, monkeypatch):
     """The exact oracle's batched Jacobians (``System.mjx_jacobians_batch``) write one
     program, the batch's: ``vmap`` of the per-point function exports the unbatched one too."""

@@ -154,18 +154,6 @@ TINY = ["--data.n_traj", "40", "--surrogate.mlp.epochs", "2", "--data.levels", "
 
 
 @pytest.mark.slow
-def test_the_papers_predict_kind_runs_on_a_function_black_box(tmp_path, capsys):
-    """The F-8 prediction study at tiny sizes: every stage finishes, the surrogates are
-    scored on the black box, the figures are written."""
-    assert cli.main(["f8_predict", *TINY, "--out", str(tmp_path), "--experiment.name", "p"]) == 0
-    (folder,) = glob.glob(str(tmp_path / "*_p"))
-    metrics = json.load(open(os.path.join(folder, "metrics.json")))
-    assert metrics["status"] in ("converged", "stalled")  # 2 s of the 5 s recovery: goal not required
-    assert set(metrics["results"]["0.1"]) >= {"SINDy poly2", "SINDy poly3", "MLP", "LTV"}, metrics["results"]
-    assert os.path.isfile(os.path.join(folder, "predict_10pct.png"))
-
-
-@pytest.mark.slow
 def test_the_papers_analysis_kind_runs_on_a_function_black_box(tmp_path, capsys):
     """The Lorenz analyses (convergence, Gram conditioning, variance) with polynomial
     libraries at tiny sizes."""

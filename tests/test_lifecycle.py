@@ -214,6 +214,7 @@ sys.exit(cli.main(["smoke_d2c", "--experiment.no-progress", "--out", sys.argv[1]
     [(signal.SIGTERM, False), (signal.SIGINT, False), (signal.SIGTERM, True)],
     ids=["SIGTERM", "SIGINT", "SIGTERM-output-closed"],
 )
+@pytest.mark.slow
 def test_a_stage_that_polls_for_no_stop_still_ends_within_5_s(tmp_path, sig, reader_gone):
     proc = subprocess.Popen(
         [sys.executable, "-c", STUCK, str(tmp_path)],

@@ -3,6 +3,7 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from mjx_surrogate.surrogates import mlp
 
@@ -17,6 +18,7 @@ def _data(key, n=2000):
     return z, 10.0 + 5.0 * y  # an offset and scale the normaliser must absorb
 
 
+@pytest.mark.slow
 def test_fits_a_smooth_map_to_a_stated_loss():
     z, y = _data(jax.random.key(0))
     zt, yt = _data(jax.random.key(1), 500)

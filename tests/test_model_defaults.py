@@ -91,6 +91,7 @@ def _hold_cfg(path, **solver) -> Config:
     )
 
 
+@pytest.mark.slow
 def test_the_hold_task_starts_at_rest_and_multi_starts_are_distinct(tmp_path):
     path = str(tmp_path / "arm.xml")
     open(path, "w").write(ARM.format(actuators=SERVOS))
@@ -112,6 +113,7 @@ def test_the_hold_task_starts_at_rest_and_multi_starts_are_distinct(tmp_path):
     assert pipeline.goal_test(task, X, cfg.task.goal_tolerance)["reached"]
 
 
+@pytest.mark.slow
 def test_the_command_line_and_the_api_give_the_same_solve(tmp_path):
     from experiments import run as cli
     from mjx_surrogate.results import load_run

@@ -64,6 +64,7 @@ def identified_at_its_nominal(res) -> bool:
     return bool(np.all(np.asarray(res.alpha_history)[last : it - 1] == 0))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("reuse_tol, reuse_max", [(0.3, 5), (1e9, 1000)])
 def test_reuse_reaches_the_same_optimum_with_fewer_identifications(reuse_tol, reuse_max):
     ref = solve(0.0, 0)

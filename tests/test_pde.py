@@ -3,9 +3,7 @@ independent NumPy discretisations, and reduced-order identification
 (:mod:`mjx_surrogate.sysid_reduced`): exact on a linear PDE, the same optimum as the
 full-order scheme on Burgers, and the solver's reduced backward pass against the full one."""
 
-import glob
 import json
-import os
 
 import jax
 import jax.numpy as jnp
@@ -124,6 +122,7 @@ def test_the_energy_rule_keeps_fewer_vectors_as_the_tolerance_grows():
     assert ranks[0] > ranks[1] > ranks[2] >= 1
 
 
+@pytest.mark.slow
 def test_reduced_backward_pass_with_a_full_basis_equals_the_full_one():
     """A reduced model whose basis is the identity must give the full-order iterates: the
     projection of the cost's expansion and the lifting of the gains are exact."""
@@ -183,41 +182,6 @@ def test_bad_reduced_settings_are_one_line_before_any_compile(argv, needle, tmp_
     assert cli.main(base + argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and err.startswith(f"error: {needle}"), err
-
-
-@pytest.mark.slow
-def test_the_burgers_preset_runs_reduced_from_the_command_line(tmp_path):
-    """``burgers_d2c`` on 32 cells, 20 steps, RO-D2C: converged within 0.1 % of the jacfwd
-    oracle, the basis's rank recorded per t, every black-box step counted."""
-    argv = ["burgers_d2c", "--system.name", "burgers32", "--task.T", "20", "--solver.sysid", "reduced"]
-    argv += ["--solver.n_samples", "16"]
-    assert cli.main(argv + ["--out", str(tmp_path), "--experiment.name", "b"]) == 0
-    (folder,) = glob.glob(str(tmp_path / "*_b"))
-    m = json.load(open(os.path.join(folder, "metrics.json")))
-    assert m["d2c"]["status"] == "converged" and abs(m["d2c_vs_exact_relative_gap"]) < 1e-3
-    ranks = m["ltv_relative_error"]["basis_rank"]
-    assert len(ranks) == 21 and ranks[0] == 0 and 8 <= max(ranks) <= 16
-    assert m["ltv_relative_error"]["max"] < 1e-6
-    per_iteration = 16 * 20 + 2 * (16 + 8) * 20 + 8 * 20  # snapshots, one-step, line search
-    assert 20 + per_iteration <= m["d2c"]["simulated_steps"] <= 20 + m["d2c"]["iterations"] * per_iteration
-
-
-@pytest.mark.slow
-def test_the_burgers_predict_preset_runs_every_model_at_small_size(tmp_path):
-    """``burgers_predict`` on 32 cells at CI scale: every model predicts, the POD model
-    records its energy, and the LTV model in the snapshot basis stays finite."""
-    argv = ["burgers_predict", "--system.name", "burgers32", "--task.T", "20", "--data.n_traj", "50"]
-    argv += ["--data.levels", "0.05", "--surrogate.mlp.epochs", "2", "--surrogate.mlp.batch_size", "64"]
-    assert cli.main(argv + ["--out", str(tmp_path), "--experiment.name", "p"]) == 0
-    (folder,) = glob.glob(str(tmp_path / "*_p"))
-    res = json.load(open(os.path.join(folder, "metrics.json")))["results"]["0.05"]
-    want = {"SINDy poly2", "POD8-SINDy poly1", "POD8-SINDy poly2", "MLP", "LTV", "LTV reduced"}
-    assert want <= set(res), res
-    assert 0.9 < res["POD8-SINDy poly2"]["pod_energy"] <= 1.0
-    assert (
-        np.isfinite(res["LTV reduced"]["multi_step_median"])
-        and res["LTV reduced"]["multi_step_median"] < 1e-2
-    )
 
 
 SHARDED = """

@@ -17,6 +17,7 @@ B = np.array([[0.0], [0.1]])
 CASES = [("central_difference", 0, 1), ("forward_difference", 0, 1), ("forward_difference", 3, 1)]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheme, reuse, every", CASES + [("central_difference", 0, 4)])
 def test_simulation_curve_counts_every_black_box_step(scheme, reuse, every):
     calls = {"n": 0}

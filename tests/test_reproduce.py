@@ -45,9 +45,25 @@ FIGURES = {
 
 
 @pytest.mark.slow
-def test_quick_reproduction_produces_every_figure_and_resumes(tmp_path, capsys):
+def test_quick_reproduction_produces_every_figure_and_resumes(tmp_path, capsys, monkeypatch):
+    """Also the end-to-end check of each experiment kind's outputs (predict, analysis,
+    control, the PDE presets): one sweep serves them all."""
+    import contextlib
+
+    from mjx_surrogate import progress
+
+    meters, original = {}, progress.steps
+
+    @contextlib.contextmanager
+    def recording(desc, total, display=True, **kw):
+        with original(desc, total, display, **kw) as meter:
+            yield meter
+        meters[desc] = (meter.done + 1, meter.total)
+
+    monkeypatch.setattr(progress, "steps", recording)
     out, report = tmp_path / "runs", tmp_path / "report.md"
     assert reproduce.main(["--quick", "--out", str(out), "--report", str(report)]) == 0
+    assert_each_kinds_outputs(str(out), meters)
     for name, files in FIGURES.items():
         folder = reproduce.finished(str(out), name)
         assert folder, name
@@ -99,6 +115,67 @@ def test_quick_reproduction_produces_every_figure_and_resumes(tmp_path, capsys):
     assert not resumed["stages"][second].get("resumed")
     assert resumed["by_sigma"] == original  # same seed-derived draws: the same numbers
     assert_every_optimum_replays_natively(out)
+
+
+def _metrics(out: str, name: str) -> tuple[str, dict]:
+    folder = reproduce.finished(out, name)
+    return folder, json.load(open(os.path.join(folder, "metrics.json")))
+
+
+def assert_each_kinds_outputs(out: str, meters: dict) -> None:
+    """What each experiment kind writes, checked on the sweep's folders."""
+    # predict: figures, table, every model scored at every level, LTV good near its trajectory
+    folder, m = _metrics(out, "pendulum_predict")
+    files = set(os.listdir(folder))
+    assert {"one_step_rmse_vs_level.png", "multi_step_median_vs_level.png", "rmse_table.md"} <= files
+    assert m["status"] == "converged" and m["optimum"]["converged"]
+    for level in ("0.1", "0.6"):
+        rows = {k: v for k, v in m["results"][level].items() if not k.startswith("_")}
+        assert {"MLP", "LTV"} <= set(rows) and any(k.startswith("SINDy") for k in rows), rows
+        assert all(v["one_step_rmse"] is not None for v in rows.values())
+    assert m["results"]["0.1"]["LTV"]["multi_step_median"] < 0.1
+    assert "| 10 |" in open(os.path.join(folder, "rmse_table.md")).read()
+
+    # analysis: every stage's meter ran through, conditioning ordered, variance recorded
+    for desc in ("analysis: model convergence", "analysis: Gram spectra", "analysis: variance"):
+        done, total = meters[desc]
+        assert done == total > 0, (desc, meters[desc])
+    folder, m = _metrics(out, "cartpole_analysis")
+    assert "analysis_table.md" in os.listdir(folder) and m["status"] == "converged"
+    quartic, cubic = m["ill_conditioning"]["SINDy quartic 5%"], m["ill_conditioning"]["SINDy cubic_trig 5%"]
+    assert quartic["precision"] == "float64" and quartic["condition"] > cubic["condition"] > 1e3
+    assert set(m["variance"]) >= {"SINDy cubic 5%", "SINDy quartic_trig 15%", "MLP 5% epoch 0"}
+
+    # control: every surrogate controller run on the black box; none beats the optimum
+    for name in ("pendulum_control", "cartpole_control", "fish_control"):
+        folder, m = _metrics(out, name)
+        rows = m["surrogate_rows"]
+        assert {r["model"] for r in rows} >= {"MLP"} and len(rows) == 2, rows
+        assert all("true_cost_open" in r and "true_cost_closed" in r for r in rows)
+        finite = [r["true_cost_over_d2c"] for r in rows if r["true_cost_over_d2c"] is not None]
+        assert finite and min(finite) > 0.99, (name, finite)
+        assert "control_table.md" in os.listdir(folder)
+
+    # RO-D2C on Burgers (32 cells, T 50, 32 samples): the jacfwd oracle's cost, the
+    # basis's rank per t, every black-box step counted
+    folder, m = _metrics(out, "burgers_ro_d2c")
+    cfg = json.load(open(os.path.join(folder, "config.json")))
+    T, n = cfg["task"]["T"], cfg["solver"]["n_samples"]
+    assert cfg["solver"]["sysid"] == "reduced" and cfg["system"]["name"] == "burgers32"
+    assert m["d2c"]["status"] == "converged" and abs(m["d2c_vs_exact_relative_gap"]) < 1e-3
+    ranks = m["ltv_relative_error"]["basis_rank"]
+    assert len(ranks) == T + 1 and ranks[0] == 0 and 8 <= max(ranks) <= n
+    assert m["ltv_relative_error"]["max"] < 1e-6
+    per_iteration = n * T + 2 * (n + 8) * T + 8 * T  # snapshots, one-step samples, line search
+    assert T + per_iteration <= m["d2c"]["simulated_steps"] <= T + m["d2c"]["iterations"] * per_iteration
+
+    # the prediction study on Burgers: every model predicts, POD records its energy
+    _, m = _metrics(out, "burgers_predict")
+    res = m["results"]["0.05"]
+    assert {"SINDy poly2", "POD8-SINDy poly1", "POD8-SINDy poly2", "MLP", "LTV", "LTV reduced"} <= set(res)
+    assert 0.9 < res["POD8-SINDy poly2"]["pod_energy"] <= 1.0
+    reduced = res["LTV reduced"]["multi_step_median"]
+    assert np.isfinite(reduced) and reduced < 1e-2
 
 
 def _solves(metrics: dict):

@@ -132,6 +132,7 @@ for i in range(n):
 """
 
 
+@pytest.mark.slow
 def test_many_processes_into_one_out_dir_never_relabel_a_live_run(tmp_path):
     n_proc, n_runs = 4, 30
     procs = [

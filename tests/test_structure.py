@@ -98,6 +98,7 @@ def test_default_precision_float32_run_end_to_end(tmp_path):
     assert "--xla_cpu_collective_call_warn_stuck_timeout_seconds=600" in flags
 
 
+@pytest.mark.slow
 def test_switching_the_progress_meter_does_not_recompile(systems):
     from mjx_surrogate import progress
     from mjx_surrogate.config import Config, SystemConfig, TaskConfig

@@ -75,6 +75,7 @@ def pendulum(x, u):
     return jnp.stack([th + 0.05 * om, om + 0.05 * (-9.81 * jnp.sin(th) - 0.1 * om - 0.5 * th**3 + u[0])])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("refine_tol", [0.0, 1e-2])
 def test_coarse_then_fine_ends_on_every_step_models_at_the_full_schemes_optimum(refine_tol):
     """A solve with every=4 hands over to every-step identification before it stops: the

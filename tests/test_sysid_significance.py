@@ -45,6 +45,7 @@ def numpy_t_values(Z, Y):
     return W.T, np.abs(W.T) / se
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheme", ["central_difference", "forward_difference"])
 def test_zero_pattern_matches_numpy_ols_t_values(scheme):
     """Entries kept are the plain least-squares fit to round-off; an entry is zero exactly

@@ -20,7 +20,7 @@ from mujoco import rollout as mj_rollout
 from thirdparty import SUITE_MODELS, model_dir, model_path
 
 from mjx_surrogate import pipeline
-from mjx_surrogate.config import Config, SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.config import Config, SolverConfig, SystemConfig, TaskConfig, from_dict
 from mjx_surrogate.d2c import solve_d2c, solve_exact
 from mjx_surrogate.ilqr import verdict
 from mjx_surrogate.pipeline import summary
@@ -125,8 +125,10 @@ def case_config(name: str) -> Config | None:
     )
 
 
+# The half cheetah's comparison runs in benchmarks/thirdparty.py: the suite's contact
+# comparisons are the hopper's and the ant's (the cheetah still solves its hold task below).
 @pytest.mark.slow
-@pytest.mark.parametrize("name", list(CASES))
+@pytest.mark.parametrize("name", [n for n in CASES if n != "half_cheetah"])
 def test_third_party_model_solves_inside_its_limits_with_a_true_verdict(name):
     cfg = case_config(name)
     if cfg is None:
@@ -312,8 +314,13 @@ def test_every_third_party_model_steps_natively_as_mj_step():
     assert sorted(listed) == sorted((p, n) for p in SUITE_MODELS for n in SUITE_MODELS[p] if model_dir(p))
 
 
+# dm_control's humanoid runs through the README's command instead (below), to convergence.
+HOLD_MODELS = [f"{p}/{n}" for p in SUITE_MODELS for n in SUITE_MODELS[p]]
+HOLD_MODELS.remove("dm_control/humanoid")
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("model", [f"{p}/{n}" for p in SUITE_MODELS for n in SUITE_MODELS[p]])
+@pytest.mark.parametrize("model", HOLD_MODELS)
 def test_every_suite_model_solves_its_hold_task_with_the_documented_defaults(model):
     """Every dm_control suite model and gymnasium MuJoCo asset with controls, as downloaded,
     through the documented defaults for a user's model (task preset ``hold``, solver.init
@@ -381,3 +388,8 @@ def test_the_readme_user_model_command_runs_the_dm_control_humanoid(tmp_path):
     config = json.load(open(os.path.join(folder, "config.json")))
     assert config["solver"]["n_samples"] == max(20, 2 * (nx + nu)) and config["experiment"]["x64"]
     assert config["solver"]["init"] == "hold" and config["task"]["T"] == 50
+    # the reported cost is that of the stored controls replayed with mujoco.rollout
+    replay = resolve(from_dict(Config, config))
+    X = _rollout(m, np.asarray(replay.task.x0), arrays["d2c_U"], replay.system.substeps)
+    J = float(trajectory_cost(replay.task, jnp.asarray(X), jnp.asarray(arrays["d2c_U"])))
+    assert J == pytest.approx(d2c["cost"], rel=1e-6, abs=1e-12)
