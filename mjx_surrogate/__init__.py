@@ -11,7 +11,7 @@ The public API, importable from here. Importing changes no global state; call
     timed, U0, _ = ms.solve_config(ms.resolve(cfg))  # exactly the command line's D2C solve
 """
 
-from mjx_surrogate import chunked, progress
+from mjx_surrogate import chunked, mpc, progress
 from mjx_surrogate.config import (
     AnalysisConfig,
     Config,
@@ -28,6 +28,7 @@ from mjx_surrogate.cost import Cost
 from mjx_surrogate.d2c import solve_d2c, solve_exact, solve_multistart
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.ilqr import ILQRParams, ILQRResult, StopReason, ilqr
+from mjx_surrogate.mpc import MPCResult, receding_horizon
 from mjx_surrogate.pipeline import solve_config, start_controls
 from mjx_surrogate.resolution import resolve, solver_params
 from mjx_surrogate.runtime import configure_runtime
@@ -49,6 +50,7 @@ __all__ = [
     "Fitted",
     "ILQRParams",
     "ILQRResult",
+    "MPCResult",
     "IdentificationScheme",
     "MLPConfig",
     "SindyConfig",
@@ -68,7 +70,9 @@ __all__ = [
     "make_system",
     "make_task",
     "chunked",
+    "mpc",
     "progress",
+    "receding_horizon",
     "register_scheme",
     "register_surrogate",
     "register_system",

@@ -1,0 +1,139 @@
+"""Receding-horizon control on the black box: cost, black-box calls and compute per control step.
+
+Per system (native MuJoCo backend, the preset's task with the horizon shortened to
+``--horizon`` steps) and per controller ("d2c", and the "finite_difference" and "jacfwd"
+oracles), one episode of ``--steps`` control steps from the task's start, at most
+``--iterations`` iLQR iterations per replan, on the plant itself and on a plant whose
+pole masses are ``--mass-scale`` times the model's (``mujoco.MjSpec``), for the preset's
+terminal-only task and for one with a running state cost Q = ``--running-weight`` Q_f.
+Reported:
+closed-loop cost, the goal cost at the end, black-box control steps simulated per control
+step (D2C only; the oracles' Jacobians are not simulations), compute time per control
+step (the second call of the compiled episode, compile apart) and the real-time factor
+(control period / compute per step).
+
+    python benchmarks/mpc.py [--systems pendulum cartpole] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import os
+import sys
+import tempfile
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+HEAVY_BODY = {"pendulum": "pole", "cartpole": "pole"}
+
+
+def _heavier(system_name: str, scale: float, folder: str):
+    """The preset's model with its pole's geom masses scaled (MjSpec), as a native system."""
+    import mujoco
+
+    from mjx_surrogate.systems import from_mjcf, make_system
+
+    base = make_system(system_name, "native")
+    spec = mujoco.MjSpec.from_string(base.xml)
+    for geom in spec.body(HEAVY_BODY[system_name]).geoms:
+        geom.mass *= scale
+    path = os.path.join(folder, f"{system_name}_heavier.xml")
+    with open(path, "w") as f:
+        f.write(spec.to_xml())
+    return from_mjcf(path, backend="native", substeps=base.substeps)
+
+
+def run(
+    system_name: str, horizon: int, steps: int, iterations: int, mass_scale: float, running_weight: float
+) -> list[dict]:
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    from mjx_surrogate import mpc
+    from mjx_surrogate.config import Config, SystemConfig, TaskConfig
+    from mjx_surrogate.resolution import resolve, solver_params
+    from mjx_surrogate.tasks import goal_cost
+
+    task_config = TaskConfig(preset=f"{system_name}_d2c", T=horizon)  # the paper's task of the system
+    res = resolve(Config(SystemConfig(system_name, backend="native"), task_config))
+    system, task = res.system, res.task
+    params, sid = solver_params(res.config)
+    params = params.replace(max_iter=iterations)
+    U0 = jnp.zeros((horizon, system.nu))
+    dt = float(system.dt)
+    folder = tempfile.mkdtemp(prefix="mpc_plant_")
+    plants = {"same plant": None, f"pole mass x{mass_scale:g}": _heavier(system_name, mass_scale, folder)}
+    # the preset's task is terminal-only (the paper's); a receding horizon then always
+    # plans to arrive at its end, so a running state cost is the second variant
+    tasks = {"terminal only": task, f"Q = {running_weight:g} Q_f": task.replace(Q=running_weight * task.Q_f)}
+    rows = []
+    for (task_name, task), (plant_name, plant) in itertools.product(tasks.items(), plants.items()):
+        for controller in ("d2c", "finite_difference", "jacfwd"):
+            call = lambda: jax.block_until_ready(  # noqa: E731
+                mpc.receding_horizon(
+                    system, task, U0, jax.random.key(0), steps, params, sid, 0.0, controller, plant
+                )
+            )
+            t0 = time.perf_counter()
+            call()
+            first = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            r = call()
+            run_s = time.perf_counter() - t0
+            per_step = run_s / steps
+            calls = mpc.black_box_steps(r, horizon, params.n_alphas, sid) if controller == "d2c" else None
+            rows.append(
+                {
+                    "system": system_name,
+                    "task": task_name,
+                    "plant": plant_name,
+                    "controller": controller,
+                    "cost": float(r.cost),
+                    "final_goal_cost": float(goal_cost(task, r.X[-1])),
+                    "iterations_per_replan": float(np.mean(np.asarray(r.iterations))),
+                    "black_box_steps_per_control_step": None if calls is None else float(calls.mean()),
+                    "compile_s": first - run_s,
+                    "compute_per_step_s": per_step,
+                    "real_time_factor": dt / per_step,
+                }
+            )
+            row = rows[-1]
+            print(
+                f"{system_name:9s} {task_name:15s} {plant_name:18s} {controller:17s} cost {row['cost']:.6g}  "
+                f"goal {row['final_goal_cost']:.2e}  it/replan {row['iterations_per_replan']:.2f}  "
+                f"bb/step {row['black_box_steps_per_control_step'] or '-'}  "
+                f"{1e3 * per_step:.1f} ms/step (x{row['real_time_factor']:.1f} real time)  "
+                f"compile {row['compile_s']:.1f} s",
+                flush=True,
+            )
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--systems", nargs="+", default=["pendulum", "cartpole"])
+    ap.add_argument("--horizon", type=int, default=40)
+    ap.add_argument("--steps", type=int, default=80)
+    ap.add_argument("--iterations", type=int, default=5)
+    ap.add_argument("--mass-scale", type=float, default=1.5)
+    ap.add_argument("--running-weight", type=float, default=0.01, help="the second task's Q / Q_f")
+    ap.add_argument("--json", default=None)
+    a = ap.parse_args()
+
+    from mjx_surrogate.runtime import configure_runtime
+
+    configure_runtime(x64=True)
+    rows = []
+    for name in a.systems:
+        rows += run(name, a.horizon, a.steps, a.iterations, a.mass_scale, a.running_weight)
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump(rows, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,100 @@
+"""Receding-horizon control (MPC) on a black box: replan from the measured state, apply the
+first control, repeat.
+
+Notation: an episode of N control steps on the plant; at step n the controller solves the
+horizon-H problem ``task`` (``task.T`` = H) from the measured x_n, warm-started from its
+previous plan shifted by one step (its last control repeated), with at most
+``params.max_iter`` iLQR iterations, and applies u_n = U_plan[0]:
+
+    x_{n+1} = f_plant(x_n, u_n) + w_n,    w_n ~ N(0, process_noise^2 I)
+
+(process noise in state units, drawn from the episode's key). The plant defaults to the
+controller's system; a different plant (other masses, another parameter) is the model
+mismatch the controller does not know.
+Controllers: "d2c" (LTV models identified on the black box at every replan), "jacfwd" and
+"finite_difference" (the exact-Jacobian oracles). The episode is one program: a ``lax.scan``
+over the control steps, each replan an iLQR ``while_loop``; episodes batch with ``jax.vmap``
+over x0 and keys.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mjx_surrogate import sysid as sid
+from mjx_surrogate.d2c import oracle_method, problem
+from mjx_surrogate.ilqr import ILQRParams, ilqr_advance, ilqr_init, ilqr_result
+from mjx_surrogate.pipeline import simulation_curve, steps_per_identification
+from mjx_surrogate.systems.system import System
+from mjx_surrogate.tasks import Task, trajectory_cost
+
+CONTROLLERS = ("d2c", "jacfwd", "finite_difference")
+
+
+class MPCResult(NamedTuple):
+    """X [N+1, nx], U [N, nu]: the closed loop on the plant; cost: the task's cost of (X, U)
+    over the N steps (terminal term at x_N); plan_cost [N]: each replan's predicted horizon
+    cost; iterations [N] and identified [N, max_iter]: each replan's iLQR iterations and
+    identifications (as :class:`~mjx_surrogate.ilqr.ILQRResult`)."""
+
+    X: jax.Array
+    U: jax.Array
+    cost: jax.Array
+    plan_cost: jax.Array
+    iterations: jax.Array
+    identified: jax.Array
+
+
+@functools.partial(jax.jit, static_argnames=("system", "steps", "controller", "plant"))
+def receding_horizon(
+    system: System,
+    task: Task,
+    U0: jax.Array,
+    key: jax.Array,
+    steps: int,
+    params: ILQRParams = ILQRParams(max_iter=5),
+    sysid: sid.SysIdParams = sid.SysIdParams(),
+    process_noise: float | jax.Array = 0.0,
+    controller: str = "d2c",
+    plant: System | None = None,
+) -> MPCResult:
+    """One MPC episode of ``steps`` control steps from ``task.x0``, the first plan warm-started
+    from U0 [H, nu] (H = task.T)."""
+    if controller not in CONTROLLERS:
+        raise ValueError(f"controller: one of {', '.join(CONTROLLERS)}, got {controller!r}")
+    method = "d2c" if controller == "d2c" else oracle_method(controller)
+    plant_step = (plant if plant is not None else system).step
+
+    def replan(x, U, k):
+        prob = problem(system, task.replace(x0=x), sysid, method)
+        return ilqr_result(ilqr_advance(prob, ilqr_init(prob, U, params, k), params))
+
+    def control_step(carry, k):
+        x, U = carry
+        k_plan, k_noise = jax.random.split(k)
+        plan = replan(x, U, k_plan)
+        u = plan.U[0]
+        x_next = plant_step(x, u) + process_noise * jax.random.normal(k_noise, x.shape, x.dtype)
+        shifted = jnp.concatenate([plan.U[1:], plan.U[-1:]])
+        return (x_next, shifted), (x, u, plan.cost, plan.iterations, plan.identified)
+
+    x0 = task.x0
+    (xN, _), (X, U, plan_cost, its, ident) = jax.lax.scan(
+        control_step, (x0, U0.astype(x0.dtype)), jax.random.split(key, steps)
+    )
+    X = jnp.concatenate([X, xN[None]])
+    return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)
+
+
+def black_box_steps(result: MPCResult, horizon: int, n_alphas: int, sysid: sid.SysIdParams) -> np.ndarray:
+    """Control steps simulated on the black box by each replan of a D2C episode [N]
+    (identifications, the line search's trials and the first rollout), not counting the
+    plant's own step."""
+    per_id = steps_per_identification(sysid, horizon, result.U.shape[-1])
+    ident, its = np.asarray(result.identified), np.asarray(result.iterations)
+    return np.array([simulation_curve(i, n, horizon, n_alphas, *per_id)[-1] for i, n in zip(ident, its)])

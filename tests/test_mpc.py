@@ -1,0 +1,160 @@
+"""Receding-horizon control (mjx_surrogate/mpc.py) against closed forms and counted calls."""
+
+import os
+import re
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from mjx_surrogate import mpc
+from mjx_surrogate.ilqr import ILQRParams
+from mjx_surrogate.sysid import SysIdParams
+from mjx_surrogate.systems.function import from_jax, from_numpy
+from mjx_surrogate.tasks import make_task
+
+A = np.array([[1.0, 0.1], [0.0, 1.0]])  # a double integrator, dt 0.1
+B = np.array([[0.005], [0.1]])
+Q, Q_F, R = np.diag([1.0, 0.1]), np.diag([10.0, 1.0]), np.diag([0.01])
+H, N = 10, 30
+SID = SysIdParams(n_samples=6)
+
+
+def _linear(A=A, B=B):
+    A_, B_ = jnp.asarray(A), jnp.asarray(B)
+    return from_jax(lambda x, u: A_ @ x + B_ @ u, 2, 1, 0.1)
+
+
+def _task(x0=(1.0, 0.0)):
+    return make_task(x0, (0.0, 0.0), Q, Q_F, R, H)
+
+
+def _lqr_first_gain(A, B, horizon):
+    """K_0 of the finite-horizon LQR (float64 NumPy Riccati recursion)."""
+    P = Q_F
+    for _ in range(horizon):
+        K = -np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
+        P = Q + A.T @ P @ (A + B @ K)
+    return K
+
+
+@pytest.mark.parametrize("controller", ["jacfwd", "d2c"])
+def test_mpc_on_a_linear_system_is_the_receding_horizon_lqr(controller):
+    """Unconstrained linear-quadratic: every replan is the horizon-H LQR, so the closed loop
+    is x_{n+1} = (A + B K_0) x_n; D2C identifies the linear map to round-off."""
+    r = mpc.receding_horizon(
+        _linear(),
+        _task(),
+        jnp.zeros((H, 1)),
+        jax.random.key(0),
+        N,
+        ILQRParams(max_iter=3),
+        SID,
+        0.0,
+        controller,
+    )
+    K0 = _lqr_first_gain(A, B, H)
+    X = [np.array([1.0, 0.0])]
+    for _ in range(N):
+        X.append((A + B @ K0) @ X[-1])
+    X = np.array(X)
+    np.testing.assert_allclose(np.asarray(r.X), X, atol=1e-8)
+    np.testing.assert_allclose(np.asarray(r.U), X[:-1] @ K0.T, atol=1e-8)
+    J = (
+        sum(0.5 * x @ Q @ x + 0.5 * u @ R @ u for x, u in zip(X[:-1], X[:-1] @ K0.T))
+        + 0.5 * X[-1] @ Q_F @ X[-1]
+    )
+    assert float(r.cost) == pytest.approx(J, rel=1e-8)
+    assert r.plan_cost.shape == (N,) and np.all(np.asarray(r.iterations) >= 1)
+
+
+def test_the_plant_is_stepped_with_the_episodes_noise_and_the_model_is_not_the_plant():
+    """A heavier plant than the model: every closed-loop step is the plant's step plus the
+    episode's process noise, drawn from its key; zero noise leaves the plant's step exact."""
+    model, plant = _linear(), _linear(B=0.5 * B)
+    step = lambda x, u: A @ x + 0.5 * B @ u  # noqa: E731
+    task, U0, params = _task(), jnp.zeros((H, 1)), ILQRParams(max_iter=3)
+    run = lambda noise, key: mpc.receding_horizon(  # noqa: E731
+        model, task, U0, key, N, params, SID, noise, "jacfwd", plant
+    )
+    quiet = run(0.0, jax.random.key(1))
+    X, U = np.asarray(quiet.X), np.asarray(quiet.U)
+    np.testing.assert_allclose(X[1:], np.array([step(x, u) for x, u in zip(X[:-1], U)]), atol=1e-14)
+    K0 = _lqr_first_gain(A, B, H)  # the model's gain on the plant: not the plant's own LQR
+    np.testing.assert_allclose(U, X[:-1] @ K0.T, atol=1e-8)
+
+    noisy, again, other = (
+        run(0.01, jax.random.key(1)),
+        run(0.01, jax.random.key(1)),
+        run(0.01, jax.random.key(2)),
+    )
+    Xn, Un = np.asarray(noisy.X), np.asarray(noisy.U)
+    w = Xn[1:] - np.array([step(x, u) for x, u in zip(Xn[:-1], Un)])
+    assert 0.005 < w.std() < 0.02 and abs(w.mean()) < 0.005  # 60 draws of N(0, 0.01^2)
+    np.testing.assert_array_equal(np.asarray(again.X), Xn)
+    assert not np.allclose(np.asarray(other.X), Xn)
+
+
+def test_black_box_steps_are_the_calls_the_black_box_received():
+    """A NumPy black box counts the rows it is asked to step: the episode's calls are the
+    plant's N steps plus black_box_steps per replan."""
+    calls = []
+
+    def step(x, u):
+        calls.append(len(x))
+        return x @ A.T + u @ B.T
+
+    system = from_numpy(step, 2, 1, 0.1, vectorized=True)
+    params = ILQRParams(max_iter=3)
+    r = mpc.receding_horizon(system, _task(), jnp.zeros((H, 1)), jax.random.key(0), 5, params, SID)
+    per_replan = mpc.black_box_steps(r, H, params.n_alphas, SID)
+    assert per_replan.shape == (5,) and np.all(per_replan > 0)
+    assert sum(calls) == 5 + int(per_replan.sum()), (sum(calls), per_replan)
+
+
+def test_episodes_batch_by_vmap_and_a_new_start_does_not_recompile():
+    system, task, U0, params = _linear(), _task(), jnp.zeros((H, 1)), ILQRParams(max_iter=3)
+    one = lambda x0, key: mpc.receding_horizon(  # noqa: E731
+        system, task.replace(x0=x0), U0, key, N, params, SID, 0.01, "d2c"
+    )
+    x0s = jnp.array([[1.0, 0.0], [-0.5, 0.2], [0.3, -1.0]])
+    keys = jax.random.split(jax.random.key(3), 3)
+    batch = jax.vmap(one)(x0s, keys)
+    before = mpc.receding_horizon._cache_size()
+    singles = [one(x0s[i], keys[i]) for i in range(3)]
+    assert mpc.receding_horizon._cache_size() == before + 1  # one program for every start
+    for i, s in enumerate(singles):
+        np.testing.assert_allclose(np.asarray(batch.X[i]), np.asarray(s.X), atol=1e-10)
+        assert float(batch.cost[i]) == pytest.approx(float(s.cost), rel=1e-9)
+
+
+def test_an_unknown_controller_is_refused():
+    with pytest.raises(ValueError, match="controller: one of d2c, jacfwd, finite_difference"):
+        mpc.receding_horizon(_linear(), _task(), jnp.zeros((H, 1)), jax.random.key(0), 2, controller="mppi")
+
+
+@pytest.mark.slow
+def test_d2c_mpc_swings_the_mujoco_pendulum_up_as_the_oracles_mpc_does():
+    """docs/mpc.md's example as written (native MuJoCo pendulum from hanging down, horizon
+    40 steps of 0.1 s, at most 5 iterations per replan, 80 control steps): D2C-MPC ends at
+    the goal with the closed-loop cost of the finite-difference oracle's MPC to 1e-4."""
+    text = open(os.path.join(os.path.dirname(os.path.dirname(__file__)), "docs", "mpc.md")).read()
+    (block,) = re.findall(r"```python\n(.*?)```", text, flags=re.S)
+    namespace: dict = {}
+    exec(compile(block, "docs/mpc.md", "exec"), namespace)
+    d2c, system, task = namespace["episode"], namespace["system"], namespace["task"]
+    params = namespace["params"].replace(max_iter=5)
+    oracle = mpc.receding_horizon(
+        system,
+        task,
+        jnp.zeros((40, 1)),
+        jax.random.key(0),
+        80,
+        params,
+        namespace["sysid"],
+        0.0,
+        "finite_difference",
+    )
+    assert d2c.X.shape == (81, 2) and np.max(np.abs(np.asarray(d2c.X[-1]))) < 1e-3
+    assert float(d2c.cost) == pytest.approx(float(oracle.cost), rel=1e-4)
