@@ -1,18 +1,22 @@
 """Receding-horizon control on the black box: cost, black-box calls and compute per control step.
 
-Per system (native MuJoCo backend, the preset's task with the horizon shortened to
-``--horizon`` steps) and per controller ("d2c", and the "finite_difference" and "jacfwd"
-oracles), one episode of ``--steps`` control steps from the task's start, at most
-``--iterations`` iLQR iterations per replan, on the plant itself and on a plant whose
-pole masses are ``--mass-scale`` times the model's (``mujoco.MjSpec``), for the preset's
-terminal-only task and for one with a running state cost Q = ``--running-weight`` Q_f.
-Reported:
-closed-loop cost, the goal cost at the end, black-box control steps simulated per control
-step (D2C only; the oracles' Jacobians are not simulations), compute time per control
-step (the second call of the compiled episode, compile apart) and the real-time factor
-(control period / compute per step).
+Per system (native MuJoCo backend, the preset's task with the horizon cut to ``--horizon``
+steps) and per controller, one episode of ``--steps`` control steps from the task's start:
 
-    python benchmarks/mpc.py [--systems pendulum cartpole] [--json out.json]
+* "d2c", and the "finite_difference" and "jacfwd" oracles: at most ``--iterations`` iLQR
+  iterations per replan;
+* the derivative-free "predictive_sampling" and "mppi": ``--samples`` samples per replan of
+  spread ``SAMPLING_SIGMA``; MPPI's temperature is 1 % of the start's zero-control plan cost.
+
+Each on the plant itself and on a plant whose pole masses are ``--mass-scale`` times the
+model's (``mujoco.MjSpec``), for the preset's terminal-only task and for one with a running
+state cost Q = ``--running-weight`` Q_f. Reported: closed-loop cost, the goal cost at the
+end, black-box control steps simulated per control step (D2C and the sampling MPCs; the
+oracles' Jacobians are not counted), compute time per control step (the second call of the
+compiled episode, compile apart) and the real-time factor (control period / compute per
+step).
+
+    python benchmarks/mpc.py [--systems pendulum cartpole] [--controllers d2c mppi] [--json out.json]
 """
 
 from __future__ import annotations
@@ -28,6 +32,8 @@ import time
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 HEAVY_BODY = {"pendulum": "pole", "cartpole": "pole"}
+SAMPLING_SIGMA = {"pendulum": 1.0, "cartpole": 5.0}  # the samples' spread, control units
+CONTROLLERS = ("d2c", "finite_difference", "jacfwd", "predictive_sampling", "mppi")
 
 
 def _heavier(system_name: str, scale: float, folder: str):
@@ -47,16 +53,24 @@ def _heavier(system_name: str, scale: float, folder: str):
 
 
 def run(
-    system_name: str, horizon: int, steps: int, iterations: int, mass_scale: float, running_weight: float
+    system_name: str,
+    horizon: int,
+    steps: int,
+    iterations: int,
+    mass_scale: float,
+    running_weight: float,
+    controllers: list[str],
+    samples: int,
 ) -> list[dict]:
     import jax
     import jax.numpy as jnp
     import numpy as np
 
-    from mjx_surrogate import mpc
+    from mjx_surrogate import mpc, mpc_sampling
     from mjx_surrogate.config import Config, SystemConfig, TaskConfig
     from mjx_surrogate.resolution import resolve, solver_params
-    from mjx_surrogate.tasks import goal_cost
+    from mjx_surrogate.tasks import goal_cost, trajectory_cost
+    from mjx_surrogate.trajectory import open_loop
 
     task_config = TaskConfig(preset=f"{system_name}_d2c", T=horizon)  # the paper's task of the system
     res = resolve(Config(SystemConfig(system_name, backend="native"), task_config))
@@ -65,6 +79,7 @@ def run(
     params = params.replace(max_iter=iterations)
     U0 = jnp.zeros((horizon, system.nu))
     dt = float(system.dt)
+    sigma = SAMPLING_SIGMA[system_name]
     folder = tempfile.mkdtemp(prefix="mpc_plant_")
     plants = {"same plant": None, f"pole mass x{mass_scale:g}": _heavier(system_name, mass_scale, folder)}
     # the preset's task is terminal-only (the paper's); a receding horizon then always
@@ -72,12 +87,19 @@ def run(
     tasks = {"terminal only": task, f"Q = {running_weight:g} Q_f": task.replace(Q=running_weight * task.Q_f)}
     rows = []
     for (task_name, task), (plant_name, plant) in itertools.product(tasks.items(), plants.items()):
-        for controller in ("d2c", "finite_difference", "jacfwd"):
-            call = lambda: jax.block_until_ready(  # noqa: E731
-                mpc.receding_horizon(
+        # MPPI's temperature: a fixed fraction of the start's zero-control plan cost
+        temperature = 0.01 * float(trajectory_cost(task, *open_loop(system.step, task.x0, U0)))
+        for controller in controllers:
+            if controller in ("predictive_sampling", "mppi"):
+                lam = temperature if controller == "mppi" else None
+                episode = lambda: mpc_sampling.sampling_mpc(  # noqa: E731
+                    system, task, U0, jax.random.key(0), steps, sigma, samples, lam, 0.0, plant
+                )
+            else:
+                episode = lambda: mpc.receding_horizon(  # noqa: E731
                     system, task, U0, jax.random.key(0), steps, params, sid, 0.0, controller, plant
                 )
-            )
+            call = lambda: jax.block_until_ready(episode())  # noqa: E731
             t0 = time.perf_counter()
             call()
             first = time.perf_counter() - t0
@@ -85,7 +107,12 @@ def run(
             r = call()
             run_s = time.perf_counter() - t0
             per_step = run_s / steps
-            calls = mpc.black_box_steps(r, horizon, params.n_alphas, sid) if controller == "d2c" else None
+            if controller == "d2c":
+                calls = mpc.black_box_steps(r, horizon, params.n_alphas, sid)
+            elif controller in ("predictive_sampling", "mppi"):
+                calls = np.array([mpc_sampling.black_box_steps(samples, horizon, controller == "mppi")])
+            else:
+                calls = None
             rows.append(
                 {
                     "system": system_name,
@@ -121,6 +148,8 @@ def main() -> None:
     ap.add_argument("--iterations", type=int, default=5)
     ap.add_argument("--mass-scale", type=float, default=1.5)
     ap.add_argument("--running-weight", type=float, default=0.01, help="the second task's Q / Q_f")
+    ap.add_argument("--controllers", nargs="+", default=list(CONTROLLERS), choices=CONTROLLERS)
+    ap.add_argument("--samples", type=int, default=256, help="samples per replan of the sampling MPCs")
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
 
@@ -129,7 +158,9 @@ def main() -> None:
     configure_runtime(x64=True)
     rows = []
     for name in a.systems:
-        rows += run(name, a.horizon, a.steps, a.iterations, a.mass_scale, a.running_weight)
+        rows += run(
+            name, a.horizon, a.steps, a.iterations, a.mass_scale, a.running_weight, a.controllers, a.samples
+        )
     if a.json:
         with open(a.json, "w") as f:
             json.dump(rows, f, indent=1)

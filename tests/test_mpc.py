@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_surrogate import mpc
+from mjx_surrogate import mpc, mpc_sampling
 from mjx_surrogate.ilqr import ILQRParams
 from mjx_surrogate.sysid import SysIdParams
 from mjx_surrogate.systems.function import from_jax, from_numpy
@@ -158,3 +158,46 @@ def test_d2c_mpc_swings_the_mujoco_pendulum_up_as_the_oracles_mpc_does():
     )
     assert d2c.X.shape == (81, 2) and np.max(np.abs(np.asarray(d2c.X[-1]))) < 1e-3
     assert float(d2c.cost) == pytest.approx(float(oracle.cost), rel=1e-4)
+
+
+def test_sampling_with_zero_spread_applies_the_shifted_warm_start():
+    """sigma 0: every sample is the warm start, so the episode applies U0 step by step
+    (its last control once U0 runs out) on the plant."""
+    U0 = jnp.asarray(np.sin(np.arange(H))[:, None])
+    r = mpc_sampling.sampling_mpc(_linear(), _task(), U0, jax.random.key(0), N, 0.0, 8)
+    applied = np.concatenate([np.asarray(U0), np.repeat(np.asarray(U0[-1:]), N - H, axis=0)])
+    np.testing.assert_array_equal(np.asarray(r.U), applied)
+    X = [np.array([1.0, 0.0])]
+    for u in applied:
+        X.append(A @ X[-1] + B @ u)
+    np.testing.assert_allclose(np.asarray(r.X), np.array(X), atol=1e-12)
+
+
+def test_mppi_at_zero_temperature_is_predictive_sampling_and_both_beat_no_control():
+    system, task, U0 = _linear(), _task(), jnp.zeros((H, 1))
+    ps = mpc_sampling.sampling_mpc(system, task, U0, jax.random.key(4), N, 2.0, 64)
+    cold = mpc_sampling.sampling_mpc(system, task, U0, jax.random.key(4), N, 2.0, 64, 1e-300)
+    np.testing.assert_array_equal(np.asarray(cold.U), np.asarray(ps.U))
+    warm = mpc_sampling.sampling_mpc(system, task, U0, jax.random.key(4), N, 2.0, 64, 1.0)
+    idle = mpc_sampling.sampling_mpc(system, task, U0, jax.random.key(4), N, 0.0, 2)
+    lqr = mpc.receding_horizon(
+        system, task, U0, jax.random.key(0), N, ILQRParams(max_iter=3), SID, 0.0, "jacfwd"
+    )
+    for r in (ps, warm):
+        assert float(lqr.cost) <= float(r.cost) < 0.5 * float(idle.cost), (float(r.cost), float(idle.cost))
+
+
+def test_sampling_black_box_steps_are_the_calls_the_black_box_received():
+    calls = []
+
+    def step(x, u):
+        calls.append(len(x))
+        return x @ A.T + u @ B.T
+
+    system = from_numpy(step, 2, 1, 0.1, vectorized=True)
+    for temperature, mppi in ((None, False), (1.0, True)):
+        calls.clear()
+        mpc_sampling.sampling_mpc(
+            system, _task(), jnp.zeros((H, 1)), jax.random.key(0), 5, 1.0, 16, temperature
+        )
+        assert sum(calls) == 5 + 5 * mpc_sampling.black_box_steps(16, H, mppi), sum(calls)

@@ -1,0 +1,78 @@
+"""Derivative-free receding-horizon control on the black box: predictive sampling and MPPI.
+
+The same episode as :func:`mjx_surrogate.mpc.receding_horizon` (notation there), with a
+sampling planner instead of iLQR. At control step n, from the measured x_n and the
+shifted previous plan U (H steps):
+
+    U_i = clip(U + sigma * eps_i),  eps_i ~ N(0, I),  i = 1 .. S-1;   U_0 = U (kept)
+    J_i = J(rollout of U_i from x_n on the black box)
+
+Predictive sampling (``temperature`` None) keeps argmin_i J_i; MPPI weights the samples by
+w_i = exp(-(J_i - min J) / temperature) / sum and plans sum_i w_i U_i. A replan simulates
+S H black-box control steps (MPPI one more rollout, H steps, to cost its mean plan).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+
+from mjx_surrogate.mpc import MPCResult
+from mjx_surrogate.systems.system import System
+from mjx_surrogate.tasks import Task, trajectory_cost
+from mjx_surrogate.trajectory import open_loop
+
+
+@functools.partial(jax.jit, static_argnames=("system", "steps", "n_samples", "plant"))
+def sampling_mpc(
+    system: System,
+    task: Task,
+    U0: jax.Array,
+    key: jax.Array,
+    steps: int,
+    sigma: float | jax.Array,
+    n_samples: int = 64,
+    temperature: float | jax.Array | None = None,
+    process_noise: float | jax.Array = 0.0,
+    plant: System | None = None,
+) -> MPCResult:
+    """One episode of ``steps`` control steps from ``task.x0`` (horizon H = task.T), the
+    first plan U0 [H, nu]; ``sigma`` (scalar or [nu], control units) scales the samples."""
+    lo, hi = task.u_min, task.u_max
+    plant_step = (plant if plant is not None else system).step
+
+    def plan_cost(x, U):
+        X, Uc = open_loop(system.step, x, U, lo, hi)
+        return trajectory_cost(task, X, Uc)
+
+    def replan(x, U, k):
+        eps = jax.random.normal(k, (n_samples - 1,) + U.shape, U.dtype)
+        samples = jnp.concatenate([U[None], jnp.clip(U + sigma * eps, lo, hi)])  # [S, H, nu]
+        J = jax.vmap(lambda Ui: plan_cost(x, Ui))(samples)
+        if temperature is None:
+            best = jnp.argmin(J)
+            return samples[best], J[best]
+        w = jax.nn.softmax(-(J - jnp.min(J)) / temperature)
+        mean = jnp.einsum("s,stu->tu", w, samples)
+        return mean, plan_cost(x, mean)
+
+    def control_step(carry, k):
+        x, U = carry
+        k_plan, k_noise = jax.random.split(k)
+        U, J = replan(x, U, k_plan)
+        u = U[0]
+        x_next = plant_step(x, u) + process_noise * jax.random.normal(k_noise, x.shape, x.dtype)
+        return (x_next, jnp.concatenate([U[1:], U[-1:]])), (x, u, J)
+
+    x0 = task.x0
+    (xN, _), (X, U, J) = jax.lax.scan(control_step, (x0, U0.astype(x0.dtype)), jax.random.split(key, steps))
+    X = jnp.concatenate([X, xN[None]])
+    ones = jnp.ones((steps,), jnp.int32)
+    return MPCResult(X, U, trajectory_cost(task, X, U), J, ones, jnp.zeros((steps, 1), jnp.int8))
+
+
+def black_box_steps(n_samples: int, horizon: int, mppi: bool) -> int:
+    """Black-box control steps one replan simulates (not counting the plant's own step)."""
+    return (n_samples + int(mppi)) * horizon
