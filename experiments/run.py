@@ -389,7 +389,7 @@ def run(
     try:
         with guard:
             _write_inputs(folder, res, parallel)
-            if not local:  # the processes meet before their first collective (Gloo waits ~30 s)
+            if not local:  # the processes enter the experiment's first collective together
                 distributed.barrier(f"run {ex.name or name}: inputs resolved")
             status = kinds()[ex.kind](res, record, key)
     except (Interrupted, KeyboardInterrupt) as exc:

@@ -96,14 +96,24 @@ def my_share(items: Sequence[T]) -> list[T]:
 def barrier(name: str, timeout_s: int | None = None) -> None:
     """Wait until every process reaches the barrier ``name`` (no-op in one process).
 
-    The coordination service's barrier, not a collective: Gloo gives up on a peer that
-    reaches its first collective more than ~30 s after the others (a slower compile, a
-    busy host), so processes meet here first. ``timeout_s`` defaults to the join's.
+    The coordination service's barrier (JAX's distributed client; jax 0.10 exposes it only
+    under ``jax._src``), not a collective: no Gloo connection is made to meet, and the
+    processes then enter their next collective together. ``timeout_s`` defaults to the
+    join's. Without the client (a JAX that moved it), a collective barrier is used.
     """
     if process_count() > 1:
-        from jax._src import distributed as jax_distributed
-
         wait = _STATE["timeout_s"] if timeout_s is None else timeout_s
         _STATE["barriers"] += 1  # every process passes the same barriers in the same order
         barrier_id = f"{_STATE['barriers']}: {name}"
-        jax_distributed.global_state.client.wait_at_barrier(barrier_id, int(wait * 1000))
+        try:
+            from jax._src import distributed as jax_distributed
+
+            client = jax_distributed.global_state.client
+        except (ImportError, AttributeError):
+            client = None
+        if client is None:
+            from jax.experimental import multihost_utils
+
+            multihost_utils.sync_global_devices(barrier_id)
+        else:
+            client.wait_at_barrier(barrier_id, int(wait * 1000))

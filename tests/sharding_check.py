@@ -181,7 +181,7 @@ def workloads(backend: str, mesh, parts: list[str]) -> dict:
         return got
 
     ref = compute(None)
-    distributed.barrier(f"{backend}: references done")  # Gloo waits ~30 s for a late peer
+    distributed.barrier(f"{backend}: references done")  # into the first collective together
     got = compute(mesh, (ref["d2c_X"], ref["d2c_U"]))
     diffs = {k: _diff(got[k], ref[k]) for k in ref}
     return {

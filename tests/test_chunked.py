@@ -89,6 +89,7 @@ def test_chunk_programs_hold_no_host_callback(pendulum):
         assert not _callback_targets(lowered)
 
 
+@pytest.mark.slow
 def test_a_stop_request_between_chunks_ends_interrupted_with_the_best_iterate(pendulum, monkeypatch):
     system, task, U0 = pendulum
     seen = []
@@ -132,6 +133,7 @@ def test_new_values_do_not_recompile_the_chunks(pendulum):
     assert (chunked.advance._cache_size(), chunked.start._cache_size()) == n
 
 
+@pytest.mark.slow
 def test_native_programs_compile_with_the_systems_options_to_the_same_iterates(pendulum, monkeypatch):
     # Native-backend programs hold a host callback and are never cached: they compile with
     # System.compiler_options (a lower XLA backend optimisation level), MJX ones as before.

@@ -48,6 +48,7 @@ def test_your_model_page_runs_as_written(tmp_path, monkeypatch, capsys):
     assert os.path.isfile(os.path.join(namespace["folder"], "model.mjb"))
 
 
+@pytest.mark.slow
 def test_function_systems_page_runs_as_written(capsys):
     text = open(os.path.join(ROOT, "docs", "function_systems.md")).read()
     block = re.findall(r"```python\n(.*?)```", text, flags=re.S)[0]
