@@ -72,23 +72,30 @@ def receding_horizon(
 
     def replan(x, U, k):
         prob = problem(system, task.replace(x0=x), sysid, method)
-        return ilqr_result(ilqr_advance(prob, ilqr_init(prob, U, params, k), params))
+        plan = ilqr_result(ilqr_advance(prob, ilqr_init(prob, U, params, k), params))
+        return plan.U, (plan.cost, plan.iterations, plan.identified)
+
+    X, U, (plan_cost, its, ident) = episode(replan, plant_step, task.x0, U0, key, steps, process_noise)
+    return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)
+
+
+def episode(replan, plant_step, x0: jax.Array, U0: jax.Array, key: jax.Array, steps: int, process_noise):
+    """The receding-horizon loop every planner shares: ``replan(x, U, key) -> (U_plan [H,
+    nu], info)`` from the measured x and the shifted previous plan; applies U_plan[0] to the
+    plant, adds the process noise. -> X [steps+1, nx], U [steps, nu], info stacked [steps, ...]."""
 
     def control_step(carry, k):
         x, U = carry
         k_plan, k_noise = jax.random.split(k)
-        plan = replan(x, U, k_plan)
-        u = plan.U[0]
+        plan, info = replan(x, U, k_plan)
+        u = plan[0]
         x_next = plant_step(x, u) + process_noise * jax.random.normal(k_noise, x.shape, x.dtype)
-        shifted = jnp.concatenate([plan.U[1:], plan.U[-1:]])
-        return (x_next, shifted), (x, u, plan.cost, plan.iterations, plan.identified)
+        return (x_next, jnp.concatenate([plan[1:], plan[-1:]])), (x, u, info)
 
-    x0 = task.x0
-    (xN, _), (X, U, plan_cost, its, ident) = jax.lax.scan(
+    (xN, _), (X, U, info) = jax.lax.scan(
         control_step, (x0, U0.astype(x0.dtype)), jax.random.split(key, steps)
     )
-    X = jnp.concatenate([X, xN[None]])
-    return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)
+    return jnp.concatenate([X, xN[None]]), U, info
 
 
 def black_box_steps(result: MPCResult, horizon: int, n_alphas: int, sysid: sid.SysIdParams) -> np.ndarray:

@@ -19,7 +19,7 @@ import functools
 import jax
 import jax.numpy as jnp
 
-from mjx_surrogate.mpc import MPCResult
+from mjx_surrogate.mpc import MPCResult, episode
 from mjx_surrogate.systems.system import System
 from mjx_surrogate.tasks import Task, trajectory_cost
 from mjx_surrogate.trajectory import open_loop
@@ -58,17 +58,7 @@ def sampling_mpc(
         mean = jnp.einsum("s,stu->tu", w, samples)
         return mean, plan_cost(x, mean)
 
-    def control_step(carry, k):
-        x, U = carry
-        k_plan, k_noise = jax.random.split(k)
-        U, J = replan(x, U, k_plan)
-        u = U[0]
-        x_next = plant_step(x, u) + process_noise * jax.random.normal(k_noise, x.shape, x.dtype)
-        return (x_next, jnp.concatenate([U[1:], U[-1:]])), (x, u, J)
-
-    x0 = task.x0
-    (xN, _), (X, U, J) = jax.lax.scan(control_step, (x0, U0.astype(x0.dtype)), jax.random.split(key, steps))
-    X = jnp.concatenate([X, xN[None]])
+    X, U, J = episode(replan, plant_step, task.x0, U0, key, steps, process_noise)
     ones = jnp.ones((steps,), jnp.int32)
     return MPCResult(X, U, trajectory_cost(task, X, U), J, ones, jnp.zeros((steps, 1), jnp.int8))
 
