@@ -309,6 +309,7 @@ def kinds():
         control_study,
         d2c_study,
         horizon_study,
+        mpc_study,
         predict_study,
         rollout_study,
         theory_study,
@@ -322,6 +323,7 @@ def kinds():
         "theory": theory_study.run,
         "control": control_study.run,
         "horizon": horizon_study.run,
+        "mpc": mpc_study.run,
     }
 
 

@@ -18,6 +18,7 @@ from mjx_surrogate.config import (
     DataConfig,
     ExperimentConfig,
     MLPConfig,
+    MPCConfig,
     SindyConfig,
     SolverConfig,
     SurrogateConfig,
@@ -41,6 +42,7 @@ __version__ = "0.2.0"
 
 __all__ = [
     "AnalysisConfig",
+    "MPCConfig",
     "Config",
     "ConfigError",
     "Cost",

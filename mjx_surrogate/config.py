@@ -289,6 +289,42 @@ class AnalysisConfig:
     theory_mc_trials: int = 400
 
 
+MPC_CONTROLLERS = ("d2c", "oracle", "tvlqr", "surrogates", "predictive_sampling", "mppi")
+
+
+@dataclasses.dataclass(frozen=True)
+class MPCConfig:
+    """Receding-horizon control on the black box (kind "mpc", docs/mpc.md).
+
+    controllers: from "d2c" (LTV models identified at every replan), "oracle" (exact
+      Jacobians: experiment.oracle), "tvlqr" (tracking the offline D2C optimum, no
+      replanning), "surrogates" (iLQR on every model of surrogate.kinds, fitted on
+      data.n_traj trajectories around the optimum at data_level), "predictive_sampling"
+      and "mppi" (derivative-free, on the black box).
+    horizon: control steps per plan H (None: task.T). steps: control steps of an episode
+      (None: task.T; at most task.T with "tvlqr"). max_iter: iLQR iterations per replan.
+    process_noise: standard deviations (state units) of the noise added after every plant
+      step, one set of episodes per level. plant_mass_scales: plants whose bodies' masses
+      and inertias are these multiples of the model's (MuJoCo models; 1.0: the model).
+    n_episodes: episodes per controller and condition (their own keys).
+    samples: samples per replan of the sampling MPCs (None: matched to D2C-MPC's median
+      black-box steps per control step, else 64). sampling_sigma: their spread, control
+      units. mppi_temperature: MPPI's temperature as a fraction of the first plan's cost.
+    """
+
+    controllers: Tuple[str, ...] = MPC_CONTROLLERS
+    horizon: Optional[int] = None
+    steps: Optional[int] = None
+    max_iter: int = 5
+    process_noise: Tuple[float, ...] = (0.0, 0.01)
+    plant_mass_scales: Tuple[float, ...] = (1.0,)
+    n_episodes: int = 4
+    data_level: float = 0.1
+    samples: Optional[int] = None
+    sampling_sigma: float = 1.0
+    mppi_temperature: float = 0.01
+
+
 @dataclasses.dataclass(frozen=True)
 class ExperimentConfig:
     """What to run and where to write it.
@@ -301,7 +337,8 @@ class ExperimentConfig:
     "theory" (exact moments against Monte Carlo and the paper's formulas) or "control"
     (iLQR on each surrogate, judged on the black box against D2C and the exact oracle) or
     "horizon" (identification error against the rollout length, open against closed loop;
-    data.levels, data.n_traj rollouts).
+    data.levels, data.n_traj rollouts) or "mpc" (receding-horizon control on the black box,
+    every controller of section mpc side by side).
     x64: run in float64 (a user's MJCF model always does: float32 round-off swamps the
       perturbations that contacts and servos need; ``model_defaults.default_x64``).
     exact_oracle: also solve from the same start with exact Jacobians (None: on for the
@@ -312,7 +349,7 @@ class ExperimentConfig:
       every backend).
     """
 
-    kind: Literal["rollout", "d2c", "predict", "analysis", "theory", "control", "horizon"] = "d2c"
+    kind: Literal["rollout", "d2c", "predict", "analysis", "theory", "control", "horizon", "mpc"] = "d2c"
     seed: int = 0
     out_dir: str = "runs"
     name: Optional[str] = None
@@ -356,6 +393,7 @@ class Config:
     data: DataConfig = DataConfig()
     surrogate: SurrogateConfig = SurrogateConfig()
     analysis: AnalysisConfig = AnalysisConfig()
+    mpc: MPCConfig = MPCConfig()
     parallel: ParallelConfig = ParallelConfig()
 
 
@@ -480,6 +518,43 @@ def _check_parallel(pc: ParallelConfig) -> None:
         raise ConfigError(f"parallel.{given[0]}", "only used with parallel.distributed: true")
 
 
+def _check_mpc(m: MPCConfig) -> None:
+    if not m.controllers:
+        raise ConfigError("mpc.controllers", f"give one or more of {', '.join(MPC_CONTROLLERS)}")
+    for i, c in enumerate(m.controllers):
+        if c not in MPC_CONTROLLERS:
+            raise ConfigError(
+                f"mpc.controllers[{i}]", f"unknown controller {c!r}; valid: {', '.join(MPC_CONTROLLERS)}"
+            )
+    if len(set(m.controllers)) < len(m.controllers):
+        raise ConfigError("mpc.controllers", "names a controller twice")
+    for field in ("horizon", "steps", "max_iter", "n_episodes"):
+        v = getattr(m, field)
+        if v is not None and v < 1:
+            raise ConfigError(f"mpc.{field}", f"must be >= 1, got {v}")
+    if m.samples is not None and m.samples < 2:
+        raise ConfigError(
+            "mpc.samples", f"must be >= 2 (the warm start and one sample), or unset, got {m.samples}"
+        )
+    if not m.process_noise:
+        raise ConfigError("mpc.process_noise", "give one or more levels (0.0: none)")
+    if not m.plant_mass_scales:
+        raise ConfigError("mpc.plant_mass_scales", "give one or more scales (1.0: the model itself)")
+    for field, values, ok, valid in (
+        ("process_noise", m.process_noise, lambda v: v >= 0, ">= 0"),
+        ("plant_mass_scales", m.plant_mass_scales, lambda v: v > 0, "> 0"),
+    ):
+        for i, v in enumerate(values):
+            if not (math.isfinite(v) and ok(v)):
+                raise ConfigError(f"mpc.{field}[{i}]", f"must be a finite number {valid}, got {v}")
+    if not (math.isfinite(m.data_level) and 0 < m.data_level <= 1):
+        raise ConfigError("mpc.data_level", f"must be in (0, 1] (a fraction of U_max), got {m.data_level}")
+    for field in ("sampling_sigma", "mppi_temperature"):
+        v = getattr(m, field)
+        if not (math.isfinite(v) and v > 0):
+            raise ConfigError(f"mpc.{field}", f"must be a finite positive number, got {v}")
+
+
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,99}$")
 
 
@@ -498,6 +573,7 @@ def validate_static(cfg: Config) -> None:
     if not ex.out_dir:
         raise ConfigError("experiment.out_dir", "must name a directory")
     _check_parallel(cfg.parallel)
+    _check_mpc(cfg.mpc)
     if not (math.isfinite(s.accept_ratio) and 0 < s.accept_ratio < 1):
         raise ConfigError("solver.accept_ratio", f"must be in (0, 1), got {s.accept_ratio}")
     if not (math.isfinite(s.alpha_factor) and 0 < s.alpha_factor < 1):

@@ -12,9 +12,10 @@ previous plan shifted by one step (its last control repeated), with at most
 controller's system; a different plant (other masses, another parameter) is the model
 mismatch the controller does not know.
 Controllers: "d2c" (LTV models identified on the black box at every replan), "jacfwd" and
-"finite_difference" (the exact-Jacobian oracles). The episode is one program: a ``lax.scan``
-over the control steps, each replan an iLQR ``while_loop``; episodes batch with ``jax.vmap``
-over x0 and keys.
+"finite_difference" (the exact-Jacobian oracles); :func:`surrogate_mpc` plans on a global
+surrogate instead (SINDy-MPC, MLP-MPC) and :func:`tracking` replays a fixed nominal with its
+TVLQR gains (no replanning). The episode is one program: a ``lax.scan`` over the control
+steps, each replan an iLQR ``while_loop``; episodes batch with ``jax.vmap`` over x0 and keys.
 """
 
 from __future__ import annotations
@@ -28,10 +29,10 @@ import numpy as np
 
 from mjx_surrogate import sysid as sid
 from mjx_surrogate.d2c import oracle_method, problem
-from mjx_surrogate.ilqr import ILQRParams, ilqr_advance, ilqr_init, ilqr_result
+from mjx_surrogate.ilqr import ILQRParams, Problem, ilqr_advance, ilqr_init, ilqr_result
 from mjx_surrogate.pipeline import simulation_curve, steps_per_identification
 from mjx_surrogate.systems.system import System
-from mjx_surrogate.tasks import Task, trajectory_cost
+from mjx_surrogate.tasks import Task, task_cost, trajectory_cost
 
 CONTROLLERS = ("d2c", "jacfwd", "finite_difference")
 
@@ -77,6 +78,70 @@ def receding_horizon(
 
     X, U, (plan_cost, its, ident) = episode(replan, plant_step, task.x0, U0, key, steps, process_noise)
     return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)
+
+
+@functools.partial(jax.jit, static_argnames=("plant", "steps"))
+def surrogate_mpc(
+    model,
+    plant: System,
+    task: Task,
+    U0: jax.Array,
+    key: jax.Array,
+    steps: int,
+    params: ILQRParams = ILQRParams(max_iter=5),
+    process_noise: float | jax.Array = 0.0,
+) -> MPCResult:
+    """One episode on ``plant`` whose replans run iLQR on a differentiable surrogate (a
+    pytree with ``step(x, u)``: a SindyModel, an MLPModel), Jacobians by ``jax.jacfwd``
+    through it: SINDy-MPC, MLP-MPC. U0 [H, nu]; no black-box call but the plant's steps."""
+    step = model.step
+
+    def linearize(X, U, K, k):
+        return sid.exact_jacobians(step, X, U)
+
+    def replan(x, U, k):
+        prob = Problem(step, linearize, task_cost(task), x, task.u_min, task.u_max)
+        plan = ilqr_result(ilqr_advance(prob, ilqr_init(prob, U, params, k), params))
+        return plan.U, (plan.cost, plan.iterations, plan.identified)
+
+    X, U, (plan_cost, its, ident) = episode(replan, plant.step, task.x0, U0, key, steps, process_noise)
+    return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)
+
+
+@functools.partial(jax.jit, static_argnames=("plant",))
+def tracking(
+    plant: System,
+    task: Task,
+    X_ref: jax.Array,
+    U_ref: jax.Array,
+    K: jax.Array,
+    key: jax.Array,
+    process_noise: float | jax.Array = 0.0,
+) -> MPCResult:
+    """TVLQR tracking of a fixed nominal X_ref [N+1, nx], U_ref [N, nu] with gains K [N, nu,
+    nx]: u_n = clip(U_ref[n] + K[n] (x_n - X_ref[n])), no replanning; N steps from task.x0."""
+    N = U_ref.shape[0]
+
+    def control_step(x, inputs):
+        x_ref, u_ref, K_n, k = inputs
+        u = jnp.clip(u_ref + K_n @ (x - x_ref), task.u_min, task.u_max)
+        k_noise = jax.random.split(k)[1]  # the draws of :func:`episode` from the same key
+        x_next = plant.step(x, u) + process_noise * jax.random.normal(k_noise, x.shape, x.dtype)
+        return x_next, (x, u)
+
+    x0 = task.x0
+    inputs = (
+        X_ref[:N].astype(x0.dtype),
+        U_ref.astype(x0.dtype),
+        K.astype(x0.dtype),
+        jax.random.split(key, N),
+    )
+    xN, (X, U) = jax.lax.scan(control_step, x0, inputs)
+    X = jnp.concatenate([X, xN[None]])
+    zeros = jnp.zeros((N,), x0.dtype)
+    return MPCResult(
+        X, U, trajectory_cost(task, X, U), zeros, zeros.astype(jnp.int32), jnp.zeros((N, 1), jnp.int8)
+    )
 
 
 def episode(replan, plant_step, x0: jax.Array, U0: jax.Array, key: jax.Array, steps: int, process_noise):

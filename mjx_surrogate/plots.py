@@ -77,7 +77,12 @@ def trajectory_evolution(
     return fig
 
 
-def cost_vs_noise(noise: np.ndarray, costs: dict[str, np.ndarray], title: str = ""):
+def cost_vs_noise(
+    noise: np.ndarray,
+    costs: dict[str, np.ndarray],
+    title: str = "",
+    xlabel: str = "control noise std (fraction of U_max: the actuator limit, else max |u*|)",
+):
     """Median and 10-90 % band of closed-loop / open-loop cost [L, N] against noise [L]."""
     fig, ax = plt.subplots(figsize=(5, 3.4))
     for name, c in costs.items():
@@ -87,7 +92,7 @@ def cost_vs_noise(noise: np.ndarray, costs: dict[str, np.ndarray], title: str = 
         ax.plot(noise, med, marker="o", label=name)
         ax.fill_between(noise, lo, hi, alpha=0.2)
     ax.set_yscale("log")
-    ax.set_xlabel("control noise std (fraction of U_max: the actuator limit, else max |u*|)")
+    ax.set_xlabel(xlabel)
     ax.set_ylabel("cost J")
     ax.set_title(title, fontsize=10)
     ax.legend(fontsize=8)
@@ -104,6 +109,7 @@ def predictions(
     labels: list[str],
     phase: tuple[int, int] | None = None,
     title: str = "",
+    reference_label: str = "black box",
 ):
     """Open-loop predictions against the black box along one trajectory.
 
@@ -121,7 +127,7 @@ def predictions(
         return np.clip(a, lo - pad, hi + pad)
 
     for ax, c in zip(axes, coords):
-        ax.plot(t, true[:, c], "k", lw=2.2, label="black box")
+        ax.plot(t, true[:, c], "k", lw=2.2, label=reference_label)
         for name, p in preds.items():
             ax.plot(t, clip(p[:, c], c), lw=1.2, label=name)
         ax.set_xlabel("t (s)")
@@ -130,7 +136,7 @@ def predictions(
     if phase is not None:
         i, j = phase
         ax = axes[-1]
-        ax.plot(true[:, i], true[:, j], "k", lw=2.2, label="black box")
+        ax.plot(true[:, i], true[:, j], "k", lw=2.2, label=reference_label)
         for name, p in preds.items():
             ax.plot(clip(p[:, i], i), clip(p[:, j], j), lw=1.2, label=name)
         ax.set_xlabel(labels[i])
@@ -256,6 +262,25 @@ def cost_vs_simulations(curves: dict[str, tuple[np.ndarray, np.ndarray]], title:
     ax.set_title(title, fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def cost_vs_calls(points: dict[str, list[tuple[float | None, float | None]]], title: str = ""):
+    """Closed-loop cost against black-box control steps per control step, one marker per
+    (controller, condition); controllers whose calls are not counted (None) are left out."""
+    fig, ax = plt.subplots(figsize=(5.6, 3.6))
+    for label, pts in points.items():
+        pts = [(c, j) for c, j in pts if c is not None and j is not None]
+        if pts:
+            ax.scatter(*zip(*pts), label=label, s=22)
+    ax.set_xscale("symlog", linthresh=1.0)
+    ax.set_yscale("log")
+    ax.set_xlabel("black-box control steps per control step (0: the plant's only)")
+    ax.set_ylabel("closed-loop cost (median over episodes)")
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
     fig.tight_layout()
     return fig
 

@@ -275,7 +275,7 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
             f"must be >= nx + nu = {system.nx + system.nu} for the per-step least squares, "
             f"got {cfg.data.n_traj}",
         )
-    if kind in ("d2c", "control", "predict", "analysis", "horizon"):
+    if kind in ("d2c", "control", "predict", "analysis", "horizon", "mpc"):
         if reduced and not 1 <= n_samples <= system.nx:
             raise ConfigError(
                 "solver.n_samples",
@@ -291,8 +291,9 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
         check_memory(cfg, system, int(tc.T), n_samples)
     sigma_u = sigma if cfg.solver.sigma_u is None else cfg.solver.sigma_u
     check_start(system, task, sigma_x)
-    if kind in ("predict", "analysis", "control"):
+    if kind in ("predict", "analysis", "control") or (kind == "mpc" and "surrogates" in cfg.mpc.controllers):
         _check_surrogates(cfg, system, int(tc.T))
+    mpc = _resolve_mpc(cfg.mpc, system, int(tc.T)) if kind == "mpc" else cfg.mpc
     if system.mj_model is None:
         sc = dataclasses.replace(cfg.system, source_sha256=source_digest(system.source))
     else:
@@ -329,7 +330,7 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
         sysid_noise_floor=floor,
         sysid_perturb_x0=perturb_x0,
     )
-    resolved = dataclasses.replace(cfg, system=sc, task=tc, experiment=ex, solver=solver)
+    resolved = dataclasses.replace(cfg, system=sc, task=tc, experiment=ex, solver=solver, mpc=mpc)
     return Resolved(resolved, system, task)
 
 
@@ -339,6 +340,23 @@ def analysis_library_specs(cfg: Config, system: System) -> dict:
     out = library_specs(cfg, system, a.convergence_library, "analysis.convergence_library")
     out |= library_specs(cfg, system, a.gram_libraries, "analysis.gram_libraries")
     return out | library_specs(cfg, system, a.variance_libraries, "analysis.variance_libraries")
+
+
+def _resolve_mpc(m, system: System, T: int):
+    """Section mpc with its defaults filled (horizon and steps: the task's T), checked
+    against the system and the task."""
+    m = dataclasses.replace(m, horizon=m.horizon or T, steps=m.steps or T)
+    if "tvlqr" in m.controllers and m.steps > T:
+        raise ConfigError(
+            "mpc.steps",
+            f"'tvlqr' tracks the offline optimum of task.T = {T} steps: at most {T}, got {m.steps}",
+        )
+    if system.mj_model is None and any(s != 1.0 for s in m.plant_mass_scales):
+        raise ConfigError(
+            "mpc.plant_mass_scales",
+            f"scales a MuJoCo model's masses; {system.name} is a function black box: leave it at (1.0,)",
+        )
+    return m
 
 
 def _check_surrogates(cfg: Config, system: System, T: int) -> None:

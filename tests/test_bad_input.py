@@ -53,6 +53,22 @@ CASES = [
     (["smoke_d2c", "--out"], "--out"),
     (["smoke_d2c", "--out", "a", "--out", "b"], "--out"),
     (["smoke_d2c", "--experment.seed", "1"], "--experment.seed"),
+    (["smoke_mpc", "--mpc.controllers", "d2c", "ilqg"], "mpc.controllers[1]"),
+    (["smoke_mpc", "--mpc.steps", "9"], "mpc.steps"),  # tvlqr tracks the T = 8 optimum
+    (["smoke_mpc", "--mpc.process_noise", "-0.1"], "mpc.process_noise[0]"),
+    (["smoke_mpc", "--mpc.samples", "1"], "mpc.samples"),
+    (
+        [
+            "lorenz_d2c",
+            "--experiment.kind",
+            "mpc",
+            "--mpc.controllers",
+            "d2c",
+            "--mpc.plant_mass_scales",
+            "1.5",
+        ],
+        "mpc.plant_mass_scales",
+    ),
     (["smoke_d2c", "--parallel.devices", "0"], "parallel.devices"),
     (["smoke_d2c", "--parallel.devices", "4096"], "parallel.devices"),
     (["smoke_d2c", "--parallel.coordinator_address", "localhost"], "parallel.coordinator_address"),

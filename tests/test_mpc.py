@@ -2,6 +2,7 @@
 
 import os
 import re
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -67,6 +68,66 @@ def test_mpc_on_a_linear_system_is_the_receding_horizon_lqr(controller):
     )
     assert float(r.cost) == pytest.approx(J, rel=1e-8)
     assert r.plan_cost.shape == (N,) and np.all(np.asarray(r.iterations) >= 1)
+
+
+class _LinearModel(NamedTuple):
+    """A differentiable surrogate as the surrogates are: a pytree with step(x, u)."""
+
+    A: jax.Array
+    B: jax.Array
+
+    def step(self, x, u):
+        return self.A @ x + self.B @ u
+
+
+def test_surrogate_mpc_with_the_true_model_is_the_receding_horizon_lqr():
+    """Planning on a surrogate that is the plant's own linear map gives the LQR closed loop;
+    the plant, not the surrogate, moves the state (a wrong surrogate's plans still land on
+    the plant's steps)."""
+    plant = _linear()
+    exact = _LinearModel(jnp.asarray(A), jnp.asarray(B))
+    r = mpc.surrogate_mpc(
+        exact, plant, _task(), jnp.zeros((H, 1)), jax.random.key(0), N, ILQRParams(max_iter=3)
+    )
+    K0 = _lqr_first_gain(A, B, H)
+    X = [np.array([1.0, 0.0])]
+    for _ in range(N):
+        X.append((A + B @ K0) @ X[-1])
+    np.testing.assert_allclose(np.asarray(r.X), np.array(X), atol=1e-8)
+    wrong = _LinearModel(jnp.asarray(A), jnp.asarray(3.0 * B))
+    w = mpc.surrogate_mpc(
+        wrong, plant, _task(), jnp.zeros((H, 1)), jax.random.key(0), N, ILQRParams(max_iter=3)
+    )
+    Xw, Uw = np.asarray(w.X), np.asarray(w.U)
+    np.testing.assert_allclose(Xw[1:], Xw[:-1] @ A.T + Uw @ B.T, atol=1e-12)
+    assert not np.allclose(Xw, np.array(X), atol=1e-3)
+
+
+def test_tracking_is_the_tvlqr_loop_with_the_planners_noise_draws():
+    """TVLQR tracking against a NumPy loop u_n = clip(U_ref[n] + K[n] (x_n - X_ref[n])),
+    and its process noise: the same draws as a replanning episode from the same key."""
+    rng = np.random.default_rng(0)
+    X_ref, U_ref = rng.normal(size=(N + 1, 2)), rng.normal(size=(N, 1))
+    K = rng.normal(size=(N, 1, 2)) * 0.3
+    task = _task().replace(u_min=jnp.array([-0.8]), u_max=jnp.array([0.8]))
+    r = mpc.tracking(
+        _linear(), task, jnp.asarray(X_ref), jnp.asarray(U_ref), jnp.asarray(K), jax.random.key(3)
+    )
+    x, X, U = np.array([1.0, 0.0]), [], []
+    for n in range(N):
+        u = np.clip(U_ref[n] + K[n] @ (x - X_ref[n]), -0.8, 0.8)
+        X.append(x), U.append(u)
+        x = A @ x + B @ u
+    np.testing.assert_allclose(np.asarray(r.X), np.array(X + [x]), atol=1e-12)
+    np.testing.assert_allclose(np.asarray(r.U), np.array(U), atol=1e-12)
+    key, noise = jax.random.key(5), 0.1
+    tr = mpc.tracking(_linear(), task, jnp.asarray(X_ref), jnp.asarray(U_ref), jnp.asarray(K), key, noise)
+    rh = mpc.receding_horizon(
+        _linear(), _task(), jnp.zeros((H, 1)), key, N, ILQRParams(max_iter=2), SID, noise, "jacfwd"
+    )
+    residual = lambda e: np.asarray(e.X[1:]) - np.asarray(e.X[:-1]) @ A.T - np.asarray(e.U) @ B.T  # noqa: E731
+    np.testing.assert_allclose(residual(tr), residual(rh), atol=1e-12)
+    assert 0.05 < residual(tr).std() < 0.2
 
 
 def test_the_plant_is_stepped_with_the_episodes_noise_and_the_model_is_not_the_plant():

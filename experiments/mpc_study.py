@@ -1,0 +1,300 @@
+"""Experiment kind "mpc": receding-horizon control on the black box, every controller of
+section ``mpc`` side by side (docs/mpc.md).
+
+Stages: ``d2c``, the offline optimum on the task's T steps (TVLQR's reference, the centre
+of the surrogates' data and every planner's first plan), then ``mpc/<controller>``:
+episodes of ``mpc.steps`` control steps on each plant (``mpc.plant_mass_scales``) at each
+process-noise level, ``mpc.n_episodes`` each (batched by ``vmap``, the same keys, hence the
+same noise draws, for every controller). "surrogates" first fits every kind of
+``surrogate.kinds`` on ``data.n_traj`` trajectories around the optimum at ``mpc.data_level``.
+Per controller and condition: closed-loop cost on the plant, goal reached, black-box steps
+per control step, compute per control step (compile apart, the batch's wall time over its
+episode steps) and the real-time factor (control period / compute per step).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mjx_surrogate import data, mpc, mpc_sampling, pipeline, plots, progress
+from mjx_surrogate.config import MPC_CONTROLLERS
+from mjx_surrogate.evaluation import finite_or_none
+from mjx_surrogate.resolution import Resolved, solver_params
+from mjx_surrogate.results import Run
+from mjx_surrogate.surrogates import FitContext, fit_all
+from mjx_surrogate.systems.plant import mass_scaled_plant
+from mjx_surrogate.tasks import trajectory_cost
+from mjx_surrogate.trajectory import open_loop
+
+ITERATIVE = ("d2c", "oracle", "surrogates")  # the iLQR planners
+DEFAULT_SAMPLES = 64  # sampling MPCs' samples per replan when D2C-MPC did not run
+
+
+def _planners(controller, res, optimum, plan_task, U0, samples, fit):
+    """{label: episode(plant, keys [E], noise) -> batched MPCResult} of one controller."""
+    cfg, system, task = res
+    m = cfg.mpc
+    params, sysid = solver_params(cfg)
+    params = params.replace(max_iter=m.max_iter)
+    N = m.steps
+    if controller in ("d2c", "oracle"):
+        name = "d2c" if controller == "d2c" else cfg.experiment.oracle
+        one = lambda plant, k, w: mpc.receding_horizon(  # noqa: E731
+            system, plan_task, U0, k, N, params, sysid, w, name, plant
+        )
+        return {"D2C-MPC" if controller == "d2c" else f"oracle MPC ({name})": one}
+    if controller == "tvlqr":
+        X, U, K = (jnp.asarray(optimum[k]) for k in ("X_star", "U_star", "K_star"))
+        ref = (X[: N + 1], U[:N], K[:N])
+        return {"TVLQR tracking": lambda plant, k, w: mpc.tracking(plant, task, *ref, k, w)}
+    if controller == "surrogates":
+        return {
+            f"{label} MPC": (
+                lambda model: (
+                    lambda plant, k, w: mpc.surrogate_mpc(model, plant, plan_task, U0, k, N, params, w)
+                )
+            )(model)
+            for label, model in fit().items()
+        }
+    first = trajectory_cost(plan_task, *open_loop(system.step, task.x0, U0, plan_task.u_min, plan_task.u_max))
+    lam = m.mppi_temperature * float(first) if controller == "mppi" else None
+    label = "MPPI" if controller == "mppi" else "predictive sampling"
+    one = lambda plant, k, w: mpc_sampling.sampling_mpc(  # noqa: E731
+        system, plan_task, U0, k, N, m.sampling_sigma, samples, lam, w, plant
+    )
+    return {f"{label} (S={samples})": one}
+
+
+def _calls(controller, result, res, samples) -> float | None:
+    """Black-box control steps per control step (median over episodes), the plant's own
+    step not counted; None where not counted (the oracles' Jacobians)."""
+    cfg, system, _ = res
+    m = cfg.mpc
+    if controller == "d2c":
+        params, sysid = solver_params(cfg)
+        per_episode = [
+            mpc.black_box_steps(
+                jax.tree.map(lambda a: a[e], result), m.horizon, params.n_alphas, sysid
+            ).mean()
+            for e in range(m.n_episodes)
+        ]
+        return float(np.median(per_episode))
+    if controller in ("predictive_sampling", "mppi"):
+        return float(mpc_sampling.black_box_steps(samples, m.horizon, controller == "mppi"))
+    return 0.0 if controller in ("tvlqr", "surrogates") else None
+
+
+def _controller_stage(controller, res, record, plants, optimum, plan_task, U0, samples, key, fit):
+    cfg, system, task = res
+    m = cfg.mpc
+    conditions = [(s, w) for s in m.plant_mass_scales for w in m.process_noise]
+
+    def compute():
+        with progress.steps(f"MPC {controller}", 1 + len(conditions), cfg.experiment.progress) as meter:
+            meter.advance("fit the surrogates" if controller == "surrogates" else "set up")
+            planners = _planners(controller, res, optimum, plan_task, U0, samples, fit)
+            meter.extend(len(conditions) * (len(planners) - 1))
+            rows, arrays = [], {}
+            for label, one in planners.items():
+                for pi, (scale, plant) in enumerate(plants.items()):
+                    batch = jax.jit(
+                        lambda keys, w, plant=plant, one=one: jax.vmap(lambda k: one(plant, k, w))(keys)
+                    )
+                    compiled, compile_s = None, 0.0
+                    for ni, noise in enumerate(m.process_noise):
+                        meter.advance(f"{label}, plant mass x{scale:g}, noise {noise:g}")
+                        ci = pi * len(m.process_noise) + ni
+                        keys = jax.random.split(jax.random.fold_in(key, ci), m.n_episodes)
+                        w = jnp.asarray(noise, task.x0.dtype)
+                        if compiled is None:
+                            t0 = time.perf_counter()
+                            compiled = batch.lower(keys, w).compile()
+                            compile_s = time.perf_counter() - t0
+                        t0 = time.perf_counter()
+                        r = jax.block_until_ready(compiled(keys, w))
+                        run_s = time.perf_counter() - t0
+                        row, X, U = _row(res, label, controller, scale, noise, r, run_s, samples)
+                        row["compile_s"] = compile_s if ni == 0 else 0.0
+                        tag = f"mpc_{label.split(' (')[0].replace(' ', '_')}_{ci}"
+                        row["arrays"] = {"X": f"{tag}_X", "U": f"{tag}_U"}
+                        arrays[f"{tag}_X"], arrays[f"{tag}_U"] = X, U
+                        rows.append(row)
+        return {"rows": rows}, arrays
+
+    def _row(res, label, controller, scale, noise, r, run_s, samples):
+        X, U = np.asarray(r.X), np.asarray(r.U)
+        costs = np.asarray(r.cost, dtype=float)
+        goals = [pipeline.goal_test(task, x, cfg.task.goal_tolerance) for x in X]
+        per_step = run_s / (m.n_episodes * m.steps)
+        row = {
+            "controller": label,
+            "plant_mass_scale": scale,
+            "process_noise": noise,
+            "costs": [finite_or_none(c) for c in costs],
+            "cost_median": finite_or_none(np.median(costs)),
+            "goal_reached": sum(g["reached"] for g in goals) / len(goals),
+            "final_goal_cost_median": finite_or_none(
+                np.median([g["goal_cost_final"] or np.inf for g in goals])
+            ),
+            "black_box_steps_per_control_step": _calls(controller, r, res, samples),
+            "iterations_per_replan": float(np.mean(r.iterations)) if controller in ITERATIVE else None,
+            "compute_per_step_s": per_step,
+            "real_time_factor": float(system.dt) / per_step,
+        }
+        return row, X, U
+
+    return compute
+
+
+def _plants(res, record) -> dict:
+    """{mass scale: plant}: the system itself at 1.0, else a mass-scaled copy kept in the
+    run folder (``plant_x<scale>.mjb``) for replays."""
+    cfg, system, _ = res
+    out = {}
+    for s in cfg.mpc.plant_mass_scales:
+        if s == 1.0:
+            out[s] = system
+        else:
+            out[s] = mass_scaled_plant(system, s, os.path.join(record.folder.path, f"plant_x{s:g}.mjb"))
+    return out
+
+
+def run(res: Resolved, record: Run, key: jax.Array) -> str:
+    cfg, system, task = res
+    m, dc = cfg.mpc, cfg.data
+    k_opt, k_data, k_mpc = jax.random.split(key, 3)
+    record.add_arrays({"x0": task.x0})
+    m_d2c, optimum = record.stage("d2c", pipeline.optimum_stage(res, k_opt))
+    if m_d2c["cost"] is None:
+        return "diverged"
+    X_star, U_star = jnp.asarray(optimum["X_star"]), jnp.asarray(optimum["U_star"])
+    H = m.horizon
+    U0 = jnp.concatenate([U_star, jnp.repeat(U_star[-1:], max(0, H - task.T), axis=0)])[:H]
+    plan_task = task.replace(T=H)
+    plants = _plants(res, record)
+    record.set(
+        "mpc_conditions",
+        [{"plant_mass_scale": s, "process_noise": w} for s in plants for w in m.process_noise],
+    )
+
+    def fit():
+        ds = data.sample(
+            system, X_star, U_star, k_data, dc.n_traj, m.data_level, dc.x0_sigma, task.u_min, task.u_max
+        )
+        train, test = data.split(ds, jax.random.fold_in(k_data, 1), dc.test_fraction)
+        fitted = fit_all(
+            FitContext(cfg, system),
+            data.transitions(train),
+            data.transitions(test),
+            jax.random.fold_in(k_data, 2),
+        )
+        return {label: jax.tree.map(np.asarray, f.model) for label, f in fitted.items()}
+
+    rows, samples = [], m.samples or DEFAULT_SAMPLES
+    for c in (c for c in MPC_CONTROLLERS if c in m.controllers):
+        out, _ = record.stage(
+            f"mpc/{c}", _controller_stage(c, res, record, plants, optimum, plan_task, U0, samples, k_mpc, fit)
+        )
+        rows += out["rows"]
+        if c == "d2c" and m.samples is None:  # the sampling MPCs get D2C-MPC's budget
+            calls = np.median([r["black_box_steps_per_control_step"] for r in out["rows"]])
+            samples = max(2, int(round(calls / H)))
+    record.set("mpc_rows", rows)
+    _figures(record, res, rows, X_star)
+    record.folder.write_text("mpc_table.md", table(rows, float(system.dt)))
+    return m_d2c["status"]
+
+
+def _figures(record, res, rows, X_star) -> None:
+    cfg, system, task = res
+    m = cfg.mpc
+    labels = list(dict.fromkeys(r["controller"] for r in rows))
+    for s in m.plant_mass_scales:
+        costs = {
+            c: np.array(
+                [
+                    [np.inf if v is None else v for v in r["costs"]]
+                    for r in rows
+                    if r["controller"] == c and r["plant_mass_scale"] == s
+                ]
+            )
+            for c in labels
+        }
+        record.figure(
+            f"mpc_cost_vs_noise_x{s:g}.png",
+            lambda costs=costs, s=s: plots.cost_vs_noise(
+                np.asarray(m.process_noise),
+                costs,
+                f"{system.name}: MPC on the plant (masses x{s:g})",
+                xlabel="process noise std (state units)",
+            ),
+        )
+    points = {
+        c: [(r["black_box_steps_per_control_step"], r["cost_median"]) for r in rows if r["controller"] == c]
+        for c in labels
+    }
+    record.figure(
+        "mpc_cost_vs_calls.png",
+        lambda: plots.cost_vs_calls(points, f"{system.name}: closed-loop cost against black-box calls"),
+    )
+    last = (
+        len(m.plant_mass_scales) * len(m.process_noise) - 1
+    )  # the hardest condition: heaviest plant, most noise
+    paths = {
+        r["controller"]: record.arrays[r["arrays"]["X"]][0]
+        for r in rows
+        if r["arrays"]["X"].endswith(f"_{last}_X")
+    }
+    t = np.arange(m.steps + 1) * system.dt
+    coords = list(range(min(system.nq, 2)))
+    record.figure(
+        "mpc_trajectories.png",
+        lambda: plots.predictions(
+            t,
+            np.asarray(X_star)[: m.steps + 1],
+            paths,
+            coords,
+            list(system.state_labels),
+            (list(system.angle_pairs) or [None])[0],
+            f"{system.name}: closed loops, plant masses x{m.plant_mass_scales[-1]:g}, "
+            f"noise {m.process_noise[-1]:g}",
+            reference_label="offline D2C optimum",
+        ),
+    )
+
+
+def table(rows: list[dict], dt: float) -> str:
+    """The side-by-side table (Markdown), one block per condition."""
+    f = lambda v: "-" if v is None else f"{v:.4g}"  # noqa: E731
+    out = []
+    for s, w in dict.fromkeys((r["plant_mass_scale"], r["process_noise"]) for r in rows):
+        out += [
+            f"\n### Plant masses x{s:g}, process noise {w:g}\n",
+            "| controller | closed-loop cost (median) | min - max | goal reached | black-box steps "
+            "per control step | iterations per replan | ms per control step | real-time factor |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for r in rows:
+            if (r["plant_mass_scale"], r["process_noise"]) != (s, w):
+                continue
+            c = [v for v in r["costs"] if v is not None]
+            spread = (
+                f"{min(c):.4g} - {max(c):.4g}"
+                if len(c) == len(r["costs"])
+                else f"{len(r['costs']) - len(c)} diverged"
+            )
+            out.append(
+                f"| {r['controller']} | {f(r['cost_median'])} | {spread} | {100 * r['goal_reached']:.0f} % | "
+                f"{f(r['black_box_steps_per_control_step'])} | {f(r['iterations_per_replan'])} | "
+                f"{1e3 * r['compute_per_step_s']:.3g} | {r['real_time_factor']:.3g} |"
+            )
+    return (
+        f"Control period {dt:g} s; compute per control step: a batch's wall time over its episodes' steps.\n"
+        + "\n".join(out)
+        + "\n"
+    )

@@ -1,0 +1,87 @@
+"""The "mpc" experiment end to end on its smoke preset: every controller's episodes replayed
+by a plain ``mujoco.mj_step`` loop on the run folder's plant, the same noise draws for every
+controller, the sampling budget matched to D2C-MPC's, the table and the figures."""
+
+import json
+import os
+
+import mujoco
+import numpy as np
+import pytest
+
+from experiments import run as cli
+from tests.helpers import assert_png
+
+CONTROLLERS = ("D2C-MPC", "oracle MPC", "TVLQR tracking", "SINDy", "MLP", "predictive sampling", "MPPI")
+
+
+@pytest.fixture(scope="module")
+def smoke_mpc(tmp_path_factory):
+    out = tmp_path_factory.mktemp("mpc")
+    assert cli.main(["smoke_mpc", "--out", str(out)]) == 0
+    (folder,) = os.listdir(out)
+    path = out / folder
+    return path, json.loads((path / "metrics.json").read_text()), np.load(path / "arrays.npz")
+
+
+def _mj_step_loop(model: mujoco.MjModel, substeps: int, x0: np.ndarray, U: np.ndarray) -> np.ndarray:
+    """The independent reference: controls applied by mj_step, substeps per control step."""
+    d = mujoco.MjData(model)
+    X = [x0]
+    for u in U:
+        d.qpos[:], d.qvel[:] = X[-1][: model.nq], X[-1][model.nq :]
+        d.ctrl[:] = u
+        for _ in range(substeps):
+            mujoco.mj_step(model, d)
+        X.append(np.concatenate([d.qpos, d.qvel]))
+    return np.array(X)
+
+
+@pytest.mark.slow
+def test_every_controllers_episodes_replay_on_the_plant_with_mj_step(smoke_mpc):
+    path, m, arrays = smoke_mpc
+    cfg = json.loads((path / "config.json").read_text())
+    plant = mujoco.MjModel.from_binary_path(str(path / "plant_x1.2.mjb"))
+    model = mujoco.MjModel.from_binary_path(str(path / "model.mjb"))
+    assert np.allclose(plant.body_mass[1:], 1.2 * model.body_mass[1:])
+    substeps = cfg["system"]["substeps"]
+    rows = m["mpc_rows"]
+    labels = {r["controller"] for r in rows}
+    assert all(any(lab.startswith(c) for lab in labels) for c in CONTROLLERS), labels
+    residuals = {}
+    for r in rows:
+        X, U = arrays[r["arrays"]["X"]], arrays[r["arrays"]["U"]]  # [E, N+1, nx], [E, N, nu]
+        assert X.shape[:2] == (2, 7) and U.shape[:2] == (2, 6)
+        np.testing.assert_allclose(X[:, 0], np.broadcast_to(arrays["x0"], X[:, 0].shape))
+        steps = np.array(
+            [
+                [_mj_step_loop(plant, substeps, x, u[None])[1] for x, u in zip(Xe[:-1], Ue)]
+                for Xe, Ue in zip(X, U)
+            ]
+        )
+        residual = X[:, 1:] - steps  # the process noise each step added
+        if r["process_noise"] == 0.0:
+            np.testing.assert_allclose(
+                X, np.array([_mj_step_loop(plant, substeps, Xe[0], Ue) for Xe, Ue in zip(X, U)]), atol=1e-10
+            )
+        else:
+            residuals[r["controller"]] = residual
+    first = next(iter(residuals.values()))
+    assert 0.005 < first.std() < 0.02  # process noise 0.01
+    for res in residuals.values():  # the same keys: the same draws for every controller
+        np.testing.assert_allclose(res, first, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_the_sampling_budget_matches_d2c_and_the_table_and_figures_are_written(smoke_mpc):
+    path, m, _ = smoke_mpc
+    rows = m["mpc_rows"]
+    d2c = np.median([r["black_box_steps_per_control_step"] for r in rows if r["controller"] == "D2C-MPC"])
+    ps = [r for r in rows if r["controller"].startswith("predictive sampling")]
+    assert abs(ps[0]["black_box_steps_per_control_step"] - d2c) <= 5 / 2  # S H with H = 5
+    assert all(r["compute_per_step_s"] > 0 and r["real_time_factor"] > 0 for r in rows)
+    assert m["stages"]["mpc/surrogates"]["status"] == "done"
+    table = (path / "mpc_table.md").read_text()
+    assert table.count("### Plant masses x1.2") == 2 and "TVLQR tracking" in table
+    for name in ("mpc_cost_vs_noise_x1.2.png", "mpc_cost_vs_calls.png", "mpc_trajectories.png"):
+        assert_png(str(path / name))
