@@ -17,7 +17,7 @@ CONFIG = Config(
     system=SystemConfig(name="pendulum", backend="native"),  # compiles in seconds
     task=TaskConfig(preset="pendulum_swingup", T=10),
     solver=SolverConfig(n_samples=6, max_iter=30, init="zeros"),
-    experiment=ExperimentConfig(kind="analysis", progress=False, x64=True),
+    experiment=ExperimentConfig(kind="analysis", progress=False, video=False, x64=True),
     data=DataConfig(n_traj=30),
     surrogate=SurrogateConfig(
         sindy=SindyConfig(libraries=("cubic_trig",)), mlp=MLPConfig(epochs=3, batch_size=32)

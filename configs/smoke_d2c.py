@@ -7,5 +7,7 @@ CONFIG = Config(
     system=SystemConfig(name="pendulum", backend="native"),
     task=TaskConfig(preset="pendulum_d2c", T=10),
     solver=SolverConfig(n_samples=6, max_iter=30, init="random"),
-    experiment=ExperimentConfig(kind="d2c", n_noise_trials=8, progress=False, oracle="finite_difference"),
+    experiment=ExperimentConfig(
+        kind="d2c", n_noise_trials=8, progress=False, video=False, oracle="finite_difference"
+    ),
 )

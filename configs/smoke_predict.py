@@ -16,7 +16,7 @@ CONFIG = Config(
     system=SystemConfig(name="pendulum", backend="native"),  # compiles in seconds
     task=TaskConfig(preset="pendulum_swingup", T=10),
     solver=SolverConfig(n_samples=6, max_iter=30, init="zeros"),
-    experiment=ExperimentConfig(kind="predict", progress=False, x64=True),
+    experiment=ExperimentConfig(kind="predict", progress=False, video=False, x64=True),
     data=DataConfig(n_traj=40, levels=(0.1, 0.6)),
     surrogate=SurrogateConfig(
         sindy=SindyConfig(libraries=("cubic_trig", "quartic")), mlp=MLPConfig(epochs=5, batch_size=64)

@@ -207,6 +207,11 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     record.set("mpc_rows", rows)
     _figures(record, res, rows, X_star)
     record.folder.write_text("mpc_table.md", table(rows, float(system.dt)))
+    if cfg.experiment.video and system.mj_model is not None:  # episode 0 of the hardest condition
+        last = f"_{len(m.plant_mass_scales) * len(m.process_noise) - 1}_X"
+        clips = {r["controller"]: r["arrays"]["X"] for r in rows if r["arrays"]["X"].endswith(last)}
+        record.set("mpc_video_order", list(clips))
+        record.video("mpc_episodes.mp4", list(clips.values()), float(system.dt))
     return m_d2c["status"]
 
 

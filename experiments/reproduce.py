@@ -70,7 +70,7 @@ def quick(cfg, name: str):
             theory_mc_samples=200,
             theory_mc_trials=40,
         ),
-        experiment=r(cfg.experiment, progress=False),
+        experiment=r(cfg.experiment, progress=False, video=False),
     )
     if name.startswith("fish") or name in ("swimmer_horizon", "swimmer15_d2c"):
         cfg = r(cfg, task=r(cfg.task, T=60))

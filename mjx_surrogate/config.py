@@ -347,6 +347,9 @@ class ExperimentConfig:
     oracle: "jacfwd" (jax.jacfwd through the MJX step) or "finite_difference" (central
       differences of the black-box step along each coordinate: cheap to compile, runs on
       every backend).
+    video: on a MuJoCo system, write MP4 videos of the optimum (``optimum.mp4``) and of
+      the MPC episodes (``mpc_episodes.mp4``), rendered headless (docs/results.md); where
+      no GL context can be made the run says so in one line and goes on.
     """
 
     kind: Literal["rollout", "d2c", "predict", "analysis", "theory", "control", "horizon", "mpc"] = "d2c"
@@ -362,6 +365,7 @@ class ExperimentConfig:
     noise_levels: Tuple[float, ...] = (0.0, 0.01, 0.05, 0.1)
     n_noise_trials: int = 64
     progress: bool = True
+    video: bool = True
 
 
 @dataclasses.dataclass(frozen=True)

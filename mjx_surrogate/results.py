@@ -73,7 +73,18 @@ class WriteError(OSError):
 def versions() -> dict[str, str]:
     """Versions of python and the numerical stack, for the run folder."""
     out = {"python": sys.version.split()[0], "platform": platform.platform()}
-    for pkg in ("jax", "jaxlib", "mujoco", "mujoco-mjx", "flax", "optax", "numpy", "mjx_surrogate"):
+    for pkg in (
+        "jax",
+        "jaxlib",
+        "mujoco",
+        "mujoco-mjx",
+        "flax",
+        "optax",
+        "numpy",
+        "imageio",
+        "imageio-ffmpeg",
+        "mjx_surrogate",
+    ):
         try:
             out[pkg] = metadata.version(pkg)
         except metadata.PackageNotFoundError:
@@ -371,6 +382,7 @@ class Run:
         self.current: str | None = None  # the stage being computed
         self._lock = threading.RLock()
         self._ending = False  # finish() or abort() has begun
+        self._on_disk: set[str] = set()  # the arrays the last arrays.npz written holds
         self._previous = load_run(resume_from) if resume_from else None
         if resume_from:
             self.metrics["resumed_from"] = os.path.abspath(resume_from)
@@ -380,6 +392,7 @@ class Run:
             self.metrics["wall_time_s"] = time.perf_counter() - self.t0
             if arrays:
                 self.folder.write_arrays("arrays.npz", self.arrays)
+                self._on_disk = set(self.arrays)
             self.folder.write_json("metrics.json", self.metrics)
 
     def set(self, key: str, value: Any) -> None:
@@ -463,6 +476,33 @@ class Run:
             self._flush(arrays=False)
         return ok
 
+    def video(self, name: str, keys: list[str], dt: float) -> bool:
+        """Render the trajectories ``keys`` of the run's arrays on its ``model.mjb`` into the
+        MP4 ``name`` (:mod:`mjx_surrogate.video`, side by side); a failure is recorded and
+        said in one line on stderr, never raised."""
+        from mjx_surrogate.video import write_video
+
+        self._flush()
+        folder = self.folder.path
+        reason = write_video(
+            os.path.join(folder, "model.mjb"),
+            os.path.join(folder, "arrays.npz"),
+            keys,
+            os.path.join(folder, name),
+            dt,
+        )
+        entry = (
+            {"status": "written", "trajectories": keys}
+            if reason is None
+            else {"status": "skipped", "reason": reason}
+        )
+        if reason is not None:
+            print(f"note: video {name} not written: {reason}", file=sys.stderr)
+        with self._lock:
+            self.metrics.setdefault("videos", {})[name] = entry
+            self._flush(arrays=False)
+        return reason is None
+
     def finish(self, status: str, error: BaseException | None = None) -> str:
         """Write the final status (and the error, if any), close the folder; returns its
         path. Where the disk refuses, as much of the record as fits is written (the
@@ -498,6 +538,10 @@ class Run:
             return None
         except WriteError as exc:
             first = exc
+        for stage in self.metrics["stages"].values():  # finished, but its arrays are not on disk
+            lost = [k for k in stage.get("arrays", []) if k not in self._on_disk]
+            if lost:
+                stage["arrays_not_written"] = lost
         if self.metrics.get("status") != "failed":  # the run did not fail, its record did
             self.metrics["status"], self.metrics["error"] = "failed", f"WriteError: {first}"
         text = (json.dumps(jsonable(self.metrics), indent=2) + "\n").encode()

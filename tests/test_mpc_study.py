@@ -85,3 +85,29 @@ def test_the_sampling_budget_matches_d2c_and_the_table_and_figures_are_written(s
     assert table.count("### Plant masses x1.2") == 2 and "TVLQR tracking" in table
     for name in ("mpc_cost_vs_noise_x1.2.png", "mpc_cost_vs_calls.png", "mpc_trajectories.png"):
         assert_png(str(path / name))
+
+
+@pytest.mark.slow
+def test_the_videos_show_the_stored_trajectories(smoke_mpc):
+    """optimum.mp4: one frame per control step of X_star, not blank, and the pendulum in the
+    frames where the stored state puts it: the centroid of the lit pixels follows
+    (sin q, -cos q) (correlations beyond 0.98). mpc_episodes.mp4: the controllers side by side."""
+    import imageio.v2 as imageio
+
+    path, m, arrays = smoke_mpc
+    assert m["videos"]["optimum.mp4"]["status"] == "written"
+    frames = np.array(imageio.mimread(str(path / "optimum.mp4")))
+    q = arrays["X_star"][:, 0]
+    assert frames.shape == (len(q), 240, 320, 3)
+    assert frames.std(axis=(1, 2, 3)).min() > 2  # not blank
+    lit = [np.nonzero(f.mean(-1) > 40) for f in frames]
+    cy, cx = np.array([ys.mean() for ys, _ in lit]), np.array([xs.mean() for _, xs in lit])
+    assert np.corrcoef(cx, np.sin(q))[0, 1] > 0.98  # the camera looks along the hinge axis
+    assert np.corrcoef(cy, np.cos(q))[0, 1] < -0.98  # image rows grow downwards
+    episodes = np.array(imageio.mimread(str(path / "mpc_episodes.mp4")))
+    order = m["mpc_video_order"]
+    assert episodes.shape == (7, 240, 320 * len(order), 3) and len(order) == 7
+    first = arrays[m["videos"]["mpc_episodes.mp4"]["trajectories"][0]][0]  # D2C-MPC, episode 0
+    moved = np.abs(np.diff(first[:, 0])) > 0.05
+    change = np.abs(np.diff(episodes[:, :, :320].astype(float), axis=0)).mean(axis=(1, 2, 3))
+    assert np.all(change[moved] > 0.05)

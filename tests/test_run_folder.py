@@ -65,7 +65,7 @@ def _one_error_line(capsys) -> str:
     return err[0]
 
 
-@pytest.mark.parametrize("free_kib", [40, 0])
+@pytest.mark.parametrize("free_kib", [56, 0])  # 56: the inputs and the first stages fit, a figure does not
 def test_full_disk_ends_failed_with_one_line_and_is_never_relabelled(free_kib, capsys):
     with small_tmpfs(2048) as fs:
         out = os.path.join(fs, "runs")
@@ -86,6 +86,30 @@ def test_full_disk_ends_failed_with_one_line_and_is_never_relabelled(free_kib, c
         assert metrics["status"] == "failed" and "No space left on device" in metrics["error"]
         assert metrics["stages"]["d2c"]["status"] == "done" and "d2c_U" in arrays
         assert recover_stale(out) == [] and load_run(path)[0]["status"] == "failed"
+
+
+def test_a_stage_whose_arrays_the_disk_refused_says_so(tmp_path, monkeypatch):
+    """The stage finished, its arrays did not reach arrays.npz: metrics.json keeps the stage
+    and names the arrays it lost (a resume recomputes such a stage)."""
+    folder = RunFolder(str(tmp_path), "r")
+    record = Run(folder)
+    record.stage("a", lambda: ({"x": 1}, {"a_X": [1.0]}))
+    write_arrays = folder.write_arrays
+
+    def refuse(name, arrays):
+        if "b_X" in arrays:
+            raise results.WriteError(os.path.join(folder.path, name), OSError(28, "No space left on device"))
+        return write_arrays(name, arrays)
+
+    monkeypatch.setattr(folder, "write_arrays", refuse)
+    with pytest.raises(results.WriteError):
+        record.stage("b", lambda: ({"y": 2}, {"b_X": [2.0]}))
+    with pytest.raises(results.WriteError):
+        record.finish("failed")
+    (path,) = glob.glob(str(tmp_path / "*_r"))
+    metrics, arrays = load_run(path)
+    assert metrics["stages"]["b"]["arrays_not_written"] == ["b_X"] and "b_X" not in arrays
+    assert "arrays_not_written" not in metrics["stages"]["a"] and "a_X" in arrays
 
 
 def test_out_dir_made_immutable_mid_run_fails_and_keeps_its_cause(tmp_path, monkeypatch, capsys):

@@ -1,0 +1,122 @@
+"""Videos of state trajectories on MuJoCo models, rendered headless.
+
+Rendering runs in a child process (``python -m mjx_surrogate.video``) whose environment
+sets ``MUJOCO_GL=egl`` (unless the caller chose a backend): MuJoCo picks its GL backend when
+it is imported, and a GL failure or crash there cannot take the run with it. Frames:
+x = [qpos, qvel, act] -> qpos set, ``mj_forward``, one frame per control step, from a free
+camera on the model's centre with a brighter headlight (models without lights stay
+visible); several trajectories are tiled side by side. Written as H.264 MP4 by
+imageio-ffmpeg, played in real time (one frame per control step, at most 60 per second:
+longer trajectories keep every k-th frame).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+WIDTH, HEIGHT = 320, 240
+MAX_FPS = 60
+
+
+def frame_rate(dt: float) -> tuple[float, int]:
+    """(frames per second, stride) that play control steps of ``dt`` seconds in real time."""
+    stride = max(1, math.ceil(1.0 / (dt * MAX_FPS)))
+    return 1.0 / (dt * stride), stride
+
+
+def render(model, X: np.ndarray, width: int = WIDTH, height: int = HEIGHT) -> np.ndarray:
+    """uint8 frames [N, height, width, 3] of the states X [N, nx] of ``model`` (an MjModel)."""
+    import copy
+
+    import mujoco
+
+    m = copy.deepcopy(model)
+    m.vis.headlight.ambient[:] = 0.35
+    m.vis.headlight.diffuse[:] = 0.7
+    m.vis.global_.offwidth, m.vis.global_.offheight = (
+        max(width, m.vis.global_.offwidth),
+        max(height, m.vis.global_.offheight),
+    )
+    d = mujoco.MjData(m)
+    cam = mujoco.MjvCamera()
+    mujoco.mjv_defaultFreeCamera(m, cam)
+    cam.elevation, cam.distance = -20.0, 2.0 * m.stat.extent
+    frames = np.empty((len(X), height, width, 3), np.uint8)
+    with mujoco.Renderer(m, height, width) as r:
+        for i, x in enumerate(X):
+            d.qpos[:] = x[: m.nq]
+            mujoco.mj_forward(m, d)
+            r.update_scene(d, cam)
+            frames[i] = r.render()
+    return frames
+
+
+def tile(clips: list[np.ndarray]) -> np.ndarray:
+    """Clips [N_i, H, W, 3] side by side; shorter ones hold their last frame."""
+    n = max(len(c) for c in clips)
+    padded = [np.concatenate([c, np.repeat(c[-1:], n - len(c), axis=0)]) for c in clips]
+    return np.concatenate(padded, axis=2)
+
+
+def write_mp4(path: str, frames: np.ndarray, fps: float) -> None:
+    import imageio.v2 as imageio
+
+    with imageio.get_writer(path, fps=fps, codec="libx264", quality=7, macro_block_size=16) as w:
+        for f in frames:
+            w.append_data(f)
+
+
+def write_video(
+    model_path: str, arrays_path: str, keys: list[str], out: str, dt: float, timeout_s: float = 300
+) -> str | None:
+    """Render the trajectories ``keys`` of the ``.npz`` at ``arrays_path`` (each [N+1, nx],
+    or [E, N+1, nx]: its first) on the compiled model at ``model_path`` into ``out``, in a
+    child process. None when written, else one line saying why not."""
+    env = dict(os.environ)
+    env.setdefault("MUJOCO_GL", "egl")
+    cmd = [sys.executable, "-m", "mjx_surrogate.video", model_path, arrays_path, out, str(dt), *keys]
+    try:
+        p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        return f"rendering took over {timeout_s:g} s"
+    if p.returncode != 0:
+        lines = [line for line in (p.stderr or "").strip().splitlines() if line.strip()]
+        return lines[-1] if lines else f"the renderer exited with status {p.returncode}"
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description="Render trajectories of a MuJoCo model to an MP4.")
+    ap.add_argument("model")
+    ap.add_argument("arrays")
+    ap.add_argument("out")
+    ap.add_argument("dt", type=float)
+    ap.add_argument("keys", nargs="+")
+    a = ap.parse_args(argv)
+    import mujoco
+
+    model = mujoco.MjModel.from_binary_path(a.model)
+    arrays = np.load(a.arrays)
+    fps, stride = frame_rate(a.dt)
+    clips = []
+    for k in a.keys:
+        X = np.asarray(arrays[k])
+        X = X[0] if X.ndim == 3 else X
+        clips.append(render(model, X[::stride]))
+    try:
+        write_mp4(a.out, tile(clips), fps)
+    except Exception:
+        if os.path.exists(a.out):
+            os.remove(a.out)
+        raise
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

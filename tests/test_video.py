@@ -1,0 +1,35 @@
+"""mjx_surrogate/video.py: frame rates, tiling, and a renderer without a GL context."""
+
+import mujoco
+import numpy as np
+import pytest
+
+from mjx_surrogate import video
+from mjx_surrogate.systems import make_system
+
+
+def test_frame_rate_plays_control_steps_in_real_time():
+    assert video.frame_rate(0.1) == (pytest.approx(10.0), 1)
+    fps, stride = video.frame_rate(0.005)  # 200 steps a second: every 4th, 50 frames a second
+    assert stride == 4 and fps == pytest.approx(50.0)
+
+
+def test_tile_puts_clips_side_by_side_and_holds_the_shorter_ones_last_frame():
+    a = np.zeros((3, 2, 4, 3), np.uint8)
+    b = np.stack([np.full((2, 4, 3), i, np.uint8) for i in (7, 9)])
+    t = video.tile([a, b])
+    assert t.shape == (3, 2, 8, 3)
+    assert np.all(t[:, :, 4:][2] == 9) and np.all(t[:, :, :4] == 0)
+
+
+def test_without_a_gl_context_the_reason_comes_back_in_one_line_and_nothing_is_written(tmp_path, monkeypatch):
+    model = make_system("pendulum", "native").mj_model
+    mujoco.mj_saveModel(model, str(tmp_path / "m.mjb"), None)
+    np.savez(tmp_path / "a.npz", X=np.zeros((3, 2)))
+    monkeypatch.setenv("MUJOCO_GL", "glfw")  # needs a display; there is none
+    monkeypatch.delenv("DISPLAY", raising=False)
+    reason = video.write_video(
+        str(tmp_path / "m.mjb"), str(tmp_path / "a.npz"), ["X"], str(tmp_path / "v.mp4"), 0.1
+    )
+    assert reason and "\n" not in reason
+    assert not (tmp_path / "v.mp4").exists()
