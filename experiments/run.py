@@ -394,8 +394,9 @@ def run(
             if not local:  # the processes enter the experiment's first collective together
                 distributed.barrier(f"run {ex.name or name}: inputs resolved")
             status = kinds()[ex.kind](res, record, key)
-            if ex.video and writer and res.system.mj_model is not None and "X_star" in record.arrays:
-                record.video("optimum.mp4", ["X_star"], float(res.system.dt))
+            optimum = next((k for k in ("X_star", "d2c_X") if k in record.arrays), None)  # d2c's: d2c_X
+            if ex.video and writer and res.system.mj_model is not None and optimum is not None:
+                record.video("optimum.mp4", [optimum], float(res.system.dt))
     except (Interrupted, KeyboardInterrupt) as exc:
         status, error = "interrupted", exc
     except Exception as exc:  # keep what was produced, say what happened

@@ -33,3 +33,20 @@ def test_without_a_gl_context_the_reason_comes_back_in_one_line_and_nothing_is_w
     )
     assert reason and "\n" not in reason
     assert not (tmp_path / "v.mp4").exists()
+
+
+@pytest.mark.slow
+def test_a_d2c_run_writes_the_video_of_its_optimum(tmp_path):
+    """The main job's kind keeps its optimum as d2c_X: its video has one frame per state."""
+    import json
+
+    import imageio.v2 as imageio
+
+    from experiments import run as cli
+
+    assert cli.main(["smoke_d2c", "--experiment.video", "--out", str(tmp_path)]) == 0
+    (path,) = tmp_path.iterdir()
+    m = json.loads((path / "metrics.json").read_text())
+    assert m["videos"]["optimum.mp4"] == {"status": "written", "trajectories": ["d2c_X"]}
+    frames = imageio.mimread(str(path / "optimum.mp4"))
+    assert len(frames) == len(np.load(path / "arrays.npz")["d2c_X"])
