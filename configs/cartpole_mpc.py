@@ -1,27 +1,19 @@
 """Closed loop on the cartpole: hanging to upright at the origin (the paper's task,
 ``cartpole_upright``, with its running cost) over 4 s, every controller replanning over
-2 s, on the model and on a plant 1.1x heavier, under process noise."""
+2 s, on the model and on a plant 1.1x heavier, under process noise; the rest as
+``pendulum_mpc``."""
 
-from mjx_surrogate.config import (
-    Config,
-    DataConfig,
-    ExperimentConfig,
-    MLPConfig,
-    MPCConfig,
-    SindyConfig,
-    SolverConfig,
-    SurrogateConfig,
-    SystemConfig,
-    TaskConfig,
-)
+import dataclasses
 
-CONFIG = Config(
+from configs.pendulum_mpc import CONFIG as _PENDULUM
+from mjx_surrogate.config import DataConfig, MPCConfig, SystemConfig, TaskConfig
+
+CONFIG = dataclasses.replace(
+    _PENDULUM,
     system=SystemConfig(name="cartpole", backend="native"),
     task=TaskConfig(preset="cartpole_upright", T=40),
-    solver=SolverConfig(max_iter=300, rel_tol=1e-6),
-    experiment=ExperimentConfig(kind="mpc", x64=True),
+    solver=dataclasses.replace(_PENDULUM.solver, max_iter=300),
     data=DataConfig(n_traj=200),
-    surrogate=SurrogateConfig(sindy=SindyConfig(libraries=("cubic_trig",)), mlp=MLPConfig(epochs=200)),
     mpc=MPCConfig(
         horizon=20,
         steps=40,
