@@ -297,10 +297,10 @@ class MPCConfig:
     """Receding-horizon control on the black box (kind "mpc", docs/mpc.md).
 
     controllers: from "d2c" (LTV models identified at every replan), "oracle" (exact
-      Jacobians: experiment.oracle), "tvlqr" (tracking the offline D2C optimum, no
-      replanning), "surrogates" (iLQR on every model of surrogate.kinds, fitted on
-      data.n_traj trajectories around the optimum at data_level), "predictive_sampling"
-      and "mppi" (derivative-free, on the black box).
+      Jacobians: experiment.oracle; only where experiment.exact_oracle is on), "tvlqr"
+      (tracking the offline D2C optimum, no replanning), "surrogates" (iLQR on every
+      model of surrogate.kinds, fitted on data.n_traj trajectories around the optimum at
+      data_level), "predictive_sampling" and "mppi" (derivative-free, on the black box).
     horizon: control steps per plan H (None: task.T). steps: control steps of an episode
       (None: task.T; at most task.T with "tvlqr"). max_iter: iLQR iterations per replan.
     process_noise: standard deviations (state units) of the noise added after every plant

@@ -111,3 +111,15 @@ def test_the_videos_show_the_stored_trajectories(smoke_mpc):
     moved = np.abs(np.diff(first[:, 0])) > 0.05
     change = np.abs(np.diff(episodes[:, :, :320].astype(float), axis=0)).mean(axis=(1, 2, 3))
     assert np.all(change[moved] > 0.05)
+
+
+@pytest.mark.slow
+def test_the_oracle_controller_follows_exact_oracle(tmp_path):
+    """Off for a user's MJCF by default (minutes of jacfwd compile): then no oracle episodes,
+    and the record says why."""
+    argv = ["smoke_mpc", "--mpc.controllers", "oracle", "tvlqr", "--experiment.exact_oracle", "False"]
+    assert cli.main([*argv, "--experiment.no_video", "--out", str(tmp_path)]) == 0
+    (path,) = tmp_path.iterdir()
+    m = json.loads((path / "metrics.json").read_text())
+    assert {r["controller"] for r in m["mpc_rows"]} == {"TVLQR tracking"}
+    assert m["mpc_skipped"] == {"oracle": "experiment.exact_oracle is off"}
