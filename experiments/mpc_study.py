@@ -14,6 +14,7 @@ episode steps) and the real-time factor (control period / compute per step).
 
 from __future__ import annotations
 
+import functools
 import os
 import time
 
@@ -21,6 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from experiments.mpc_report import cause_text, closed_loop_verdict, table
 from mjx_surrogate import data, mpc, mpc_sampling, pipeline, plots, progress
 from mjx_surrogate.config import MPC_CONTROLLERS
 from mjx_surrogate.evaluation import finite_or_none
@@ -98,6 +100,7 @@ def _controller_stage(controller, res, record, plants, optimum, plan_task, U0, s
         with progress.steps(f"MPC {controller}", 1 + len(conditions), cfg.experiment.progress) as meter:
             meter.advance("fit the surrogates" if controller == "surrogates" else "set up")
             planners = _planners(controller, res, optimum, plan_task, U0, samples, fit)
+            models = fit() if controller == "surrogates" else {}
             meter.extend(len(conditions) * (len(planners) - 1))
             rows, arrays = [], {}
             for label, one in planners.items():
@@ -120,6 +123,9 @@ def _controller_stage(controller, res, record, plants, optimum, plan_task, U0, s
                         run_s = time.perf_counter() - t0
                         row, X, U = _row(res, label, controller, scale, noise, r, run_s, samples)
                         row["compile_s"] = compile_s if ni == 0 else 0.0
+                        model = models.get(label.removesuffix(" MPC"))
+                        if model is not None and pi == 0 and noise == min(m.process_noise):
+                            row["closed_loop_one_step_error"] = _one_step_error(model, X[0], U[0], optimum)
                         tag = f"mpc_{label.split(' (')[0].replace(' ', '_')}_{ci}"
                         row["arrays"] = {"X": f"{tag}_X", "U": f"{tag}_U"}
                         arrays[f"{tag}_X"], arrays[f"{tag}_U"] = X, U
@@ -149,6 +155,15 @@ def _controller_stage(controller, res, record, plants, optimum, plan_task, U0, s
         return row, X, U
 
     return compute
+
+
+def _one_step_error(model, X, U, optimum) -> float | None:
+    """Median over t of |model.step(x_t, u_t) - x_{t+1}| along one closed loop X [N+1, nx],
+    U [N, nu], relative to the RMS state of the offline optimum."""
+    pred = np.asarray(jax.jit(jax.vmap(model.step))(jnp.asarray(X[:-1]), jnp.asarray(U)))
+    err = np.linalg.norm(pred - X[1:], axis=-1)
+    scale = float(np.sqrt(np.mean(np.sum(np.asarray(optimum["X_star"]) ** 2, axis=-1))))
+    return finite_or_none(np.median(err) / scale)
 
 
 def _plants(res, record) -> dict:
@@ -182,6 +197,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         [{"plant_mass_scale": s, "process_noise": w} for s in plants for w in m.process_noise],
     )
 
+    @functools.cache  # the models once: their MPCs, then their closed loops' one-step errors
     def fit():
         ds = data.sample(
             system, X_star, U_star, k_data, dc.n_traj, m.data_level, dc.x0_sigma, task.u_min, task.u_max
@@ -211,8 +227,12 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             calls = np.median([r["black_box_steps_per_control_step"] for r in out["rows"]])
             samples = max(2, int(round(calls / H)))
     record.set("mpc_rows", rows)
+    # the goal counts where the offline optimum reaches it and the episodes span the task
+    goal = bool((m_d2c.get("goal") or {}).get("reached")) and m.steps >= task.T
+    verdict = closed_loop_verdict(rows, goal)
+    record.set("mpc_verdict", verdict | {"cause": cause_text(rows)})
     _figures(record, res, rows, X_star)
-    record.folder.write_text("mpc_table.md", table(rows, float(system.dt)))
+    record.folder.write_text("mpc_table.md", table(rows, float(system.dt), record.metrics["mpc_verdict"]))
     if cfg.experiment.video and system.mj_model is not None:  # episode 0 of the hardest condition
         last = f"_{len(m.plant_mass_scales) * len(m.process_noise) - 1}_X"
         clips = {r["controller"]: r["arrays"]["X"] for r in rows if r["arrays"]["X"].endswith(last)}
@@ -276,36 +296,4 @@ def _figures(record, res, rows, X_star) -> None:
             f"noise {m.process_noise[-1]:g}",
             reference_label="offline D2C optimum",
         ),
-    )
-
-
-def table(rows: list[dict], dt: float) -> str:
-    """The side-by-side table (Markdown), one block per condition."""
-    f = lambda v: "-" if v is None else f"{v:.4g}"  # noqa: E731
-    out = []
-    for s, w in dict.fromkeys((r["plant_mass_scale"], r["process_noise"]) for r in rows):
-        out += [
-            f"\n### Plant masses x{s:g}, process noise {w:g}\n",
-            "| controller | closed-loop cost (median) | min - max | goal reached | black-box steps "
-            "per control step | iterations per replan | ms per control step | real-time factor |",
-            "|---|---|---|---|---|---|---|---|",
-        ]
-        for r in rows:
-            if (r["plant_mass_scale"], r["process_noise"]) != (s, w):
-                continue
-            c = [v for v in r["costs"] if v is not None]
-            spread = (
-                f"{min(c):.4g} - {max(c):.4g}"
-                if len(c) == len(r["costs"])
-                else f"{len(r['costs']) - len(c)} diverged"
-            )
-            out.append(
-                f"| {r['controller']} | {f(r['cost_median'])} | {spread} | {100 * r['goal_reached']:.0f} % | "
-                f"{f(r['black_box_steps_per_control_step'])} | {f(r['iterations_per_replan'])} | "
-                f"{1e3 * r['compute_per_step_s']:.3g} | {r['real_time_factor']:.3g} |"
-            )
-    return (
-        f"Control period {dt:g} s; compute per control step: a batch's wall time over its episodes' steps.\n"
-        + "\n".join(out)
-        + "\n"
     )

@@ -21,6 +21,7 @@ import sys
 import tempfile
 import threading
 
+from experiments.summary import summary_line, summary_screen
 from mjx_surrogate.config import Config, PointGoal, from_dict, to_dict, validate_static
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.runtime import configure_runtime
@@ -419,8 +420,19 @@ def run(
             f"([Errno {cause.errno}] {cause.strerror or cause}); status failed, "
             "the stages finished before are kept"
         )
+    _write_page(path)
     print(summary_screen(record.metrics, path))
     return path
+
+
+def _write_page(path: str) -> None:
+    """The run folder's report.html (experiments/page.py); a failure is said, never raised."""
+    from experiments import page
+
+    try:
+        page.write(path)
+    except Exception as exc:  # the record is complete without it
+        print(f"note: {page.PAGE} not written: {type(exc).__name__}: {exc}", file=sys.stderr)
 
 
 def _write_inputs(folder, res, parallel: dict) -> None:
@@ -453,6 +465,7 @@ def _stop_now(record) -> None:
     if not record.abort(reason):
         return  # the run is ending by itself
     try:
+        _write_page(record.folder.path)
         print(summary_line(record.metrics, record.folder.path), flush=True)
         sys.stderr.flush()
     except Exception:  # e.g. the reader of stdout is gone: the record is written, exit anyway
@@ -477,62 +490,6 @@ def model_bytes(m) -> bytes:
     buf = np.zeros(mujoco.mj_sizeModel(m), np.uint8)
     mujoco.mj_saveModel(m, None, buf)
     return buf.tobytes()
-
-
-def summary_screen(metrics: dict, path: str) -> str:
-    """The end-of-run summary: one line of status and costs, then per solve its cost,
-    verdict, goal test, iterations and time."""
-    lines = [summary_line(metrics, path)]
-    for key in ("d2c", "optimum", "exact"):
-        m = metrics.get(key)
-        if not isinstance(m, dict) or "status" not in m:
-            continue
-        goal = m.get("goal") or {}
-        reached = {True: "goal reached", False: "goal NOT reached"}.get(goal.get("reached"), "")
-        t = m.get("run_s", m.get("wall_s"))
-        lines.append(
-            f"  {key:8s} {m['status']:10s} cost {m.get('cost')} ({m.get('iterations')} iterations"
-            + (f", {t:.2f} s" if isinstance(t, (int, float)) else "")
-            + (f", compile {m['compile_s']:.1f} s" if isinstance(m.get("compile_s"), (int, float)) else "")
-            + f") {reached}"
-            + (f"; goal cost {goal.get('goal_cost_start')} -> {goal.get('goal_cost_final')}" if goal else "")
-        )
-    gains = (metrics.get("feedback") or {}).get("gains")
-    if gains:
-        lines.append(f"  feedback gains: {gains}")
-    times = time_line(metrics)
-    if times:
-        lines.append(times)
-    return "\n".join(lines)
-
-
-def time_line(metrics: dict) -> str:
-    """Where the wall time went: each stage (compiles included), then the rest (loading,
-    checks, the model and figure files)."""
-    stages = {
-        k: v["wall_s"] for k, v in (metrics.get("stages") or {}).items() if isinstance(v.get("wall_s"), float)
-    }
-    total = metrics.get("wall_time_s")
-    if not stages or not isinstance(total, (int, float)):
-        return ""
-    parts = [f"{k} {v:.1f} s" for k, v in stages.items()]
-    parts.append(f"setup and files {max(total - sum(stages.values()), 0.0):.1f} s")
-    return f"  time: {', '.join(parts)} (total {total:.1f} s)"
-
-
-def summary_line(metrics: dict, path: str) -> str:
-    """One line: status, the main costs, the time, the folder."""
-    parts = [f"[{metrics.get('status')}]"]
-    for key in ("d2c", "optimum", "exact"):
-        m = metrics.get(key)
-        if isinstance(m, dict) and "cost" in m:
-            parts.append(f"{key} cost {m['cost']}")
-    if "d2c_vs_exact_relative_gap" in metrics:
-        parts.append(f"gap {100 * metrics['d2c_vs_exact_relative_gap']:.3g} %")
-    if metrics.get("error"):
-        parts.append(f"({metrics['error'].splitlines()[0][:200]})")
-    parts.append(f"{metrics.get('wall_time_s', 0):.1f} s; run folder: {path}")
-    return " ".join(parts)
 
 
 def main(argv: list[str] | None = None) -> int:

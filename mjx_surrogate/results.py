@@ -480,7 +480,7 @@ class Run:
         """Render the trajectories ``keys`` of the run's arrays on its ``model.mjb`` into the
         MP4 ``name`` (:mod:`mjx_surrogate.video`, side by side); a failure is recorded and
         said in one line on stderr, never raised."""
-        from mjx_surrogate.video import write_video
+        from mjx_surrogate.video import still_path, write_video
 
         self._flush()
         folder = self.folder.path
@@ -492,7 +492,7 @@ class Run:
             dt,
         )
         entry = (
-            {"status": "written", "trajectories": keys}
+            {"status": "written", "trajectories": keys, "still": os.path.basename(still_path(name))}
             if reason is None
             else {"status": "skipped", "reason": reason}
         )

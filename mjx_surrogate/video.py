@@ -72,12 +72,18 @@ def write_mp4(path: str, frames: np.ndarray, fps: float) -> None:
             w.append_data(f)
 
 
+def still_path(video: str) -> str:
+    """The PNG beside a video that holds its middle frame (``optimum.mp4`` -> ``optimum_still.png``)."""
+    return os.path.splitext(video)[0] + "_still.png"
+
+
 def write_video(
     model_path: str, arrays_path: str, keys: list[str], out: str, dt: float, timeout_s: float = 300
 ) -> str | None:
     """Render the trajectories ``keys`` of the ``.npz`` at ``arrays_path`` (each [N+1, nx],
     or [E, N+1, nx]: its first) on the compiled model at ``model_path`` into ``out``, in a
-    child process. None when written, else one line saying why not."""
+    child process, with its middle frame as :func:`still_path`. None when written, else
+    one line saying why not."""
     env = dict(os.environ)
     env.setdefault("MUJOCO_GL", "egl")
     cmd = [sys.executable, "-m", "mjx_surrogate.video", model_path, arrays_path, out, str(dt), *keys]
@@ -109,11 +115,16 @@ def main(argv: list[str] | None = None) -> int:
         X = np.asarray(arrays[k])
         X = X[0] if X.ndim == 3 else X
         clips.append(render(model, X[::stride]))
+    frames = tile(clips)
     try:
-        write_mp4(a.out, tile(clips), fps)
+        write_mp4(a.out, frames, fps)
+        import imageio.v2 as imageio
+
+        imageio.imwrite(still_path(a.out), frames[len(frames) // 2])
     except Exception:
-        if os.path.exists(a.out):
-            os.remove(a.out)
+        for p in (a.out, still_path(a.out)):
+            if os.path.exists(p):
+                os.remove(p)
         raise
     return 0
 

@@ -14,6 +14,7 @@ import pytest
 from helpers import assert_png
 
 from experiments import run as cli
+from experiments.summary import time_line
 from mjx_surrogate.config import Config, SolverConfig, from_dict, to_dict
 from mjx_surrogate.errors import ConfigError
 
@@ -238,5 +239,5 @@ def test_every_solver_field_named_like_an_ilqr_parameter_reaches_it():
 
 def test_the_summary_accounts_for_the_wall_time():
     metrics = {"stages": {"d2c": {"wall_s": 1.0}, "feedback": {"wall_s": 2.5}}, "wall_time_s": 4.0}
-    assert cli.time_line(metrics) == "  time: d2c 1.0 s, feedback 2.5 s, setup and files 0.5 s (total 4.0 s)"
-    assert cli.time_line({"wall_time_s": 4.0}) == ""
+    assert time_line(metrics) == "  time: d2c 1.0 s, feedback 2.5 s, setup and files 0.5 s (total 4.0 s)"
+    assert time_line({"wall_time_s": 4.0}) == ""

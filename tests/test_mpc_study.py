@@ -88,6 +88,27 @@ def test_the_sampling_budget_matches_d2c_and_the_table_and_figures_are_written(s
 
 
 @pytest.mark.slow
+def test_the_verdict_its_cause_and_the_page(smoke_mpc):
+    """The closed-loop verdict by its rule, the surrogates' one-step errors along their closed
+    loops (first plant, least noise), and report.html with both videos inside."""
+    from experiments.mpc_report import closed_loop_verdict
+
+    path, m, _ = smoke_mpc
+    rows = m["mpc_rows"]
+    # the smoke's 6 steps do not span its task's 8: the goal does not count
+    assert m["mpc_verdict"]["verdict"] == closed_loop_verdict(rows, offline_goal_reached=False)["verdict"]
+    errs = {r["controller"]: r.get("closed_loop_one_step_error") for r in rows if r["process_noise"] == 0.0}
+    surrogate = {k: v for k, v in errs.items() if k.startswith(("SINDy", "MLP"))}
+    assert len(surrogate) == 2 and all(0 < v < 10 for v in surrogate.values()), errs
+    assert all(v is None for k, v in errs.items() if k not in surrogate)
+    assert m["mpc_verdict"]["cause"].count(" %") == 2
+    assert (path / "mpc_table.md").read_text().startswith("**Closed loop, the paper's claim: ")
+    text = (path / "report.html").read_text()
+    assert text.count("<video ") == 2 and text.count('src="data:video/mp4;base64,') == 2
+    assert m["mpc_verdict"]["text"].split(".")[0].replace("'", "&#x27;") in text
+
+
+@pytest.mark.slow
 def test_the_videos_show_the_stored_trajectories(smoke_mpc):
     """optimum.mp4: one frame per control step of X_star, not blank, and the pendulum in the
     frames where the stored state puts it: the centroid of the lit pixels follows

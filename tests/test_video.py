@@ -47,6 +47,14 @@ def test_a_d2c_run_writes_the_video_of_its_optimum(tmp_path):
     assert cli.main(["smoke_d2c", "--experiment.video", "--out", str(tmp_path)]) == 0
     (path,) = tmp_path.iterdir()
     m = json.loads((path / "metrics.json").read_text())
-    assert m["videos"]["optimum.mp4"] == {"status": "written", "trajectories": ["d2c_X"]}
+    assert m["videos"]["optimum.mp4"] == {
+        "status": "written",
+        "trajectories": ["d2c_X"],
+        "still": "optimum_still.png",
+    }
     frames = imageio.mimread(str(path / "optimum.mp4"))
     assert len(frames) == len(np.load(path / "arrays.npz")["d2c_X"])
+    still = imageio.imread(path / "optimum_still.png")  # the middle frame, up to the codec's loss
+    dist = [np.abs(still.astype(float) - f).mean() for f in frames]
+    assert abs(int(np.argmin(dist)) - len(frames) // 2) <= 1 and still.std() > 2
+    assert "data:video/mp4;base64," in (path / "report.html").read_text()

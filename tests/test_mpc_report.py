@@ -1,0 +1,114 @@
+"""experiments/mpc_report.py: the closed-loop verdict's rule on hand-made rows, every outcome."""
+
+import pytest
+
+from experiments.mpc_report import MATCH_TOL, cause_text, closed_loop_verdict, table
+
+
+def _rows(costs: dict, goals: dict | None = None, conditions=((1.0, 0.0), (1.0, 0.05))) -> list[dict]:
+    """Rows of the run's shape: costs[label] one median per condition (None: diverged)."""
+    out = []
+    for ci, (s, w) in enumerate(conditions):
+        for label, cs in costs.items():
+            out.append(
+                {
+                    "controller": label,
+                    "plant_mass_scale": s,
+                    "process_noise": w,
+                    "costs": [cs[ci]],
+                    "cost_median": cs[ci],
+                    "goal_reached": (goals or {}).get(label, [1.0] * len(conditions))[ci],
+                    "black_box_steps_per_control_step": 0.0,
+                    "iterations_per_replan": None,
+                    "compute_per_step_s": 0.01,
+                    "real_time_factor": 10.0,
+                }
+            )
+    return out
+
+
+def test_held_when_no_surrogate_comes_within_the_tolerance():
+    v = closed_loop_verdict(
+        _rows({"D2C-MPC": [100, 120], "SINDy poly MPC": [150, 400], "MLP MPC": [900, None]})
+    )
+    assert v["verdict"] == "held"
+    assert v["conditions"][0]["ratios"] == {"SINDy poly MPC": 1.5, "MLP MPC": 9.0}
+    assert v["conditions"][1]["ratios"]["MLP MPC"] is None  # diverged: never a match
+
+
+def test_did_not_hold_when_one_surrogate_matches_everywhere():
+    v = closed_loop_verdict(
+        _rows({"D2C-MPC": [100, 120], "SINDy cubic_trig MPC": [101, 125], "MLP MPC": [900, 900]})
+    )
+    assert v["verdict"] == "did not hold" and "SINDy cubic_trig MPC" in v["text"]
+    edge = 100 * (1 + MATCH_TOL)
+    assert (
+        closed_loop_verdict(_rows({"D2C-MPC": [100, 100], "MLP MPC": [edge, edge]}))["verdict"]
+        == "did not hold"
+    )
+    above = closed_loop_verdict(_rows({"D2C-MPC": [100, 100], "MLP MPC": [edge * 1.001, edge * 1.001]}))
+    assert above["verdict"] == "held"
+
+
+def test_in_part_and_goal_counts():
+    v = closed_loop_verdict(_rows({"D2C-MPC": [100, 120], "SINDy MPC": [105, 300]}))
+    assert v["verdict"] == "held in part" and "noise 0 (SINDy MPC)" in v["text"]
+    # as cheap, but at the goal less often than D2C-MPC: not a match
+    goals = {"D2C-MPC": [1.0, 1.0], "SINDy MPC": [0.5, 0.5]}
+    assert (
+        closed_loop_verdict(_rows({"D2C-MPC": [100, 100], "SINDy MPC": [90, 90]}, goals))["verdict"] == "held"
+    )
+
+
+@pytest.mark.parametrize(
+    "d2c, goals, offline, verdict",
+    [
+        ([100, None], None, True, "inconclusive"),  # D2C-MPC diverged in one condition
+        ([100, 100], {"D2C-MPC": [1.0, 0.0], "MLP MPC": [0.0, 0.0]}, True, "inconclusive"),
+        ([100, 100], {"D2C-MPC": [1.0, 0.0], "MLP MPC": [0.0, 0.0]}, False, "held"),  # no goal to reach
+    ],
+)
+def test_inconclusive_when_d2c_mpc_itself_fails(d2c, goals, offline, verdict):
+    v = closed_loop_verdict(
+        _rows({"D2C-MPC": d2c, "MLP MPC": [500, 500]}, goals), offline_goal_reached=offline
+    )
+    assert v["verdict"] == verdict
+
+
+def test_not_measured_without_both_sides_and_the_table_leads_with_the_verdict():
+    assert (
+        closed_loop_verdict(_rows({"D2C-MPC": [1, 1], "TVLQR tracking": [1, 1]}))["verdict"] == "not measured"
+    )
+    rows = _rows({"D2C-MPC": [100, 120], "MLP MPC": [900, 900]})
+    rows[1]["closed_loop_one_step_error"] = 0.125
+    v = closed_loop_verdict(rows) | {"cause": cause_text(rows)}
+    assert "MLP MPC 12.5 %" in v["cause"] and "x1" in v["cause"]
+    text = table(rows, 0.1, v)
+    assert text.startswith("**Closed loop, the paper's claim: held**") and "MLP MPC 12.5 %" in text
+    assert text.count("### Plant masses x1, process noise") == 2
+
+
+def test_the_one_step_error_against_numpy():
+    """The cause's measure: a model that knows the loop's steps has error 0; one that holds the
+    state has the loop's median step length over the optimum's RMS state."""
+    from types import SimpleNamespace
+
+    import jax.numpy as jnp
+    import numpy as np
+
+    from experiments.mpc_study import _one_step_error
+
+    rng = np.random.default_rng(0)
+    U = rng.normal(size=(20, 1))
+    A, B = np.array([[1.0, 0.1], [-0.2, 0.95]]), np.array([[0.0], [0.1]])
+    X = [np.array([1.0, -0.5])]
+    for u in U:
+        X.append(A @ X[-1] + B @ u)
+    X = np.array(X)
+    optimum = {"X_star": 2 * X}
+    exact = SimpleNamespace(step=lambda x, u: jnp.asarray(A) @ x + jnp.asarray(B) @ u)
+    hold = SimpleNamespace(step=lambda x, u: x)
+    assert _one_step_error(exact, X, U, optimum) < 1e-12
+    scale = np.sqrt(np.mean(np.sum((2 * X) ** 2, -1)))
+    expected = np.median(np.linalg.norm(np.diff(X, axis=0), axis=-1)) / scale
+    assert _one_step_error(hold, X, U, optimum) == pytest.approx(expected, rel=1e-9)
