@@ -1,7 +1,8 @@
 """Closed loop on the pendulum: every controller replans from the measured state (D2C-MPC,
 the exact oracle's MPC, SINDy- and MLP-MPC, predictive sampling and MPPI at D2C-MPC's
 black-box budget) or tracks the offline optimum (TVLQR), on the model and on a 1.5x heavier
-plant, under process noise. The task is D2C 2.0's swing-up with a running state cost
+plant, under process noise; SINDy-MPC also refitted online from each episode's own
+transitions (each weighing 10 training ones). The task is D2C 2.0's swing-up with a running state cost
 (Q = 0.01 Q_f): with the paper's terminal-only cost a receding horizon keeps postponing the
 swing (docs/mpc.md)."""
 
@@ -31,6 +32,7 @@ CONFIG = Config(
         max_iter=5,
         process_noise=(0.0, 0.02, 0.05),
         plant_mass_scales=(1.0, 1.5),
+        refit_weight=10.0,
         n_episodes=4,
     ),
 )

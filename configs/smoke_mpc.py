@@ -23,6 +23,12 @@ CONFIG = Config(
         sindy=SindyConfig(libraries=("cubic_trig",)), mlp=MLPConfig(epochs=3, batch_size=32)
     ),
     mpc=MPCConfig(
-        horizon=5, steps=6, max_iter=2, process_noise=(0.0, 0.01), plant_mass_scales=(1.2,), n_episodes=2
+        horizon=5,
+        steps=6,
+        max_iter=2,
+        process_noise=(0.0, 0.01),
+        plant_mass_scales=(1.2,),
+        n_episodes=2,
+        refit_weight=10.0,
     ),
 )

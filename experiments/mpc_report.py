@@ -3,14 +3,14 @@ explicit rule: does the paper's claim (local LTV models are needed; global surro
 fail, Sec. 5) survive replanning?
 
 Rule, per condition (plant, process noise) of the run's side-by-side rows:
+- a condition is *judged* when D2C-MPC's own closed loop works there: its median cost is
+  finite and at most ``WORKS_FACTOR`` times the offline optimum's (the task's cost over
+  the same steps); elsewhere the local approach shows nothing to be needed for;
 - a global surrogate's MPC (SINDy, MLP) *matches* D2C-MPC when its median closed-loop cost
   is within ``MATCH_TOL`` of D2C-MPC's and it reaches the goal in at least as many episodes;
-- the claim **held** when no surrogate matches in any condition, **did not hold** when one
-  surrogate matches in every condition, and held **in part** otherwise;
-- the test is **inconclusive** when D2C-MPC's own closed loop diverged (non-finite cost) or,
-  where the offline optimum reaches the goal and the episodes are as long as the task,
-  D2C-MPC reached it in no episode of a condition: the local approach then shows nothing
-  to be needed for.
+- over the judged conditions, the claim **held** when no surrogate matches in any, **did
+  not hold** when one surrogate matches in every one, and held **in part** otherwise; it is
+  **inconclusive** when no condition is judged.
 The cause is measured beside it: each surrogate's one-step prediction error along its own
 closed loop on the first plant at the least noise (``closed_loop_one_step_error``,
 relative to the optimum's RMS state).
@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 
 MATCH_TOL = 0.10
+WORKS_FACTOR = 10.0
 SURROGATE_PREFIXES = ("SINDy", "MLP")
 D2C = "D2C-MPC"
 
@@ -30,76 +31,85 @@ def _cost(r: dict) -> float:
     return math.inf if c is None or not math.isfinite(c) else float(c)
 
 
-def closed_loop_verdict(rows: list[dict], offline_goal_reached: bool = True) -> dict:
+def _where(c: dict) -> str:
+    return f"masses x{c['plant_mass_scale']:g}, noise {c['process_noise']:g}"
+
+
+def _condition(at: dict, surrogates: list[str], offline_cost: float | None) -> dict:
+    d = at[D2C]
+    base = _cost(d)
+    ratios = {n: _cost(at[n]) / base if math.isfinite(base) else math.nan for n in surrogates if n in at}
+    matches = [
+        n for n, q in ratios.items() if q <= 1 + MATCH_TOL and at[n]["goal_reached"] >= d["goal_reached"]
+    ]
+    works = math.isfinite(base) and (offline_cost is None or base <= WORKS_FACTOR * offline_cost)
+    return {
+        "plant_mass_scale": d["plant_mass_scale"],
+        "process_noise": d["process_noise"],
+        "d2c_cost": base if math.isfinite(base) else None,
+        "d2c_goal_reached": d["goal_reached"],
+        "judged": works,
+        "ratios": {n: (None if not math.isfinite(q) else q) for n, q in ratios.items()},
+        "matches": matches,
+    }
+
+
+def closed_loop_verdict(rows: list[dict], offline_cost: float | None = None) -> dict:
     """{verdict: held | did not hold | held in part | inconclusive | not measured, text,
-    conditions: [{plant_mass_scale, process_noise, d2c_cost, ratios {label: cost / D2C's},
-    matches [labels]}]}."""
-    conditions = list(dict.fromkeys((r["plant_mass_scale"], r["process_noise"]) for r in rows))
-    per, surrogates = (
-        [],
-        list(dict.fromkeys(r["controller"] for r in rows if r["controller"].startswith(SURROGATE_PREFIXES))),
+    conditions: [{plant_mass_scale, process_noise, d2c_cost, d2c_goal_reached, judged,
+    ratios {label: cost / D2C-MPC's}, matches [labels]}], match_tol, works_factor}.
+    offline_cost: the offline optimum's cost over the episodes' steps (None: not checked)."""
+    surrogates = list(
+        dict.fromkeys(r["controller"] for r in rows if r["controller"].startswith(SURROGATE_PREFIXES))
     )
     if not surrogates or not any(r["controller"] == D2C for r in rows):
         missing = "the run had no D2C-MPC or no global surrogate"
         return {"verdict": "not measured", "text": missing, "conditions": []}
-    for s, w in conditions:
-        at = {r["controller"]: r for r in rows if (r["plant_mass_scale"], r["process_noise"]) == (s, w)}
-        d = at.get(D2C)
-        if d is None:
-            continue
-        base = _cost(d)
-        ratios = {n: _cost(at[n]) / base if math.isfinite(base) else math.nan for n in surrogates if n in at}
-        matches = [
-            n for n, q in ratios.items() if q <= 1 + MATCH_TOL and at[n]["goal_reached"] >= d["goal_reached"]
-        ]
-        per.append(
-            {
-                "plant_mass_scale": s,
-                "process_noise": w,
-                "d2c_cost": None if not math.isfinite(_cost(d)) else _cost(d),
-                "d2c_goal_reached": d["goal_reached"],
-                "ratios": {n: (None if not math.isfinite(q) else q) for n, q in ratios.items()},
-                "matches": matches,
-            }
-        )
-    where = lambda c: f"masses x{c['plant_mass_scale']:g}, noise {c['process_noise']:g}"  # noqa: E731
-    broken = [
-        c for c in per if c["d2c_cost"] is None or (offline_goal_reached and c["d2c_goal_reached"] == 0)
-    ]
-    if broken:
-        verdict = "inconclusive"
-        text = (
-            "D2C-MPC itself diverged or never reached the goal at "
-            + "; ".join(where(c) for c in broken)
-            + ": the comparison shows nothing the local approach is needed for."
-        )
+    per = []
+    for key in dict.fromkeys((r["plant_mass_scale"], r["process_noise"]) for r in rows):
+        at = {r["controller"]: r for r in rows if (r["plant_mass_scale"], r["process_noise"]) == key}
+        if D2C in at:
+            per.append(_condition(at, surrogates, offline_cost))
+    judged = [c for c in per if c["judged"]]
+    out = [c for c in per if not c["judged"]]
+    always = [n for n in surrogates if judged and all(n in c["matches"] for c in judged)]
+    some = [c for c in judged if c["matches"]]
+    tol = f"{100 * MATCH_TOL:g} %"
+    if not judged:
+        verdict, text = "inconclusive", "D2C-MPC itself failed in every condition."
+    elif always:
+        verdict = "did not hold"
+        text = f"{', '.join(always)} control{'s' if len(always) == 1 else ''} within {tol} of D2C-MPC's cost"
+        text += " in every condition judged."
+    elif not some:
+        verdict = "held"
+        text = f"every global surrogate's MPC costs over {tol} more than D2C-MPC in every condition judged."
     else:
-        always = [n for n in surrogates if all(n in c["matches"] for c in per)]
-        some = [c for c in per if c["matches"]]
-        if always:
-            verdict = "did not hold"
-            text = (
-                f"{', '.join(always)} controls within {100 * MATCH_TOL:g} % of D2C-MPC's cost "
-                "in every condition."
-            )
-        elif not some:
-            verdict = "held"
-            text = (
-                f"every global surrogate's MPC costs over {100 * MATCH_TOL:g} % more than D2C-MPC "
-                "in every condition."
-            )
-        else:
-            verdict = "held in part"
-            text = "a surrogate matches D2C-MPC at " + "; ".join(
-                f"{where(c)} ({', '.join(c['matches'])})" for c in some
-            )
+        verdict = "held in part"
+        text = (
+            "a surrogate matches D2C-MPC at "
+            + "; ".join(f"{_where(c)} ({', '.join(c['matches'])})" for c in some)
+            + "."
+        )
+    if out:
+        text += (
+            " Not judged (D2C-MPC diverged or cost over "
+            f"{WORKS_FACTOR:g}x the offline optimum's): " + "; ".join(_where(c) for c in out) + "."
+        )
     best = [
-        f"{where(c)}: best surrogate {min(c['ratios'], key=lambda n: c['ratios'][n] or math.inf)} "
+        f"{_where(c)}: best surrogate {min(c['ratios'], key=lambda n: c['ratios'][n] or math.inf)} "
         f"x{min((q for q in c['ratios'].values() if q is not None), default=math.inf):.3g}"
-        for c in per
+        for c in judged
     ]
-    text += " Cost relative to D2C-MPC's, " + "; ".join(best) + "."
-    return {"verdict": verdict, "text": text, "conditions": per, "match_tol": MATCH_TOL}
+    if best:
+        text += " Cost relative to D2C-MPC's, " + "; ".join(best) + "."
+    return {
+        "verdict": verdict,
+        "text": text,
+        "conditions": per,
+        "match_tol": MATCH_TOL,
+        "works_factor": WORKS_FACTOR,
+    }
 
 
 def cause_text(rows: list[dict]) -> str:

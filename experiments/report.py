@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 import shutil
 
-from experiments import report_control, report_pde
+from experiments import report_control, report_mpc, report_pde
 from mjx_surrogate.results import read_json, versions
 
 
@@ -340,6 +340,7 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
     )
     report_control.horizon_sections(L, folders, fig, _section, _verdict, _f)
     report_pde.pde_sections(L, folders, fig, _section, _verdict, _f, _read)
+    report_mpc.closed_loop_sections(L, folders, fig, _section, _read)
     L += ["## Reading these results", ""]
     for name in ("pendulum_predict", "cartpole_predict", "fish_predict"):
         loc = _load(folders.get(name)).get("locality") or {}

@@ -48,6 +48,10 @@ EXPERIMENTS = (
     "swimmer15_d2c",
     "burgers_ro_d2c",
     "burgers_predict",
+    "pendulum_mpc",
+    "cartpole_mpc",
+    "lorenz_mpc",
+    "gym_inverted_pendulum_mpc",
 )
 
 
@@ -88,6 +92,24 @@ def quick(cfg, name: str):
             data=r(cfg.data, levels=(0.05,)),
             experiment=r(cfg.experiment, exact_oracle=False),
             surrogate=r(cfg.surrogate, sindy=r(sindy, libraries=sindy.libraries[:1])),
+        )
+    if cfg.experiment.kind == "mpc":  # one short condition, one episode, no oracle compile
+        m = cfg.mpc
+        cfg = r(
+            cfg,
+            mpc=r(
+                m,
+                horizon=8 if m.horizon is None else min(m.horizon, 8),
+                steps=10 if m.steps is None else min(m.steps, 10),
+                max_iter=2,
+                process_noise=m.process_noise[-1:],
+                plant_mass_scales=m.plant_mass_scales[-1:],
+                n_episodes=1,
+            ),
+            experiment=r(cfg.experiment, exact_oracle=False),
+            surrogate=r(
+                cfg.surrogate, sindy=r(cfg.surrogate.sindy, libraries=cfg.surrogate.sindy.libraries[:1])
+            ),
         )
     return cfg
 

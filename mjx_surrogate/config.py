@@ -310,6 +310,9 @@ class MPCConfig:
     samples: samples per replan of the sampling MPCs (None: matched to D2C-MPC's median
       black-box steps per control step, else 64). sampling_sigma: their spread, control
       units. mppi_temperature: MPPI's temperature as a fraction of the first plan's cost.
+    refit_weight: > 0 adds, for every SINDy model, SINDy-MPC refitted online before every
+      replan on its training transitions and the episode's own, each of these weighing
+      refit_weight training ones (``mpc_online``; SINDy-MPC's low-data setting); 0: off.
     """
 
     controllers: Tuple[str, ...] = MPC_CONTROLLERS
@@ -323,6 +326,7 @@ class MPCConfig:
     samples: Optional[int] = None
     sampling_sigma: float = 1.0
     mppi_temperature: float = 0.01
+    refit_weight: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -557,6 +561,10 @@ def _check_mpc(m: MPCConfig) -> None:
         v = getattr(m, field)
         if not (math.isfinite(v) and v > 0):
             raise ConfigError(f"mpc.{field}", f"must be a finite positive number, got {v}")
+    if not (math.isfinite(m.refit_weight) and m.refit_weight >= 0):
+        raise ConfigError(
+            "mpc.refit_weight", f"must be a finite number >= 0 (0: no online refit), got {m.refit_weight}"
+        )
 
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,99}$")

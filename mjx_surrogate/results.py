@@ -476,9 +476,10 @@ class Run:
             self._flush(arrays=False)
         return ok
 
-    def video(self, name: str, keys: list[str], dt: float) -> bool:
+    def video(self, name: str, keys: list[str], dt: float, labels: list[str] | None = None) -> bool:
         """Render the trajectories ``keys`` of the run's arrays on its ``model.mjb`` into the
-        MP4 ``name`` (:mod:`mjx_surrogate.video`, side by side); a failure is recorded and
+        MP4 ``name`` (:mod:`mjx_surrogate.video`, side by side, each named by ``labels``
+        if given); a failure is recorded and
         said in one line on stderr, never raised."""
         from mjx_surrogate.video import still_path, write_video
 
@@ -490,6 +491,7 @@ class Run:
             keys,
             os.path.join(folder, name),
             dt,
+            labels=labels,
         )
         entry = (
             {"status": "written", "trajectories": keys, "still": os.path.basename(still_path(name))}

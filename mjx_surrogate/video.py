@@ -5,14 +5,15 @@ sets ``MUJOCO_GL=egl`` (unless the caller chose a backend): MuJoCo picks its GL 
 it is imported, and a GL failure or crash there cannot take the run with it. Frames:
 x = [qpos, qvel, act] -> qpos set, ``mj_forward``, one frame per control step, from a free
 camera on the model's centre with a brighter headlight (models without lights stay
-visible); several trajectories are tiled side by side. Written as H.264 MP4 by
-imageio-ffmpeg, played in real time (one frame per control step, at most 60 per second:
-longer trajectories keep every k-th frame).
+visible); several trajectories are tiled side by side, each named on a band at its top.
+Written as H.264 MP4 by imageio-ffmpeg, played in real time (one frame per control step,
+at most 60 per second: longer trajectories keep every k-th frame).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import subprocess
@@ -22,6 +23,7 @@ import numpy as np
 
 WIDTH, HEIGHT = 320, 240
 MAX_FPS = 60
+LABEL_HEIGHT = 18  # pixels of the band that names a clip
 
 
 def frame_rate(dt: float) -> tuple[float, int]:
@@ -57,6 +59,19 @@ def render(model, X: np.ndarray, width: int = WIDTH, height: int = HEIGHT) -> np
     return frames
 
 
+def label(frames: np.ndarray, text: str) -> np.ndarray:
+    """The clip frames [N, H, W, 3] with ``text`` written white on a dark band at the top."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    band = Image.fromarray(np.ascontiguousarray(frames[0, :LABEL_HEIGHT]))
+    draw = ImageDraw.Draw(band)
+    draw.rectangle((0, 0, band.width, LABEL_HEIGHT), fill=(20, 20, 20))
+    draw.text((4, 2), text, fill=(255, 255, 255), font=ImageFont.load_default(size=LABEL_HEIGHT - 5))
+    out = frames.copy()
+    out[:, :LABEL_HEIGHT] = np.asarray(band)
+    return out
+
+
 def tile(clips: list[np.ndarray]) -> np.ndarray:
     """Clips [N_i, H, W, 3] side by side; shorter ones hold their last frame."""
     n = max(len(c) for c in clips)
@@ -78,15 +93,23 @@ def still_path(video: str) -> str:
 
 
 def write_video(
-    model_path: str, arrays_path: str, keys: list[str], out: str, dt: float, timeout_s: float = 300
+    model_path: str,
+    arrays_path: str,
+    keys: list[str],
+    out: str,
+    dt: float,
+    timeout_s: float = 300,
+    labels: list[str] | None = None,
 ) -> str | None:
     """Render the trajectories ``keys`` of the ``.npz`` at ``arrays_path`` (each [N+1, nx],
     or [E, N+1, nx]: its first) on the compiled model at ``model_path`` into ``out``, in a
-    child process, with its middle frame as :func:`still_path`. None when written, else
-    one line saying why not."""
+    child process, with its middle frame as :func:`still_path`; ``labels``, one per key,
+    are written on the clips. None when written, else one line saying why not."""
     env = dict(os.environ)
     env.setdefault("MUJOCO_GL", "egl")
     cmd = [sys.executable, "-m", "mjx_surrogate.video", model_path, arrays_path, out, str(dt), *keys]
+    if labels is not None:
+        cmd += ["--labels", json.dumps(list(labels))]
     try:
         p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout_s)
     except subprocess.TimeoutExpired:
@@ -104,17 +127,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("out")
     ap.add_argument("dt", type=float)
     ap.add_argument("keys", nargs="+")
+    ap.add_argument("--labels", default=None, help="a JSON list of one label per key")
     a = ap.parse_args(argv)
+    labels = json.loads(a.labels) if a.labels else [None] * len(a.keys)
     import mujoco
 
     model = mujoco.MjModel.from_binary_path(a.model)
     arrays = np.load(a.arrays)
     fps, stride = frame_rate(a.dt)
     clips = []
-    for k in a.keys:
+    for k, text in zip(a.keys, labels):
         X = np.asarray(arrays[k])
         X = X[0] if X.ndim == 3 else X
-        clips.append(render(model, X[::stride]))
+        clip = render(model, X[::stride])
+        clips.append(clip if text is None else label(clip, text))
     frames = tile(clips)
     try:
         write_mp4(a.out, frames, fps)

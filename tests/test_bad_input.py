@@ -57,6 +57,7 @@ CASES = [
     (["smoke_mpc", "--mpc.steps", "9"], "mpc.steps"),  # tvlqr tracks the T = 8 optimum
     (["smoke_mpc", "--mpc.process_noise", "-0.1"], "mpc.process_noise[0]"),
     (["smoke_mpc", "--mpc.samples", "1"], "mpc.samples"),
+    (["smoke_mpc", "--mpc.refit_weight", "nan"], "mpc.refit_weight"),
     (
         [
             "lorenz_d2c",

@@ -22,6 +22,17 @@ def test_tile_puts_clips_side_by_side_and_holds_the_shorter_ones_last_frame():
     assert np.all(t[:, :, 4:][2] == 9) and np.all(t[:, :, :4] == 0)
 
 
+def test_a_label_is_written_on_a_dark_band_at_the_top_of_every_frame():
+    frames = np.full((4, 60, 120, 3), 200, np.uint8)
+    frames[:, 30:] = np.arange(4)[:, None, None, None]  # the rest of the picture, per frame
+    out = video.label(frames, "D2C-MPC")
+    band = out[:, : video.LABEL_HEIGHT]
+    assert np.all(out[:, video.LABEL_HEIGHT :] == frames[:, video.LABEL_HEIGHT :])
+    assert np.all(band == band[0]) and band.mean() < 80  # the same band on every frame, dark
+    assert (band[0].min(-1) > 200).sum() > 30  # and white text on it
+    assert not np.array_equal(band[0], video.label(frames, "MPPI")[0, : video.LABEL_HEIGHT])
+
+
 def test_without_a_gl_context_the_reason_comes_back_in_one_line_and_nothing_is_written(tmp_path, monkeypatch):
     model = make_system("pendulum", "native").mj_model
     mujoco.mj_saveModel(model, str(tmp_path / "m.mjb"), None)

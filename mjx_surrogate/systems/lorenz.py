@@ -7,8 +7,12 @@ A 474: 20180335, 2018, Section 4; Lorenz 1963), the control acting on the first 
     dx1/dt = sigma (x2 - x1) + u,   dx2/dt = x1 (rho - x3) - x2,   dx3/dt = x1 x2 - beta x3
 
 sigma = 10, rho = 28, beta = 8/3. One control step: u held for ``dt`` (default 0.01 s,
-ten classical Runge-Kutta steps of 1 ms, SINDy-MPC's time step). The task: move from the
-fixed point C- = (-sqrt(beta (rho - 1)), same, rho - 1) to C+ in 2 s (200 steps).
+ten classical Runge-Kutta steps of 1 ms, SINDy-MPC's time step). Tasks: ``lorenz_switch``
+moves from the fixed point C- = (-sqrt(beta (rho - 1)), same, rho - 1) to C+ in 2 s (200
+steps); ``lorenz_stabilize`` is SINDy-MPC's published control task (its authors' code,
+github.com/eurika-kaiser/SINDY-MPC, EX_LORENZ: 5 time units of MPC at 0.01 with a
+horizon of 10 steps, state weights Q = I, control weight 1e-3, |u| <= 50, towards C-)
+from the start of its training data, (-8, 8, 27), a point of the attractor's basin.
 """
 
 from __future__ import annotations
@@ -64,10 +68,31 @@ def switch_task(T: int = 200, u_max: float = 50.0) -> Task:
     return make_task(**switch_fields(T, u_max))
 
 
+def stabilize_fields(T: int = 500) -> dict:
+    """SINDy-MPC's task: (-8, 8, 27) -> C-, running cost (x - C-)' I (x - C-) + 1e-3 u^2
+    (its rate penalty on u, 1e-3 (u_t - u_{t-1})^2, has no term here), |u| <= 50."""
+    return dict(
+        x0=np.array([-8.0, 8.0, 27.0]),
+        x_goal=C_MINUS,
+        Q=np.eye(3),
+        Q_f=np.eye(3),
+        R=1e-3 * np.eye(1),
+        T=T,
+        u_min=np.array([-50.0]),
+        u_max=np.array([50.0]),
+        u_ref=np.zeros(1),
+    )
+
+
 TASKS = {
     "lorenz_switch": TaskPreset(
         "lorenz",
         lambda nq, nv, nu: switch_fields(),
         "SINDy-MPC's Lorenz: C- -> C+ in 2 s (200 steps), |u| <= 50",
+    ),
+    "lorenz_stabilize": TaskPreset(
+        "lorenz",
+        lambda nq, nv, nu: stabilize_fields(),
+        "SINDy-MPC's published task: (-8, 8, 27) -> C- in 5 s (500 steps), Q = I, R = 1e-3",
     ),
 }

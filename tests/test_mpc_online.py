@@ -1,0 +1,65 @@
+"""mjx_surrogate/mpc_online.py: the online refit is weighted least squares (float64 NumPy),
+keeps the first fit's support, and with no weight is the plain SINDy-MPC."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mjx_surrogate import mpc
+from mjx_surrogate.data import Transitions
+from mjx_surrogate.ilqr import ILQRParams
+from mjx_surrogate.mpc_online import refit, refitted_sindy_mpc
+from mjx_surrogate.surrogates import sindy
+from mjx_surrogate.surrogates.library import parse
+from mjx_surrogate.systems.function import from_jax
+from mjx_surrogate.tasks import make_task
+
+A = np.array([[1.0, 0.1], [-0.05, 0.98]])
+B = np.array([[0.005], [0.1]])
+SPEC = parse("poly2", ())
+
+
+def _data(A, B, n, seed):
+    rng = np.random.default_rng(seed)
+    x, u = rng.normal(size=(n, 2)), rng.normal(size=(n, 1))
+    return Transitions(jnp.asarray(x), jnp.asarray(u), jnp.asarray(x @ A.T + u @ B.T))
+
+
+def test_the_refit_is_weighted_least_squares():
+    off, on = _data(A, B, 200, 0), _data(A, 3 * B, 30, 1)
+    model = sindy.fit(SPEC, off.x, off.u, off.x_next)
+    theta0 = np.asarray(sindy.design(SPEC, off.x, off.u))
+    scale = np.linalg.norm(theta0, axis=0)
+    ts0 = theta0 / scale
+    w = np.where(np.arange(30) < 20, 5.0, 0.0)  # 20 filled rows of 30
+    theta_on = np.asarray(sindy.design(SPEC, on.x, on.u))
+    got = refit(model, ts0.T @ ts0, ts0.T @ np.asarray(off.x_next), scale, theta_on, np.asarray(on.x_next), w)
+    stacked = np.vstack([theta0, np.sqrt(w)[:, None] * theta_on])
+    target = np.vstack([np.asarray(off.x_next), np.sqrt(w)[:, None] * np.asarray(on.x_next)])
+    expected = np.linalg.lstsq(stacked, target, rcond=None)[0]
+    np.testing.assert_allclose(np.asarray(got.coef), expected, atol=1e-9)
+    # a coefficient the first fit thresholded away stays zero
+    sparse = model.replace(coef=model.coef.at[0].set(0.0))
+    again = refit(
+        sparse, ts0.T @ ts0, ts0.T @ np.asarray(off.x_next), scale, theta_on, np.asarray(on.x_next), w
+    )
+    assert np.all(np.asarray(again.coef)[0] == 0) and np.any(np.asarray(again.coef)[1:] != 0)
+
+
+def _task():
+    return make_task((1.0, 0.0), (0.0, 0.0), np.diag([1.0, 0.1]), np.diag([10.0, 1.0]), np.diag([0.01]), 10)
+
+
+def test_with_no_weight_it_is_sindy_mpc_and_with_weight_it_learns_the_plant():
+    off = _data(A, B, 200, 0)
+    model = sindy.fit(SPEC, off.x, off.u, off.x_next)
+    A3, B3 = jnp.asarray(A), jnp.asarray(3 * B)
+    plant = from_jax(lambda x, u: A3 @ x + B3 @ u, 2, 1, 0.1)  # three times the control authority
+    args = (plant, _task(), jnp.zeros((10, 1)), jax.random.key(0), 30, ILQRParams(max_iter=3))
+    plain = mpc.surrogate_mpc(model, *args, 0.02)
+    frozen = refitted_sindy_mpc(model, off, *args, 0.02, 0.0)
+    np.testing.assert_allclose(np.asarray(frozen.X), np.asarray(plain.X), atol=1e-9)
+    learned = refitted_sindy_mpc(model, off, *args, 0.02, 1e3)
+    X, U = np.asarray(learned.X), np.asarray(learned.U)
+    np.testing.assert_allclose(X[1:] - X[:-1] @ A.T - U @ (3 * B).T, 0.0, atol=0.1)  # the plant moved it
+    assert float(learned.cost) < float(plain.cost)
