@@ -93,12 +93,14 @@ def quick(cfg, name: str):
             experiment=r(cfg.experiment, exact_oracle=False),
             surrogate=r(cfg.surrogate, sindy=r(sindy, libraries=sindy.libraries[:1])),
         )
-    if cfg.experiment.kind == "mpc":  # one short condition, one episode, no oracle compile
+    if cfg.experiment.kind == "mpc":  # one short condition, one episode, the verdict's controllers
         m = cfg.mpc
         cfg = r(
             cfg,
             mpc=r(
                 m,
+                controllers=("d2c", "tvlqr", "surrogates"),
+                refit_weight=0.0,
                 horizon=8 if m.horizon is None else min(m.horizon, 8),
                 steps=10 if m.steps is None else min(m.steps, 10),
                 max_iter=2,

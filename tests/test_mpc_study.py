@@ -157,3 +157,23 @@ def test_the_oracle_controller_follows_exact_oracle(tmp_path):
     m = json.loads((path / "metrics.json").read_text())
     assert {r["controller"] for r in m["mpc_rows"]} == {"TVLQR tracking"}
     assert m["mpc_skipped"] == {"oracle": "experiment.exact_oracle is off"}
+
+
+def test_the_gymnasium_preset_finds_the_installed_model_or_says_how_to_get_it(monkeypatch):
+    import dataclasses
+    import importlib.util
+
+    import configs.gym_inverted_pendulum_mpc as preset
+    from mjx_surrogate.errors import ConfigError
+    from mjx_surrogate.resolution import resolve
+
+    cfg = cli.load_config("gym_inverted_pendulum_mpc")
+    assert os.path.isfile(cfg.system.mjcf_path) and "gymnasium" in cfg.system.mjcf_path
+    res = resolve(cfg)
+    assert (res.system.nx, res.system.nu) == (4, 1)
+    np.testing.assert_allclose([res.task.u_min[0], res.task.u_max[0]], [-3.0, 3.0])  # the model's ctrlrange
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name: None)
+    missing = preset._asset("inverted_pendulum.xml")
+    assert "pip install gymnasium" in missing
+    with pytest.raises(ConfigError, match="system.mjcf_path"):
+        resolve(dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, mjcf_path=missing)))
