@@ -22,8 +22,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from experiments.mpc_report import cause_text, closed_loop_verdict, table
 from mjx_surrogate import data, mpc, mpc_online, mpc_sampling, pipeline, plots, progress
+from mjx_surrogate.analysis.closed_loop import cause_text, closed_loop_verdict, table
 from mjx_surrogate.config import MPC_CONTROLLERS
 from mjx_surrogate.evaluation import finite_or_none
 from mjx_surrogate.resolution import Resolved, solver_params

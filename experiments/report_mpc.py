@@ -1,6 +1,6 @@
 """The reproduction report's "Closed loop" part (docs/mpc.md): does the paper's claim (local
 LTV models are needed; global surrogates fail) survive replanning? One section per system,
-each with the verdict its ``mpc`` run reached by the rule of experiments/mpc_report.py,
+each with the verdict its ``mpc`` run reached by the rule of mjx_surrogate/analysis/closed_loop.py,
 the measured cause, the side-by-side table, the figures, a still of the episodes' video and
 a link to it."""
 
@@ -35,7 +35,7 @@ def _table(text: str) -> str:
 
 def closed_loop_sections(L: list, folders: dict, fig: Callable, section: Callable, read: Callable) -> None:
     """Append the part to L (helpers as :func:`experiments.report.render`'s)."""
-    from experiments.mpc_report import MATCH_TOL, WORKS_FACTOR
+    from mjx_surrogate.analysis.closed_loop import MATCH_TOL, WORKS_FACTOR
 
     L += [
         "## Beyond the paper: closed loop",

@@ -100,7 +100,7 @@ def test_the_sampling_budget_matches_d2c_and_the_table_and_figures_are_written(s
 def test_the_verdict_its_cause_and_the_page(smoke_mpc):
     """The closed-loop verdict by its rule, the surrogates' one-step errors along their closed
     loops (first plant, least noise), and report.html with both videos inside."""
-    from experiments.mpc_report import closed_loop_verdict
+    from mjx_surrogate.analysis.closed_loop import closed_loop_verdict
 
     path, m, _ = smoke_mpc
     rows = m["mpc_rows"]

@@ -1,6 +1,6 @@
-"""What an ``mpc`` run says: its side-by-side table, and its closed-loop verdict by an
-explicit rule: does the paper's claim (local LTV models are needed; global surrogates
-fail, Sec. 5) survive replanning?
+"""What an ``mpc`` run says (experiment kind ``mpc``, docs/mpc.md): its side-by-side
+table, and its closed-loop verdict by an explicit rule: does the paper's claim (local LTV
+models are needed; global surrogates fail, Sec. 5) survive replanning?
 
 Rule, per condition (plant, process noise) of the run's side-by-side rows:
 - a condition is *judged* when D2C-MPC's own closed loop works there: its median cost is
@@ -158,7 +158,8 @@ def table(rows: list[dict], dt: float, verdict: dict | None = None) -> str:
     head = ""
     if verdict:
         head = (
-            f"**Closed loop, the paper's claim: {verdict['verdict']}** (rule: experiments/mpc_report.py). "
+            f"**Closed loop, the paper's claim: {verdict['verdict']}** "
+            "(rule: mjx_surrogate/analysis/closed_loop.py). "
             f"{verdict['text']} {verdict.get('cause', '')}\n\n"
         )
     return (

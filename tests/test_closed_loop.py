@@ -1,8 +1,8 @@
-"""experiments/mpc_report.py: the closed-loop verdict's rule on hand-made rows, every outcome."""
+"""mjx_surrogate/analysis/closed_loop.py: the closed-loop verdict's rule on hand-made rows, every outcome."""
 
 import pytest
 
-from experiments.mpc_report import MATCH_TOL, cause_text, closed_loop_verdict, table
+from mjx_surrogate.analysis.closed_loop import MATCH_TOL, cause_text, closed_loop_verdict, table
 
 
 def _rows(costs: dict, goals: dict | None = None, conditions=((1.0, 0.0), (1.0, 0.05))) -> list[dict]:
