@@ -4,9 +4,11 @@ Per system (native MuJoCo backend, the preset's task with the horizon cut to ``-
 steps) and per controller, one episode of ``--steps`` control steps from the task's start:
 
 * "d2c", and the "finite_difference" and "jacfwd" oracles: at most ``--iterations`` iLQR
-  iterations per replan;
+  iterations per replan (D2C-MPC's identification as ``mpc_params``: nx + nu orthogonal
+  samples);
 * the derivative-free "predictive_sampling" and "mppi": ``--samples`` samples per replan of
-  spread ``SAMPLING_SIGMA``; MPPI's temperature is 1 % of the start's zero-control plan cost.
+  spread ``SAMPLING_SIGMA``, drawn at every step or at ``--knots`` knots; MPPI's
+  temperature is 1 % of the start's zero-control plan cost.
 
 Each on the plant itself and on a plant whose pole masses are ``--mass-scale`` times the
 model's (``mujoco.MjSpec``), for the preset's terminal-only task and for one with a running
@@ -61,6 +63,7 @@ def run(
     running_weight: float,
     controllers: list[str],
     samples: int,
+    knots: int = 0,
 ) -> list[dict]:
     import jax
     import jax.numpy as jnp
@@ -68,14 +71,14 @@ def run(
 
     from mjx_surrogate import mpc, mpc_sampling
     from mjx_surrogate.config import Config, SystemConfig, TaskConfig
-    from mjx_surrogate.resolution import resolve, solver_params
+    from mjx_surrogate.resolution import mpc_params, resolve
     from mjx_surrogate.tasks import goal_cost, trajectory_cost
     from mjx_surrogate.trajectory import open_loop
 
     task_config = TaskConfig(preset=f"{system_name}_d2c", T=horizon)  # the paper's task of the system
     res = resolve(Config(SystemConfig(system_name, backend="native"), task_config))
     system, task = res.system, res.task
-    params, sid = solver_params(res.config)
+    params, sid = mpc_params(res.config)
     params = params.replace(max_iter=iterations)
     U0 = jnp.zeros((horizon, system.nu))
     dt = float(system.dt)
@@ -93,7 +96,7 @@ def run(
             if controller in ("predictive_sampling", "mppi"):
                 lam = temperature if controller == "mppi" else None
                 episode = lambda: mpc_sampling.sampling_mpc(  # noqa: E731
-                    system, task, U0, jax.random.key(0), steps, sigma, samples, lam, 0.0, plant
+                    system, task, U0, jax.random.key(0), steps, sigma, samples, lam, 0.0, plant, knots
                 )
             else:
                 episode = lambda: mpc.receding_horizon(  # noqa: E731
@@ -150,6 +153,7 @@ def main() -> None:
     ap.add_argument("--running-weight", type=float, default=0.01, help="the second task's Q / Q_f")
     ap.add_argument("--controllers", nargs="+", default=list(CONTROLLERS), choices=CONTROLLERS)
     ap.add_argument("--samples", type=int, default=256, help="samples per replan of the sampling MPCs")
+    ap.add_argument("--knots", type=int, default=0, help="the sampling MPCs' knots (0: every step)")
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
 
@@ -159,7 +163,15 @@ def main() -> None:
     rows = []
     for name in a.systems:
         rows += run(
-            name, a.horizon, a.steps, a.iterations, a.mass_scale, a.running_weight, a.controllers, a.samples
+            name,
+            a.horizon,
+            a.steps,
+            a.iterations,
+            a.mass_scale,
+            a.running_weight,
+            a.controllers,
+            a.samples,
+            a.knots,
         )
     if a.json:
         with open(a.json, "w") as f:

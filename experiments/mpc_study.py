@@ -26,7 +26,7 @@ from mjx_surrogate import data, mpc, mpc_online, mpc_sampling, pipeline, plots, 
 from mjx_surrogate.analysis.closed_loop import cause_text, closed_loop_verdict, table
 from mjx_surrogate.config import MPC_CONTROLLERS
 from mjx_surrogate.evaluation import finite_or_none
-from mjx_surrogate.resolution import Resolved, solver_params
+from mjx_surrogate.resolution import Resolved, mpc_params
 from mjx_surrogate.results import Run
 from mjx_surrogate.surrogates import FitContext, fit_all
 from mjx_surrogate.surrogates.sindy import SindyModel
@@ -42,8 +42,7 @@ def _planners(controller, res, optimum, plan_task, U0, samples, fit):
     """{label: episode(plant, keys [E], noise) -> batched MPCResult} of one controller."""
     cfg, system, task = res
     m = cfg.mpc
-    params, sysid = solver_params(cfg)
-    params = params.replace(max_iter=m.max_iter)
+    params, sysid = mpc_params(cfg)
     N = m.steps
     if controller in ("d2c", "oracle"):
         name = "d2c" if controller == "d2c" else cfg.experiment.oracle
@@ -79,9 +78,10 @@ def _planners(controller, res, optimum, plan_task, U0, samples, fit):
     lam = m.mppi_temperature * float(first) if controller == "mppi" else None
     label = "MPPI" if controller == "mppi" else "predictive sampling"
     one = lambda plant, k, w: mpc_sampling.sampling_mpc(  # noqa: E731
-        system, plan_task, U0, k, N, m.sampling_sigma, samples, lam, w, plant
+        system, plan_task, U0, k, N, m.sampling_sigma, samples, lam, w, plant, m.sampling_knots
     )
-    return {f"{label} (S={samples})": one}
+    knots = f", {m.sampling_knots} knots" if m.sampling_knots else ""
+    return {f"{label} (S={samples}{knots})": one}
 
 
 def _calls(controller, result, res, samples) -> float | None:
@@ -90,7 +90,7 @@ def _calls(controller, result, res, samples) -> float | None:
     cfg, system, _ = res
     m = cfg.mpc
     if controller == "d2c":
-        params, sysid = solver_params(cfg)
+        params, sysid = mpc_params(cfg)
         per_episode = [
             mpc.black_box_steps(
                 jax.tree.map(lambda a: a[e], result), m.horizon, params.n_alphas, sysid

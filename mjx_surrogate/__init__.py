@@ -31,7 +31,7 @@ from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.ilqr import ILQRParams, ILQRResult, StopReason, ilqr
 from mjx_surrogate.mpc import MPCResult, receding_horizon
 from mjx_surrogate.pipeline import solve_config, start_controls
-from mjx_surrogate.resolution import resolve, solver_params
+from mjx_surrogate.resolution import mpc_params, resolve, solver_params
 from mjx_surrogate.runtime import configure_runtime
 from mjx_surrogate.surrogates import FitContext, Fitted, SurrogateKind, fit_all, register_surrogate
 from mjx_surrogate.sysid import IdentificationScheme, SysIdParams, register_scheme
@@ -85,4 +85,5 @@ __all__ = [
     "solve_config",
     "start_controls",
     "solver_params",
+    "mpc_params",
 ]

@@ -310,9 +310,18 @@ class MPCConfig:
     samples: samples per replan of the sampling MPCs (None: matched to D2C-MPC's median
       black-box steps per control step, else 64). sampling_sigma: their spread, control
       units. mppi_temperature: MPPI's temperature as a fraction of the first plan's cost.
+      sampling_knots: 0 draws their perturbations independently at every control step;
+      k >= 1 draws them at k knots spread over the horizon and interpolates linearly
+      between (smooth plans, as hydrax's spline planners; at most the horizon).
     refit_weight: > 0 adds, for every SINDy model, SINDy-MPC refitted online before every
       replan on its training transitions and the episode's own, each of these weighing
       refit_weight training ones (``mpc_online``; SINDy-MPC's low-data setting); 0: off.
+    n_samples, sysid_design: D2C-MPC's identification at every replan (the solver's scheme
+      and perturbation sizes otherwise): samples per identification (None: nx + nu with a
+      one-step scheme, the fewest that determine [A_t B_t]; else solver.n_samples) in
+      design sysid_design ("orthogonal": with nx + nu samples the Gram matrix is exactly
+      diagonal, paper Section 3; "gaussian": D2C 2.0's). The offline optimum keeps the
+      solver's settings.
     """
 
     controllers: Tuple[str, ...] = MPC_CONTROLLERS
@@ -326,7 +335,10 @@ class MPCConfig:
     samples: Optional[int] = None
     sampling_sigma: float = 1.0
     mppi_temperature: float = 0.01
+    sampling_knots: int = 0
     refit_weight: float = 0.0
+    n_samples: Optional[int] = None
+    sysid_design: Literal["gaussian", "orthogonal"] = "orthogonal"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -565,6 +577,14 @@ def _check_mpc(m: MPCConfig) -> None:
         raise ConfigError(
             "mpc.refit_weight", f"must be a finite number >= 0 (0: no online refit), got {m.refit_weight}"
         )
+    if m.sampling_knots < 0:
+        raise ConfigError(
+            "mpc.sampling_knots", f"must be >= 0 (0: every step its own draw), got {m.sampling_knots}"
+        )
+    if m.n_samples is not None and m.n_samples < 1:
+        raise ConfigError("mpc.n_samples", f"must be >= 1 (None: nx + nu), got {m.n_samples}")
+    if m.sysid_design not in ("gaussian", "orthogonal"):
+        raise ConfigError("mpc.sysid_design", f"one of gaussian, orthogonal, got {m.sysid_design!r}")
 
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,99}$")

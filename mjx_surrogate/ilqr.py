@@ -303,8 +303,18 @@ def _zero_expansion(cost: Cost, X: jax.Array, U: jax.Array) -> tuple:
     return jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), shapes)
 
 
-def ilqr_init(problem: Problem, U0: jax.Array, params: ILQRParams, key: jax.Array) -> ILQRState:
-    """The state before the first iteration: U0 [T, nu] clipped to the limits and rolled out."""
+def ilqr_init(
+    problem: Problem,
+    U0: jax.Array,
+    params: ILQRParams,
+    key: jax.Array,
+    X_ref: jax.Array | None = None,
+    K_ref: jax.Array | None = None,
+) -> ILQRState:
+    """The state before the first iteration: U0 [T, nu] clipped to the limits and rolled out.
+    With a policy's X_ref [T+1, nx] and gains K_ref [T, nu, nx] (a receding horizon's previous
+    plan), the rollout is closed-loop, u_t = clip(U0_t + K_ref_t (x_t - X_ref_t)), and its
+    controls are the first nominal."""
     x0, u_min, u_max = problem.x0, problem.u_min, problem.u_max
     T, nu = U0.shape
     nx = x0.shape[0]
@@ -315,11 +325,18 @@ def ilqr_init(problem: Problem, U0: jax.Array, params: ILQRParams, key: jax.Arra
     zeros_K = jnp.zeros((T, nu, nx), dtype)
     zeros_x = jnp.zeros((T + 1, nx), dtype)
     zeros_u = jnp.zeros((T, nu), dtype)
+    policy = K_ref is not None
+    X_bar = X_ref.astype(dtype) if policy else zeros_x
+    K_bar = K_ref.astype(dtype) if policy else zeros_K
     if problem.trial_rollouts is None:
-        X0, _ = closed_loop(problem.step, x0, zeros_x, U0, zeros_u, zeros_K, 0.0, u_min, u_max)
+        X0, U_rolled = closed_loop(problem.step, x0, X_bar, U0, zeros_u, K_bar, 0.0, u_min, u_max)
     else:  # the line search's batched rollout with one step size: one host call, not T
         no_step = jnp.zeros((1,), dtype)
-        X0 = problem.trial_rollouts(x0, zeros_x, U0, zeros_u, zeros_K, no_step, u_min, u_max)[0][0]
+        X0, U_rolled = (
+            a[0] for a in problem.trial_rollouts(x0, X_bar, U0, zeros_u, K_bar, no_step, u_min, u_max)
+        )
+    if policy:
+        U0 = U_rolled
     J0 = trajectory_cost(problem.cost, X0, U0)
     n_hist = params.max_iter + 1
     X_hist = (

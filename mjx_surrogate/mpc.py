@@ -71,12 +71,12 @@ def receding_horizon(
     method = "d2c" if controller == "d2c" else oracle_method(controller)
     plant_step = (plant if plant is not None else system).step
 
-    def replan(x, U, k):
-        prob = problem(system, task.replace(x0=x), sysid, method)
-        plan = ilqr_result(ilqr_advance(prob, ilqr_init(prob, U, params, k), params))
-        return plan.U, (plan.cost, plan.iterations, plan.identified)
+    def replan(x, plan, k):
+        return ilqr_replan(problem(system, task.replace(x0=x), sysid, method), plan, params, k)
 
-    X, U, (plan_cost, its, ident) = episode(replan, plant_step, task.x0, U0, key, steps, process_noise)
+    X, U, (plan_cost, its, ident) = episode(
+        replan, plant_step, task.x0, first_plan(U0, task.x0), key, steps, process_noise
+    )
     return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)
 
 
@@ -99,12 +99,14 @@ def surrogate_mpc(
     def linearize(X, U, K, k):
         return sid.exact_jacobians(step, X, U)
 
-    def replan(x, U, k):
-        prob = Problem(step, linearize, task_cost(task), x, task.u_min, task.u_max)
-        plan = ilqr_result(ilqr_advance(prob, ilqr_init(prob, U, params, k), params))
-        return plan.U, (plan.cost, plan.iterations, plan.identified)
+    def replan(x, plan, k):
+        return ilqr_replan(
+            Problem(step, linearize, task_cost(task), x, task.u_min, task.u_max), plan, params, k
+        )
 
-    X, U, (plan_cost, its, ident) = episode(replan, plant.step, task.x0, U0, key, steps, process_noise)
+    X, U, (plan_cost, its, ident) = episode(
+        replan, plant.step, task.x0, first_plan(U0, task.x0), key, steps, process_noise
+    )
     return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)
 
 
@@ -144,29 +146,76 @@ def tracking(
     )
 
 
-def episode(replan, plant_step, x0: jax.Array, U0: jax.Array, key: jax.Array, steps: int, process_noise):
-    """The receding-horizon loop every planner shares: ``replan(x, U, key) -> (U_plan [H,
-    nu], info)`` from the measured x and the shifted previous plan; applies U_plan[0] to the
-    plant, adds the process noise. -> X [steps+1, nx], U [steps, nu], info stacked [steps, ...]."""
+class Plan(NamedTuple):
+    """A replan's result and the next one's warm start: controls U [H, nu] and the policy
+    around them, u = U + K (x - X), with X [H+1, nx] and gains K [H, nu, nx] (K = 0: the
+    controls alone)."""
+
+    U: jax.Array
+    X: jax.Array
+    K: jax.Array
+
+
+def first_plan(U0: jax.Array, x0: jax.Array) -> Plan:
+    """The warm start of an episode's first replan: U0 [H, nu], no feedback."""
+    H, nu = U0.shape
+    return Plan(
+        U0.astype(x0.dtype),
+        jnp.zeros((H + 1, x0.shape[0]), x0.dtype),
+        jnp.zeros((H, nu, x0.shape[0]), x0.dtype),
+    )
+
+
+def shifted(plan):
+    """Every leaf of a plan [H, ...] moved one control step on, its last row repeated."""
+    return jax.tree.map(lambda a: jnp.concatenate([a[1:], a[-1:]]), plan)
+
+
+def warm_start(prob: Problem, plan: Plan, params: ILQRParams, key: jax.Array):
+    """The iLQR state a replan starts from (x0: the measured state): the cheaper of two
+    rollouts of the shifted previous plan, its policy's, which feeds the measured state's
+    deviation from the predicted one back through the previous gains (as MuJoCo MPC's
+    iLQG does), and its controls' alone (the policy's can be the worse where the model
+    changed since, e.g. refitted online)."""
+    policy = ilqr_init(prob, plan.U, params, key, plan.X, plan.K)
+    controls = ilqr_init(prob, plan.U, params, key)
+    better = jnp.isfinite(policy.J) & (policy.J <= controls.J)  # a blown-up policy's U may be NaN
+    return jax.tree.map(lambda a, b: jnp.where(better, a, b), policy, controls)
+
+
+def ilqr_replan(prob: Problem, plan: Plan, params: ILQRParams, key: jax.Array):
+    """At most ``params.max_iter`` iLQR iterations on ``prob`` from :func:`warm_start`.
+    -> (Plan, (cost, iterations, identified))."""
+    r = ilqr_result(ilqr_advance(prob, warm_start(prob, plan, params, key), params))
+    return Plan(r.U, r.X, r.K), (r.cost, r.iterations, r.identified)
+
+
+def episode(replan, plant_step, x0: jax.Array, plan0, key: jax.Array, steps: int, process_noise):
+    """The receding-horizon loop every planner shares: ``replan(x, plan, key) -> (plan,
+    info)`` from the measured x and the previous plan shifted by one step (``plan0``: the
+    first one's warm start; a :class:`Plan` or U [H, nu], leaves with the control steps
+    leading); applies the plan's first control to the plant and adds the process noise.
+    -> X [steps+1, nx], U [steps, nu], info stacked [steps, ...]."""
 
     def control_step(carry, k):
-        x, U = carry
+        x, plan = carry
         k_plan, k_noise = jax.random.split(k)
-        plan, info = replan(x, U, k_plan)
-        u = plan[0]
+        plan, info = replan(x, plan, k_plan)
+        u = (plan.U if isinstance(plan, Plan) else plan)[0]
         x_next = plant_step(x, u) + process_noise * jax.random.normal(k_noise, x.shape, x.dtype)
-        return (x_next, jnp.concatenate([plan[1:], plan[-1:]])), (x, u, info)
+        return (x_next, shifted(plan)), (x, u, info)
 
-    (xN, _), (X, U, info) = jax.lax.scan(
-        control_step, (x0, U0.astype(x0.dtype)), jax.random.split(key, steps)
-    )
+    plan0 = jax.tree.map(lambda a: a.astype(x0.dtype), plan0)
+    (xN, _), (X, U, info) = jax.lax.scan(control_step, (x0, plan0), jax.random.split(key, steps))
     return jnp.concatenate([X, xN[None]]), U, info
 
 
 def black_box_steps(result: MPCResult, horizon: int, n_alphas: int, sysid: sid.SysIdParams) -> np.ndarray:
     """Control steps simulated on the black box by each replan of a D2C episode [N]
-    (identifications, the line search's trials and the first rollout), not counting the
-    plant's own step."""
+    (identifications, the line search's trials and the two warm-start rollouts of
+    :func:`ilqr_replan`), not counting the plant's own step."""
     per_id = steps_per_identification(sysid, horizon, result.U.shape[-1])
     ident, its = np.asarray(result.identified), np.asarray(result.iterations)
-    return np.array([simulation_curve(i, n, horizon, n_alphas, *per_id)[-1] for i, n in zip(ident, its)])
+    return np.array(
+        [horizon + simulation_curve(i, n, horizon, n_alphas, *per_id)[-1] for i, n in zip(ident, its)]
+    )

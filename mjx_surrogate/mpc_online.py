@@ -25,9 +25,9 @@ import jax.numpy as jnp
 
 from mjx_surrogate import sysid as sid
 from mjx_surrogate.data import Transitions
-from mjx_surrogate.ilqr import ILQRParams, Problem, ilqr_advance, ilqr_init, ilqr_result
+from mjx_surrogate.ilqr import ILQRParams, Problem
 from mjx_surrogate.linalg import spd_solve
-from mjx_surrogate.mpc import MPCResult
+from mjx_surrogate.mpc import MPCResult, first_plan, ilqr_replan, shifted
 from mjx_surrogate.surrogates.sindy import SindyModel, design
 from mjx_surrogate.systems.system import System
 from mjx_surrogate.tasks import Task, task_cost, trajectory_cost
@@ -82,7 +82,7 @@ def refitted_sindy_mpc(
     nx, nu = x0.shape[0], U0.shape[-1]
 
     def control_step(carry, inputs):
-        x, U, Xb, Ub, Yb = carry
+        x, plan, Xb, Ub, Yb = carry
         n, k = inputs
         k_plan, k_noise = jax.random.split(k)
         w = weight * (jnp.arange(steps) < n).astype(x.dtype)
@@ -95,12 +95,11 @@ def refitted_sindy_mpc(
             task.u_min,
             task.u_max,
         )
-        plan = ilqr_result(ilqr_advance(prob, ilqr_init(prob, U, params, k_plan), params))
+        plan, (cost, its, ident) = ilqr_replan(prob, plan, params, k_plan)
         u = plan.U[0]
         x_next = plant.step(x, u) + process_noise * jax.random.normal(k_noise, x.shape, x.dtype)
         Xb, Ub, Yb = Xb.at[n].set(x), Ub.at[n].set(u), Yb.at[n].set(x_next)
-        shifted = jnp.concatenate([plan.U[1:], plan.U[-1:]])
-        return (x_next, shifted, Xb, Ub, Yb), (x, u, plan.cost, plan.iterations, plan.identified)
+        return (x_next, shifted(plan), Xb, Ub, Yb), (x, u, cost, its, ident)
 
     empty = (
         jnp.zeros((steps, nx), x0.dtype),
@@ -109,7 +108,7 @@ def refitted_sindy_mpc(
     )
     (xN, *_), (X, U, plan_cost, its, ident) = jax.lax.scan(
         control_step,
-        (x0, U0.astype(x0.dtype), *empty),
+        (x0, first_plan(U0, x0), *empty),
         (jnp.arange(steps), jax.random.split(key, steps)),
     )
     X = jnp.concatenate([X, xN[None]])

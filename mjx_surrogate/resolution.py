@@ -250,6 +250,14 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
     return ilqr, sysid
 
 
+def mpc_params(cfg: Config):
+    """The (ILQRParams, SysIdParams) of a D2C-MPC replan: the solver's, with at most
+    mpc.max_iter iterations and mpc's identification samples and design (``cfg`` resolved)."""
+    params, sysid = solver_params(cfg)
+    m = cfg.mpc
+    return params.replace(max_iter=m.max_iter), sysid.replace(n_samples=m.n_samples, design=m.sysid_design)
+
+
 def resolve(cfg: Config, local: bool = False) -> Resolved:
     """Validate ``cfg``, build its system and task. Raises ConfigError; compiles nothing.
 
@@ -293,7 +301,7 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     check_start(system, task, sigma_x)
     if kind in ("predict", "analysis", "control") or (kind == "mpc" and "surrogates" in cfg.mpc.controllers):
         _check_surrogates(cfg, system, int(tc.T))
-    mpc = _resolve_mpc(cfg.mpc, system, int(tc.T)) if kind == "mpc" else cfg.mpc
+    mpc = _resolve_mpc(cfg, system, int(tc.T), n_samples)
     if system.mj_model is None:
         sc = dataclasses.replace(cfg.system, source_sha256=source_digest(system.source))
     else:
@@ -342,10 +350,30 @@ def analysis_library_specs(cfg: Config, system: System) -> dict:
     return out | library_specs(cfg, system, a.variance_libraries, "analysis.variance_libraries")
 
 
-def _resolve_mpc(m, system: System, T: int):
-    """Section mpc with its defaults filled (horizon and steps: the task's T), checked
-    against the system and the task."""
-    m = dataclasses.replace(m, horizon=m.horizon or T, steps=m.steps or T)
+def _resolve_mpc(cfg: Config, system: System, T: int, solver_samples: int):
+    """Section mpc with its defaults filled (horizon and steps: the task's T; D2C-MPC's
+    samples: nx + nu with a one-step scheme, else the solver's), checked against the
+    system and the task."""
+    m, scheme, m_min = cfg.mpc, get_scheme(cfg.solver.sysid), system.nx + system.nu
+    if scheme.one_step:
+        n, design = m.n_samples or m_min, m.sysid_design
+    else:  # perturbed rollouts or a reduced basis: the solver's design
+        n, design = m.n_samples or solver_samples, cfg.solver.sysid_design
+    if scheme.reduced and not 1 <= n <= system.nx:
+        raise ConfigError(
+            "mpc.n_samples", f"the reduced scheme's rank: between 1 and nx = {system.nx}, got {n}"
+        )
+    if not scheme.reduced and n < m_min:
+        raise ConfigError(
+            "mpc.n_samples",
+            f"must be >= nx + nu = {m_min} for the LTV least squares to be determined, got {n}",
+        )
+    m = dataclasses.replace(m, horizon=m.horizon or T, steps=m.steps or T, n_samples=n, sysid_design=design)
+    if m.sampling_knots > m.horizon:
+        raise ConfigError(
+            "mpc.sampling_knots",
+            f"at most the horizon, {m.horizon} steps (0: every step), got {m.sampling_knots}",
+        )
     if "tvlqr" in m.controllers and m.steps > T:
         raise ConfigError(
             "mpc.steps",

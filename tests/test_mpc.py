@@ -248,6 +248,24 @@ def test_mppi_at_zero_temperature_is_predictive_sampling_and_both_beat_no_contro
         assert float(lqr.cost) <= float(r.cost) < 0.5 * float(idle.cost), (float(r.cost), float(idle.cost))
 
 
+def test_smooth_samples_are_straight_between_knots_and_h_knots_are_the_plain_draws():
+    key = jax.random.key(2)
+    plain = mpc_sampling.perturbations(key, 5, H, 1, 0, jnp.float64)
+    np.testing.assert_array_equal(np.asarray(mpc_sampling.perturbations(key, 5, H, 1, H, jnp.float64)), plain)
+    z = np.asarray(jax.random.normal(key, (5, 4, 1), jnp.float64))  # the draws at the knots
+    eps = np.asarray(mpc_sampling.perturbations(key, 5, 10, 1, 4, jnp.float64))  # knots at 0, 3, 6, 9
+    np.testing.assert_allclose(eps[:, [0, 3, 6, 9]], z, atol=1e-15)
+    np.testing.assert_allclose(eps[:, 1], (2 * z[:, 0] + z[:, 1]) / 3, atol=1e-15)
+    bends = np.abs(np.diff(eps[..., 0], 2, axis=1))  # second differences, centred at t = 1 .. 8
+    assert np.all(np.delete(bends, [2, 5], axis=1) < 1e-12) and np.all(bends[:, [2, 5]] > 1e-6)
+    flat = np.asarray(mpc_sampling.perturbations(key, 5, 10, 1, 1, jnp.float64))
+    np.testing.assert_array_equal(flat, np.repeat(flat[:, :1], 10, axis=1))
+    system, task, U0 = _linear(), _task(), jnp.zeros((H, 1))
+    every = mpc_sampling.sampling_mpc(system, task, U0, jax.random.key(4), N, 2.0, 16)
+    as_knots = mpc_sampling.sampling_mpc(system, task, U0, jax.random.key(4), N, 2.0, 16, knots=H)
+    np.testing.assert_allclose(np.asarray(as_knots.U), np.asarray(every.U), atol=1e-12)  # XLA's fusion
+
+
 def test_sampling_black_box_steps_are_the_calls_the_black_box_received():
     calls = []
 
@@ -262,3 +280,39 @@ def test_sampling_black_box_steps_are_the_calls_the_black_box_received():
             system, _task(), jnp.zeros((H, 1)), jax.random.key(0), 5, 1.0, 16, temperature
         )
         assert sum(calls) == 5 + 5 * mpc_sampling.black_box_steps(16, H, mppi), sum(calls)
+
+
+def _numpy_policy(x0, X, U, K):
+    """u_t = U_t + K_t (x_t - X_t) on the double integrator, float64 NumPy."""
+    x, us = np.asarray(x0, float), []
+    for t in range(len(U)):
+        us.append(U[t] + K[t] @ (x - X[t]))
+        x = A @ x + B @ us[-1]
+    return np.array(us)
+
+
+def test_a_replan_starts_from_the_cheaper_of_the_previous_policy_and_its_controls():
+    """A replan's first nominal: the previous plan's policy rolled out from the measured
+    state where that is cheaper than its controls alone, else those."""
+    from mjx_surrogate.d2c import problem
+
+    U = 0.1 * np.sin(np.arange(H))[:, None]
+    X = np.zeros((H + 1, 2))
+    for t in range(H):  # the plan predicted from the origin; the state measured is elsewhere
+        X[t + 1] = A @ X[t] + B @ U[t]
+    K = np.tile(_lqr_first_gain(A, B, H), (H, 1, 1))  # stabilising gains
+    x = np.array([1.0, 0.0])
+    prob = problem(_linear(), _task(x), SID, "d2c")
+    plan = mpc.Plan(jnp.asarray(U), jnp.asarray(X), jnp.asarray(K))
+    start = mpc.warm_start(prob, plan, ILQRParams(), jax.random.key(0))
+    np.testing.assert_allclose(np.asarray(start.U), _numpy_policy(x, X, U, K), atol=1e-12)
+    wild = plan._replace(K=jnp.asarray(-1e3 * K))  # a policy far costlier than its controls
+    start = mpc.warm_start(prob, wild, ILQRParams(), jax.random.key(0))
+    np.testing.assert_allclose(np.asarray(start.U), U, atol=1e-12)
+    blown = mpc.Plan(jnp.full((H, 1), 1e300), jnp.asarray(X), jnp.asarray(K))  # both rollouts overflow
+    blown_start = mpc.warm_start(prob, blown, ILQRParams(), jax.random.key(0))
+    assert not np.isfinite(float(blown_start.J)) and np.all(np.asarray(blown_start.U) == 1e300)
+    x_next = x
+    for t in range(H):  # the nominal is the controls' own rollout
+        x_next = A @ x_next + B @ U[t]
+    np.testing.assert_allclose(np.asarray(start.X[-1]), x_next, atol=1e-12)

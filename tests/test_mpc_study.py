@@ -177,3 +177,32 @@ def test_the_gymnasium_preset_finds_the_installed_model_or_says_how_to_get_it(mo
     assert "pip install gymnasium" in missing
     with pytest.raises(ConfigError, match="system.mjcf_path"):
         resolve(dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, mjcf_path=missing)))
+
+
+def test_d2c_mpc_identifies_with_the_fewest_samples_unless_told():
+    """D2C-MPC's replans: nx + nu orthogonal samples by default (the offline solve keeps the
+    solver's), mpc.n_samples and mpc.sysid_design when given; a rollout scheme keeps the
+    solver's samples and design."""
+    import dataclasses
+
+    from configs.smoke_mpc import CONFIG
+    from mjx_surrogate.resolution import mpc_params, resolve, solver_params
+
+    cfg = resolve(CONFIG).config
+    _, offline = solver_params(cfg)
+    params, sysid = mpc_params(cfg)
+    assert (sysid.n_samples, sysid.design, params.max_iter) == (3, "orthogonal", CONFIG.mpc.max_iter)
+    assert (offline.n_samples, offline.design) == (20, "gaussian")
+    given = dataclasses.replace(
+        CONFIG, mpc=dataclasses.replace(CONFIG.mpc, n_samples=6, sysid_design="gaussian")
+    )
+    assert mpc_params(resolve(given).config)[1].n_samples == 6
+    assert mpc_params(resolve(given).config)[1].design == "gaussian"
+    rollout = dataclasses.replace(CONFIG, solver=dataclasses.replace(CONFIG.solver, sysid="rollout"))
+    assert (
+        mpc_params(resolve(rollout).config)[1].n_samples,
+        mpc_params(resolve(rollout).config)[1].design,
+    ) == (
+        20,
+        "gaussian",
+    )
