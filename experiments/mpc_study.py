@@ -202,6 +202,8 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     X_star, U_star = jnp.asarray(optimum["X_star"]), jnp.asarray(optimum["U_star"])
     H = m.horizon
     U0 = jnp.concatenate([U_star, jnp.repeat(U_star[-1:], max(0, H - task.T), axis=0)])[:H]
+    if m.first_plan == "zeros":
+        U0 = jnp.zeros_like(U0)
     plan_task = task.replace(T=H)
     plants = _plants(res, record)
     record.set(

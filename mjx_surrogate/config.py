@@ -316,6 +316,8 @@ class MPCConfig:
     refit_weight: > 0 adds, for every SINDy model, SINDy-MPC refitted online before every
       replan on its training transitions and the episode's own, each of these weighing
       refit_weight training ones (``mpc_online``; SINDy-MPC's low-data setting); 0: off.
+    first_plan: every planner's first warm start: "optimum" (the offline D2C optimum's
+      first H controls) or "zeros".
     n_samples, sysid_design: D2C-MPC's identification at every replan (the solver's scheme
       and perturbation sizes otherwise): samples per identification (None: nx + nu with a
       one-step scheme, the fewest that determine [A_t B_t]; else solver.n_samples) in
@@ -337,6 +339,7 @@ class MPCConfig:
     mppi_temperature: float = 0.01
     sampling_knots: int = 0
     refit_weight: float = 0.0
+    first_plan: Literal["optimum", "zeros"] = "optimum"
     n_samples: Optional[int] = None
     sysid_design: Literal["gaussian", "orthogonal"] = "orthogonal"
 
@@ -583,6 +586,8 @@ def _check_mpc(m: MPCConfig) -> None:
         )
     if m.n_samples is not None and m.n_samples < 1:
         raise ConfigError("mpc.n_samples", f"must be >= 1 (None: nx + nu), got {m.n_samples}")
+    if m.first_plan not in ("optimum", "zeros"):
+        raise ConfigError("mpc.first_plan", f"one of optimum, zeros, got {m.first_plan!r}")
     if m.sysid_design not in ("gaussian", "orthogonal"):
         raise ConfigError("mpc.sysid_design", f"one of gaussian, orthogonal, got {m.sysid_design!r}")
 

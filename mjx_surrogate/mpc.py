@@ -3,7 +3,8 @@ first control, repeat.
 
 Notation: an episode of N control steps on the plant; at step n the controller solves the
 horizon-H problem ``task`` (``task.T`` = H) from the measured x_n, warm-started from its
-previous plan shifted by one step (its last control repeated), with at most
+previous plan shifted by one step (its last row repeated; :func:`warm_start`: rolled out
+through the plan's gains or with its controls alone, whichever costs less), with at most
 ``params.max_iter`` iLQR iterations, and applies u_n = U_plan[0]:
 
     x_{n+1} = f_plant(x_n, u_n) + w_n,    w_n ~ N(0, process_noise^2 I)

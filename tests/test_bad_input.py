@@ -60,6 +60,7 @@ CASES = [
     (["smoke_mpc", "--mpc.refit_weight", "nan"], "mpc.refit_weight"),
     (["smoke_mpc", "--mpc.n_samples", "2"], "mpc.n_samples"),  # the pendulum's nx + nu = 3
     (["smoke_mpc", "--mpc.sampling_knots", "-1"], "mpc.sampling_knots"),
+    (["smoke_mpc", "--mpc.first_plan", "random"], "--mpc.first_plan"),
     (["smoke_mpc", "--mpc.sampling_knots", "99"], "mpc.sampling_knots"),  # over the horizon
     (
         [
