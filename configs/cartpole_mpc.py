@@ -21,7 +21,7 @@ CONFIG = dataclasses.replace(
         steps=40,
         max_iter=5,
         process_noise=(0.0, 0.01),
-        plant_mass_scales=(1.0, 1.1),
+        plants=("model", "mass=1.1"),
         refit_weight=10.0,
         n_episodes=2,
         first_plan="zeros",

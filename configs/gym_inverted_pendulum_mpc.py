@@ -42,7 +42,7 @@ CONFIG = Config(
         steps=100,
         max_iter=5,
         process_noise=(0.0, 0.01, 0.03),
-        plant_mass_scales=(1.0, 1.5),
+        plants=("model", "mass=1.5"),
         n_episodes=4,
         refit_weight=10.0,
     ),

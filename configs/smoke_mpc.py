@@ -1,4 +1,5 @@
-"""CI smoke: MPC on the pendulum, every controller, tiny sizes, a heavier plant and noise."""
+"""CI smoke: MPC on the pendulum, every controller, tiny sizes, noise and a plant that is
+heavier, longer and more damped than the model."""
 
 from mjx_surrogate.config import (
     Config,
@@ -27,7 +28,7 @@ CONFIG = Config(
         steps=6,
         max_iter=2,
         process_noise=(0.0, 0.01),
-        plant_mass_scales=(1.2,),
+        plants=("mass=1.2,length=1.1,damping=2",),
         n_episodes=2,
         refit_weight=10.0,
     ),

@@ -3,7 +3,7 @@ section ``mpc`` side by side (docs/mpc.md).
 
 Stages: ``d2c``, the offline optimum on the task's T steps (TVLQR's reference, the centre
 of the surrogates' data and every planner's first plan), then ``mpc/<controller>``:
-episodes of ``mpc.steps`` control steps on each plant (``mpc.plant_mass_scales``) at each
+episodes of ``mpc.steps`` control steps on each plant (``mpc.plants``) at each
 process-noise level, ``mpc.n_episodes`` each (batched by ``vmap``, the same keys, hence the
 same noise draws, for every controller). "surrogates" first fits every kind of
 ``surrogate.kinds`` on ``data.n_traj`` trajectories around the optimum at ``mpc.data_level``.
@@ -15,7 +15,6 @@ episode steps) and the real-time factor (control period / compute per step).
 from __future__ import annotations
 
 import functools
-import os
 import time
 
 import jax
@@ -26,11 +25,13 @@ from mjx_surrogate import data, mpc, mpc_online, mpc_sampling, pipeline, plots, 
 from mjx_surrogate.analysis.closed_loop import cause_text, closed_loop_verdict, table
 from mjx_surrogate.config import MPC_CONTROLLERS
 from mjx_surrogate.evaluation import finite_or_none
-from mjx_surrogate.resolution import Resolved, mpc_params
+from mjx_surrogate.resolution import Resolved, mpc_params, plant_builder
 from mjx_surrogate.results import Run
 from mjx_surrogate.surrogates import FitContext, fit_all
+from mjx_surrogate.surrogates.mlp import MLPModel
+from mjx_surrogate.surrogates.registry import mlp_spec
 from mjx_surrogate.surrogates.sindy import SindyModel
-from mjx_surrogate.systems.plant import mass_scaled_plant
+from mjx_surrogate.systems.plant import make_plant, parse_plant, plant_label, plant_slug
 from mjx_surrogate.tasks import trajectory_cost
 from mjx_surrogate.trajectory import open_loop
 
@@ -64,12 +65,32 @@ def _planners(controller, res, optimum, plan_task, U0, samples, fit):
             )(model)
             for label, model in models.items()
         }
-        for label, model in models.items():  # SINDy-MPC refitted online (mpc.refit_weight)
+        for label, model in models.items():  # refitted online (mpc.refit_weight, refit_updates)
             if m.refit_weight > 0 and isinstance(model, SindyModel):
                 out[f"{label} MPC refitted online"] = (
                     lambda model: (
                         lambda plant, k, w: mpc_online.refitted_sindy_mpc(
                             model, train, plant, plan_task, U0, k, N, params, w, m.refit_weight
+                        )
+                    )
+                )(model)
+            elif m.refit_weight > 0 and m.refit_updates > 0 and isinstance(model, MLPModel):
+                spec = mlp_spec(cfg)
+                out[f"{label} MPC refitted online"] = (
+                    lambda model: (
+                        lambda plant, k, w: mpc_online.refitted_mlp_mpc(
+                            model,
+                            train,
+                            plant,
+                            plan_task,
+                            U0,
+                            k,
+                            N,
+                            spec,
+                            m.refit_updates,
+                            params,
+                            w,
+                            m.refit_weight,
                         )
                     )
                 )(model)
@@ -106,7 +127,7 @@ def _calls(controller, result, res, samples) -> float | None:
 def _controller_stage(controller, res, record, plants, optimum, plan_task, U0, samples, key, fit):
     cfg, system, task = res
     m = cfg.mpc
-    conditions = [(s, w) for s in m.plant_mass_scales for w in m.process_noise]
+    conditions = [(p, w) for p in plants for w in m.process_noise]
 
     def compute():
         with progress.steps(f"MPC {controller}", 1 + len(conditions), cfg.experiment.progress) as meter:
@@ -116,13 +137,13 @@ def _controller_stage(controller, res, record, plants, optimum, plan_task, U0, s
             meter.extend(len(conditions) * (len(planners) - 1))
             rows, arrays = [], {}
             for label, one in planners.items():
-                for pi, (scale, plant) in enumerate(plants.items()):
+                for pi, (name, plant) in enumerate(plants.items()):
                     batch = jax.jit(
                         lambda keys, w, plant=plant, one=one: jax.vmap(lambda k: one(plant, k, w))(keys)
                     )
                     compiled, compile_s = None, 0.0
                     for ni, noise in enumerate(m.process_noise):
-                        meter.advance(f"{label}, plant mass x{scale:g}, noise {noise:g}")
+                        meter.advance(f"{label}, plant {name}, noise {noise:g}")
                         ci = pi * len(m.process_noise) + ni
                         keys = jax.random.split(jax.random.fold_in(key, ci), m.n_episodes)
                         w = jnp.asarray(noise, task.x0.dtype)
@@ -133,7 +154,7 @@ def _controller_stage(controller, res, record, plants, optimum, plan_task, U0, s
                         t0 = time.perf_counter()
                         r = jax.block_until_ready(compiled(keys, w))
                         run_s = time.perf_counter() - t0
-                        row, X, U = _row(res, label, controller, scale, noise, r, run_s, samples)
+                        row, X, U = _row(res, label, controller, name, noise, r, run_s, samples)
                         row["compile_s"] = compile_s if ni == 0 else 0.0
                         model = models.get(label.removesuffix(" MPC"))  # not the refitted ones
                         if model is not None and pi == 0 and noise == min(m.process_noise):
@@ -144,14 +165,14 @@ def _controller_stage(controller, res, record, plants, optimum, plan_task, U0, s
                         rows.append(row)
         return {"rows": rows}, arrays
 
-    def _row(res, label, controller, scale, noise, r, run_s, samples):
+    def _row(res, label, controller, plant, noise, r, run_s, samples):
         X, U = np.asarray(r.X), np.asarray(r.U)
         costs = np.asarray(r.cost, dtype=float)
         goals = [pipeline.goal_test(task, x, cfg.task.goal_tolerance) for x in X]
         per_step = run_s / (m.n_episodes * m.steps)
         row = {
             "controller": label,
-            "plant_mass_scale": scale,
+            "plant": plant,
             "process_noise": noise,
             "costs": [finite_or_none(c) for c in costs],
             "cost_median": finite_or_none(np.median(costs)),
@@ -179,16 +200,14 @@ def _one_step_error(model, X, U, optimum) -> float | None:
 
 
 def _plants(res, record) -> dict:
-    """{mass scale: plant}: the system itself at 1.0, else a mass-scaled copy kept in the
-    run folder (``plant_x<scale>.mjb``) for replays."""
+    """{label: plant} of ``mpc.plants``: the system itself for "model"; a changed MuJoCo
+    model kept in the run folder (``plant_<slug>.mjb``) for replays; a function black box
+    rebuilt with other parameters."""
     cfg, system, _ = res
-    out = {}
-    for s in cfg.mpc.plant_mass_scales:
-        if s == 1.0:
-            out[s] = system
-        else:
-            out[s] = mass_scaled_plant(system, s, os.path.join(record.folder.path, f"plant_x{s:g}.mjb"))
-    return out
+    build = plant_builder(cfg, system)
+    return {
+        plant_label(parse_plant(p)): make_plant(system, p, record.folder.path, build) for p in cfg.mpc.plants
+    }
 
 
 def run(res: Resolved, record: Run, key: jax.Array) -> str:
@@ -208,7 +227,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     plants = _plants(res, record)
     record.set(
         "mpc_conditions",
-        [{"plant_mass_scale": s, "process_noise": w} for s in plants for w in m.process_noise],
+        [{"plant": p, "process_noise": w} for p in plants for w in m.process_noise],
     )
 
     @functools.cache  # the models once: their MPCs, then their closed loops' one-step errors
@@ -246,7 +265,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     _figures(record, res, rows, X_star)
     record.folder.write_text("mpc_table.md", table(rows, float(system.dt), record.metrics["mpc_verdict"]))
     if cfg.experiment.video and system.mj_model is not None:  # episode 0 of the hardest condition
-        last = f"_{len(m.plant_mass_scales) * len(m.process_noise) - 1}_X"
+        last = f"_{len(m.plants) * len(m.process_noise) - 1}_X"
         clips = {r["controller"]: r["arrays"]["X"] for r in rows if r["arrays"]["X"].endswith(last)}
         record.set("mpc_video_order", list(clips))
         record.video("mpc_episodes.mp4", list(clips.values()), float(system.dt), labels=list(clips))
@@ -257,23 +276,23 @@ def _figures(record, res, rows, X_star) -> None:
     cfg, system, task = res
     m = cfg.mpc
     labels = list(dict.fromkeys(r["controller"] for r in rows))
-    for s in m.plant_mass_scales:
+    for p in dict.fromkeys(r["plant"] for r in rows):
         costs = {
             c: np.array(
                 [
                     [np.inf if v is None else v for v in r["costs"]]
                     for r in rows
-                    if r["controller"] == c and r["plant_mass_scale"] == s
+                    if r["controller"] == c and r["plant"] == p
                 ]
             )
             for c in labels
         }
         record.figure(
-            f"mpc_cost_vs_noise_x{s:g}.png",
-            lambda costs=costs, s=s: plots.cost_vs_noise(
+            f"mpc_cost_vs_noise_{plant_slug(parse_plant(p))}.png",
+            lambda costs=costs, p=p: plots.cost_vs_noise(
                 np.asarray(m.process_noise),
                 costs,
-                f"{system.name}: MPC on the plant (masses x{s:g})",
+                f"{system.name}: MPC on the plant ({p})",
                 xlabel="process noise std (state units)",
             ),
         )
@@ -285,9 +304,7 @@ def _figures(record, res, rows, X_star) -> None:
         "mpc_cost_vs_calls.png",
         lambda: plots.cost_vs_calls(points, f"{system.name}: closed-loop cost against black-box calls"),
     )
-    last = (
-        len(m.plant_mass_scales) * len(m.process_noise) - 1
-    )  # the hardest condition: heaviest plant, most noise
+    last = len(m.plants) * len(m.process_noise) - 1  # the last plant at the most noise
     paths = {
         r["controller"]: record.arrays[r["arrays"]["X"]][0]
         for r in rows
@@ -304,7 +321,7 @@ def _figures(record, res, rows, X_star) -> None:
             coords,
             list(system.state_labels),
             (list(system.angle_pairs) or [None])[0],
-            f"{system.name}: closed loops, plant masses x{m.plant_mass_scales[-1]:g}, "
+            f"{system.name}: closed loops, plant {plant_label(parse_plant(m.plants[-1]))}, "
             f"noise {m.process_noise[-1]:g}",
             reference_label="offline D2C optimum",
         ),

@@ -10,6 +10,7 @@ import os
 from typing import Callable
 
 from mjx_surrogate.results import read_json
+from mjx_surrogate.systems.plant import parse_plant, plant_slug
 
 MPC = (
     ("pendulum_mpc", "Pendulum swing-up"),
@@ -43,7 +44,7 @@ def closed_loop_sections(L: list, folders: dict, fig: Callable, section: Callabl
         "Every controller replans from the measured state of the black box at every control step "
         "(D2C-MPC, the exact oracle's MPC, SINDy- and MLP-MPC, predictive sampling and MPPI at "
         "D2C-MPC's budget of black-box calls) or tracks the offline optimum (TVLQR), on the model "
-        "and on heavier plants, under process noise (docs/mpc.md). Rule: a condition is judged "
+        "and on plants that differ from it, under process noise (docs/mpc.md). Rule: a condition is judged "
         f"where D2C-MPC's own closed loop works (finite median cost at most {WORKS_FACTOR:g}x the "
         "offline optimum's); there a global surrogate's MPC *matches* D2C-MPC when its median "
         f"closed-loop cost is within {100 * MATCH_TOL:g} % of D2C-MPC's and it reaches the goal as "
@@ -57,8 +58,8 @@ def closed_loop_sections(L: list, folders: dict, fig: Callable, section: Callabl
         m = _load(folders.get(name))
         v = m.get("mpc_verdict") or {}
         verdicts[name] = v.get("verdict", "not measured")
-        scales = [c["plant_mass_scale"] for c in m.get("mpc_conditions", [])]
-        figs = [fig(name, f"mpc_cost_vs_noise_x{s:g}.png") for s in dict.fromkeys(scales)]
+        plants = dict.fromkeys(plant_slug(parse_plant(c["plant"])) for c in m.get("mpc_conditions", []))
+        figs = [fig(name, f"mpc_cost_vs_noise_{p}.png") for p in plants]
         figs += [fig(name, n) for n in ("mpc_cost_vs_calls.png", "mpc_trajectories.png")]
         video = (m.get("videos") or {}).get("mpc_episodes.mp4") or {}
         if video.get("status") == "written":

@@ -21,7 +21,7 @@ import dataclasses
 import glob
 import json
 import os
-import shutil
+import re
 import sys
 import time
 
@@ -105,7 +105,7 @@ def quick(cfg, name: str):
                 steps=10 if m.steps is None else min(m.steps, 10),
                 max_iter=2,
                 process_noise=m.process_noise[-1:],
-                plant_mass_scales=m.plant_mass_scales[-1:],
+                plants=m.plants[-1:],
                 n_episodes=1,
             ),
             experiment=r(cfg.experiment, exact_oracle=False),
@@ -127,9 +127,18 @@ def _status(path: str) -> str | None:
         return None
 
 
+def _folders(out: str, name: str) -> list[str]:
+    """Run folders of experiment ``name`` in ``out``, newest first: DATE-TIME_NAME or
+    DATE-TIME_NAME_K, never another experiment whose name ends with it (pendulum_mpc is
+    not gym_inverted_pendulum_mpc)."""
+    exact = re.compile(rf"^\d{{8}}-\d{{6}}_{re.escape(name)}(_\d+)?$")
+    paths = glob.glob(os.path.join(out, f"*_{name}*"))
+    return sorted((p for p in paths if exact.match(os.path.basename(p))), reverse=True)
+
+
 def finished(out: str, name: str) -> str | None:
     """The newest finished run folder of ``name`` in ``out``, if any."""
-    for path in sorted(glob.glob(os.path.join(out, f"*_{name}")), reverse=True):
+    for path in _folders(out, name):
         if _status(path) in DONE:
             return path
     return None
@@ -137,7 +146,7 @@ def finished(out: str, name: str) -> str | None:
 
 def unfinished(out: str, name: str) -> str | None:
     """The newest folder of ``name`` if it ended early (its stages can be resumed)."""
-    paths = sorted(glob.glob(os.path.join(out, f"*_{name}")), reverse=True)
+    paths = _folders(out, name)
     if paths and _status(paths[0]) in ("failed", "interrupted", "killed"):
         return paths[0]
     return None
@@ -236,8 +245,9 @@ def main(argv: list[str] | None = None) -> int:
         os.path.join(out, "reproduction.md") if a.quick else os.path.join("docs", "reproduction.md")
     )
     fig_dir = os.path.join(os.path.dirname(path) or ".", "figures" if not a.quick else "report_figures")
-    if os.path.isdir(fig_dir) and not a.quick:
-        shutil.rmtree(fig_dir)
+    if os.path.isdir(fig_dir) and not a.quick:  # the report's own figures, NAME__FILE; others stay
+        for old in glob.glob(os.path.join(fig_dir, "*__*")):
+            os.remove(old)
     text = report.render(
         folders, times, fig_dir, os.path.dirname(path) or ".", a.quick, time.perf_counter() - t_start
     )

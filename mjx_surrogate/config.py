@@ -304,8 +304,12 @@ class MPCConfig:
     horizon: control steps per plan H (None: task.T). steps: control steps of an episode
       (None: task.T; at most task.T with "tvlqr"). max_iter: iLQR iterations per replan.
     process_noise: standard deviations (state units) of the noise added after every plant
-      step, one set of episodes per level. plant_mass_scales: plants whose bodies' masses
-      and inertias are these multiples of the model's (MuJoCo models; 1.0: the model).
+      step, one set of episodes per level. plants: the black boxes the episodes run on,
+      each "model" (the controller's own) or changes NAME=VALUE[,NAME=VALUE...]: on a
+      MuJoCo model scale factors of mass (masses and inertias), length (body geometry,
+      masses kept), damping (joint damping) or gravity, e.g. "mass=1.5,damping=2"; on a
+      function black box keyword arguments of the function that builds it, e.g. "rho=30"
+      for Lorenz (docs/mpc.md).
     n_episodes: episodes per controller and condition (their own keys).
     samples: samples per replan of the sampling MPCs (None: matched to D2C-MPC's median
       black-box steps per control step, else 64). sampling_sigma: their spread, control
@@ -316,6 +320,9 @@ class MPCConfig:
     refit_weight: > 0 adds, for every SINDy model, SINDy-MPC refitted online before every
       replan on its training transitions and the episode's own, each of these weighing
       refit_weight training ones (``mpc_online``; SINDy-MPC's low-data setting); 0: off.
+      refit_updates: with refit_weight > 0, MLP-MPC refitted online too: the network takes
+      this many steps of its own optimiser (surrogate.mlp) on that weighted loss before
+      every replan; 0: MLPs are not refitted.
     first_plan: every planner's first warm start: "optimum" (the offline D2C optimum's
       first H controls) or "zeros".
     n_samples, sysid_design: D2C-MPC's identification at every replan (the solver's scheme
@@ -331,7 +338,7 @@ class MPCConfig:
     steps: Optional[int] = None
     max_iter: int = 5
     process_noise: Tuple[float, ...] = (0.0, 0.01)
-    plant_mass_scales: Tuple[float, ...] = (1.0,)
+    plants: Tuple[str, ...] = ("model",)
     n_episodes: int = 4
     data_level: float = 0.1
     samples: Optional[int] = None
@@ -339,6 +346,7 @@ class MPCConfig:
     mppi_temperature: float = 0.01
     sampling_knots: int = 0
     refit_weight: float = 0.0
+    refit_updates: int = 20
     first_plan: Literal["optimum", "zeros"] = "optimum"
     n_samples: Optional[int] = None
     sysid_design: Literal["gaussian", "orthogonal"] = "orthogonal"
@@ -561,15 +569,16 @@ def _check_mpc(m: MPCConfig) -> None:
         )
     if not m.process_noise:
         raise ConfigError("mpc.process_noise", "give one or more levels (0.0: none)")
-    if not m.plant_mass_scales:
-        raise ConfigError("mpc.plant_mass_scales", "give one or more scales (1.0: the model itself)")
-    for field, values, ok, valid in (
-        ("process_noise", m.process_noise, lambda v: v >= 0, ">= 0"),
-        ("plant_mass_scales", m.plant_mass_scales, lambda v: v > 0, "> 0"),
-    ):
-        for i, v in enumerate(values):
-            if not (math.isfinite(v) and ok(v)):
-                raise ConfigError(f"mpc.{field}[{i}]", f"must be a finite number {valid}, got {v}")
+    for i, v in enumerate(m.process_noise):
+        if not (math.isfinite(v) and v >= 0):
+            raise ConfigError(f"mpc.process_noise[{i}]", f"must be a finite number >= 0, got {v}")
+    from mjx_surrogate.systems.plant import parse_plant, plant_label
+
+    if not m.plants:
+        raise ConfigError("mpc.plants", "give one or more plants ('model': the model itself)")
+    labels = [plant_label(parse_plant(p, f"mpc.plants[{i}]")) for i, p in enumerate(m.plants)]
+    if len(set(labels)) < len(labels):
+        raise ConfigError("mpc.plants", f"names a plant twice: {', '.join(labels)}")
     if not (math.isfinite(m.data_level) and 0 < m.data_level <= 1):
         raise ConfigError("mpc.data_level", f"must be in (0, 1] (a fraction of U_max), got {m.data_level}")
     for field in ("sampling_sigma", "mppi_temperature"):
@@ -579,6 +588,10 @@ def _check_mpc(m: MPCConfig) -> None:
     if not (math.isfinite(m.refit_weight) and m.refit_weight >= 0):
         raise ConfigError(
             "mpc.refit_weight", f"must be a finite number >= 0 (0: no online refit), got {m.refit_weight}"
+        )
+    if m.refit_updates < 0:
+        raise ConfigError(
+            "mpc.refit_updates", f"must be >= 0 (0: MLPs not refitted online), got {m.refit_updates}"
         )
     if m.sampling_knots < 0:
         raise ConfigError(

@@ -191,23 +191,43 @@ def ilqr_replan(prob: Problem, plan: Plan, params: ILQRParams, key: jax.Array):
     return Plan(r.U, r.X, r.K), (r.cost, r.iterations, r.identified)
 
 
-def episode(replan, plant_step, x0: jax.Array, plan0, key: jax.Array, steps: int, process_noise):
+def episode(
+    replan,
+    plant_step,
+    x0: jax.Array,
+    plan0,
+    key: jax.Array,
+    steps: int,
+    process_noise,
+    memory=None,
+    observe=None,
+):
     """The receding-horizon loop every planner shares: ``replan(x, plan, key) -> (plan,
     info)`` from the measured x and the previous plan shifted by one step (``plan0``: the
     first one's warm start; a :class:`Plan` or U [H, nu], leaves with the control steps
     leading); applies the plan's first control to the plant and adds the process noise.
+    A controller that learns during the episode passes ``memory`` (a pytree) and
+    ``observe(memory, n, x, u, x_next) -> memory``, called after every plant step; its
+    replan is then ``replan(x, plan, key, memory, n) -> (plan, info, memory)``.
     -> X [steps+1, nx], U [steps, nu], info stacked [steps, ...]."""
 
-    def control_step(carry, k):
-        x, plan = carry
+    def control_step(carry, inputs):
+        x, plan, mem = carry
+        n, k = inputs
         k_plan, k_noise = jax.random.split(k)
-        plan, info = replan(x, plan, k_plan)
+        if observe is None:
+            plan, info = replan(x, plan, k_plan)
+        else:
+            plan, info, mem = replan(x, plan, k_plan, mem, n)
         u = (plan.U if isinstance(plan, Plan) else plan)[0]
         x_next = plant_step(x, u) + process_noise * jax.random.normal(k_noise, x.shape, x.dtype)
-        return (x_next, shifted(plan)), (x, u, info)
+        if observe is not None:
+            mem = observe(mem, n, x, u, x_next)
+        return (x_next, shifted(plan), mem), (x, u, info)
 
     plan0 = jax.tree.map(lambda a: a.astype(x0.dtype), plan0)
-    (xN, _), (X, U, info) = jax.lax.scan(control_step, (x0, plan0), jax.random.split(key, steps))
+    inputs = (jnp.arange(steps), jax.random.split(key, steps))
+    (xN, _, _), (X, U, info) = jax.lax.scan(control_step, (x0, plan0, memory), inputs)
     return jnp.concatenate([X, xN[None]]), U, info
 
 

@@ -1,5 +1,5 @@
-"""SINDy-MPC refitted online: the SINDy-MPC paper's low-data setting (Kaiser, Kutz, Brunton
-2018), in which the model keeps learning from the episode it controls.
+"""Surrogate MPC refitted online: the SINDy-MPC paper's low-data setting (Kaiser, Kutz,
+Brunton 2018), in which the model keeps learning from the episode it controls.
 
 Notation as :mod:`mjx_surrogate.mpc`. At control step n the model's coefficients C [P, nx]
 are refitted by least squares on the R offline transitions it was first fitted on and on
@@ -14,6 +14,15 @@ refitted model, Jacobians by ``jax.jacfwd`` through it, as :func:`mpc.surrogate_
 plant that differs from the model the data came from, the episode's transitions pull the
 model towards the plant. Shapes stay static: the episode's transitions live in a buffer
 of N rows whose unfilled rows weigh zero.
+
+An MLP has no closed-form refit: before every replan it takes ``updates`` steps of its own
+optimiser (``surrogate.mlp``: Adam, learning rate, weight decay) on the weighted loss
+
+    L(p) = (sum_{i in batch} |r_i(p)|^2 + weight sum_{m < n} |r_m(p)|^2) / (nx (b + weight n))
+
+of its standardised residuals r, a fresh minibatch of b offline transitions per step and
+the episode's n transitions; its parameters and optimiser state carry over from replan to
+replan. With ``updates = 0`` it is the plain MLP-MPC.
 """
 
 from __future__ import annotations
@@ -22,12 +31,15 @@ import functools
 
 import jax
 import jax.numpy as jnp
+import optax
+from flax import nnx
 
 from mjx_surrogate import sysid as sid
 from mjx_surrogate.data import Transitions
 from mjx_surrogate.ilqr import ILQRParams, Problem
 from mjx_surrogate.linalg import spd_solve
-from mjx_surrogate.mpc import MPCResult, first_plan, ilqr_replan, shifted
+from mjx_surrogate.mpc import MPCResult, episode, first_plan, ilqr_replan
+from mjx_surrogate.surrogates.mlp import MLPModel, MLPSpec, optimizer, targets
 from mjx_surrogate.surrogates.sindy import SindyModel, design
 from mjx_surrogate.systems.system import System
 from mjx_surrogate.tasks import Task, task_cost, trajectory_cost
@@ -79,14 +91,18 @@ def refitted_sindy_mpc(
     ts0 = theta0 / scale
     gram0 = ts0.T @ ts0
     proj0 = ts0.T @ _targets(model, offline.x, offline.x_next).astype(x0.dtype)
-    nx, nu = x0.shape[0], U0.shape[-1]
 
-    def control_step(carry, inputs):
-        x, plan, Xb, Ub, Yb = carry
-        n, k = inputs
-        k_plan, k_noise = jax.random.split(k)
+    def replan(x, plan, key, seen: Transitions, n):
         w = weight * (jnp.arange(steps) < n).astype(x.dtype)
-        m = refit(model, gram0, proj0, scale, design(model.spec, Xb, Ub), _targets(model, Xb, Yb), w)
+        m = refit(
+            model,
+            gram0,
+            proj0,
+            scale,
+            design(model.spec, seen.x, seen.u),
+            _targets(model, seen.x, seen.x_next),
+            w,
+        )
         prob = Problem(
             m.step,
             lambda X, U_, K, kk: sid.exact_jacobians(m.step, X, U_),
@@ -95,21 +111,115 @@ def refitted_sindy_mpc(
             task.u_min,
             task.u_max,
         )
-        plan, (cost, its, ident) = ilqr_replan(prob, plan, params, k_plan)
-        u = plan.U[0]
-        x_next = plant.step(x, u) + process_noise * jax.random.normal(k_noise, x.shape, x.dtype)
-        Xb, Ub, Yb = Xb.at[n].set(x), Ub.at[n].set(u), Yb.at[n].set(x_next)
-        return (x_next, shifted(plan), Xb, Ub, Yb), (x, u, cost, its, ident)
+        plan, info = ilqr_replan(prob, plan, params, key)
+        return plan, info, seen
 
-    empty = (
-        jnp.zeros((steps, nx), x0.dtype),
-        jnp.zeros((steps, nu), x0.dtype),
-        jnp.zeros((steps, nx), x0.dtype),
+    X, U, (plan_cost, its, ident) = episode(
+        replan,
+        plant.step,
+        x0,
+        first_plan(U0, x0),
+        key,
+        steps,
+        process_noise,
+        empty_transitions(steps, x0.shape[0], U0.shape[-1], x0.dtype),
+        record,
     )
-    (xN, *_), (X, U, plan_cost, its, ident) = jax.lax.scan(
-        control_step,
-        (x0, first_plan(U0, x0), *empty),
-        (jnp.arange(steps), jax.random.split(key, steps)),
+    return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)
+
+
+def empty_transitions(steps: int, nx: int, nu: int, dtype) -> Transitions:
+    """A buffer for an episode's transitions: x [steps, nx], u [steps, nu], x_next [steps, nx]."""
+    return Transitions(
+        jnp.zeros((steps, nx), dtype), jnp.zeros((steps, nu), dtype), jnp.zeros((steps, nx), dtype)
     )
-    X = jnp.concatenate([X, xN[None]])
+
+
+def record(seen: Transitions, n, x, u, x_next) -> Transitions:
+    """``seen`` with the episode's n-th transition written to row n."""
+    return Transitions(seen.x.at[n].set(x), seen.u.at[n].set(u), seen.x_next.at[n].set(x_next))
+
+
+def weighted_loss(model: MLPModel, p, z_off, y_off, z_on, y_on, w) -> jax.Array:
+    """The loss above at parameters p: offline rows z_off [b, nz], y_off [b, nx] of weight 1,
+    the episode's rows z_on [N, nz], y_on [N, nx] of weights w [N] (physical units)."""
+    norm = model.norm
+
+    def sq(z, y):  # [rows] squared standardised residuals, summed over the state
+        zs = ((z - norm.z_mean) / norm.z_std).astype(jnp.float32)
+        ys = ((y - norm.y_mean) / norm.y_std).astype(jnp.float32)
+        return jnp.sum((nnx.merge(model.graphdef, p)(zs) - ys) ** 2, axis=-1)
+
+    w = w.astype(jnp.float32)
+    total = jnp.sum(sq(z_off, y_off)) + jnp.sum(w * sq(z_on, y_on))
+    return total / (y_off.shape[-1] * (z_off.shape[0] + jnp.sum(w)))
+
+
+@functools.partial(jax.jit, static_argnames=("plant", "steps", "spec", "updates"))
+def refitted_mlp_mpc(
+    model: MLPModel,
+    offline: Transitions,
+    plant: System,
+    task: Task,
+    U0: jax.Array,
+    key: jax.Array,
+    steps: int,
+    spec: MLPSpec,
+    updates: int,
+    params: ILQRParams = ILQRParams(max_iter=5),
+    process_noise: float | jax.Array = 0.0,
+    weight: float | jax.Array = 10.0,
+) -> MPCResult:
+    """One episode of ``steps`` control steps on ``plant`` from ``task.x0``: MLP-MPC whose
+    network takes ``updates`` optimiser steps (``spec``'s) before every replan (module
+    docstring). ``offline``: the transitions it was trained on; U0 [H, nu]."""
+    x0 = task.x0
+    z_off = jnp.concatenate([offline.x, offline.u], -1)
+    y_off = targets(offline.x, offline.x_next, model.increment)
+    b = min(spec.batch_size, z_off.shape[0])
+    opt = optimizer(spec)
+
+    def replan(x, plan, key, memory, n):
+        seen, p, state = memory
+        k_batch, k_plan = jax.random.split(key)
+        w = weight * (jnp.arange(steps) < n)
+        z_on = jnp.concatenate([seen.x, seen.u], -1)
+        y_on = targets(seen.x, seen.x_next, model.increment)
+
+        def update(carry, k):
+            p, state = carry
+            i = jax.random.choice(k, z_off.shape[0], (b,), replace=False)
+            g = jax.grad(lambda q: weighted_loss(model, q, z_off[i], y_off[i], z_on, y_on, w))(p)
+            upd, state = opt.update(g, state, p)
+            return (optax.apply_updates(p, upd), state), None
+
+        (p, state), _ = jax.lax.scan(update, (p, state), jax.random.split(k_batch, updates))
+        m = model.replace(params=p)
+        prob = Problem(
+            m.step,
+            lambda X, U_, K, kk: sid.exact_jacobians(m.step, X, U_),
+            task_cost(task),
+            x,
+            task.u_min,
+            task.u_max,
+        )
+        plan, info = ilqr_replan(prob, plan, params, k_plan)
+        return plan, info, (seen, p, state)
+
+    memory = (
+        empty_transitions(steps, x0.shape[0], U0.shape[-1], x0.dtype),
+        model.params,
+        opt.init(model.params),
+    )
+    X, U, (plan_cost, its, ident) = episode(
+        replan,
+        plant.step,
+        x0,
+        first_plan(U0, x0),
+        key,
+        steps,
+        process_noise,
+        memory,
+        lambda mem, n, x, u, x_next: (record(mem[0], n, x, u, x_next), *mem[1:]),
+    )
     return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)

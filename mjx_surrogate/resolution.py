@@ -27,10 +27,12 @@ from mjx_surrogate.model_defaults import (
 from mjx_surrogate.surrogates.registry import get_surrogate, library_specs
 from mjx_surrogate.sysid import SysIdParams, get_scheme
 from mjx_surrogate.systems import FunctionSystem, System, from_mjcf, make_system
-from mjx_surrogate.systems.entry import entry_source, load_entry, source_digest
+from mjx_surrogate.systems.entry import entry_builder, entry_source, load_entry, source_digest
+from mjx_surrogate.systems.plant import check_plant
 from mjx_surrogate.systems.registry import (
     USER_FUNCTION,
     default_config,
+    function_builder,
     is_function_system,
     make_function_system,
 )
@@ -379,12 +381,23 @@ def _resolve_mpc(cfg: Config, system: System, T: int, solver_samples: int):
             "mpc.steps",
             f"'tvlqr' tracks the offline optimum of task.T = {T} steps: at most {T}, got {m.steps}",
         )
-    if system.mj_model is None and any(s != 1.0 for s in m.plant_mass_scales):
-        raise ConfigError(
-            "mpc.plant_mass_scales",
-            f"scales a MuJoCo model's masses; {system.name} is a function black box: leave it at (1.0,)",
-        )
+    build = plant_builder(cfg, system)
+    for i, text in enumerate(m.plants):
+        try:
+            check_plant(system, text, build)
+        except ConfigError as e:
+            raise ConfigError(f"mpc.plants[{i}]", str(e).removeprefix(f"{e.field}: ")) from None
     return m
+
+
+def plant_builder(cfg: Config, system: System):
+    """The function that builds the function black box ``system`` (its MPC plants are calls
+    of it with other keyword arguments); None for a MuJoCo model."""
+    if system.mj_model is not None:
+        return None
+    if cfg.system.name == USER_FUNCTION:
+        return entry_builder(cfg.system.entry)
+    return function_builder(cfg.system.name)
 
 
 def _check_surrogates(cfg: Config, system: System, T: int) -> None:

@@ -58,22 +58,20 @@ CASES = [
     (["smoke_mpc", "--mpc.process_noise", "-0.1"], "mpc.process_noise[0]"),
     (["smoke_mpc", "--mpc.samples", "1"], "mpc.samples"),
     (["smoke_mpc", "--mpc.refit_weight", "nan"], "mpc.refit_weight"),
+    (["smoke_mpc", "--mpc.refit_updates", "-1"], "mpc.refit_updates"),
     (["smoke_mpc", "--mpc.n_samples", "2"], "mpc.n_samples"),  # the pendulum's nx + nu = 3
     (["smoke_mpc", "--mpc.sampling_knots", "-1"], "mpc.sampling_knots"),
     (["smoke_mpc", "--mpc.first_plan", "random"], "--mpc.first_plan"),
     (["smoke_mpc", "--mpc.sampling_knots", "99"], "mpc.sampling_knots"),  # over the horizon
-    (
-        [
-            "lorenz_d2c",
-            "--experiment.kind",
-            "mpc",
-            "--mpc.controllers",
-            "d2c",
-            "--mpc.plant_mass_scales",
-            "1.5",
-        ],
-        "mpc.plant_mass_scales",
-    ),
+    (["lorenz_mpc", "--mpc.plants", "mass=1.5"], "mpc.plants[0]"),  # not a keyword of Lorenz's
+    (["lorenz_mpc", "--mpc.plants", "dt=0.02"], "mpc.plants[0]"),  # a plant keeps the period
+    (["smoke_mpc", "--mpc.plants", "heavier"], "mpc.plants[0]"),
+    (["smoke_mpc", "--mpc.plants", "mass=-1"], "mpc.plants[0]"),
+    (["smoke_mpc", "--mpc.plants", "mass=inf"], "mpc.plants[0]"),
+    (["smoke_mpc", "--mpc.plants", "mass=1.5,mass=2"], "mpc.plants[0]"),
+    (["smoke_mpc", "--mpc.plants", "mass=1.5", "mass=1.50"], "mpc.plants"),
+    (["smoke_mpc", "--mpc.plants", "viscosity=2"], "mpc.plants[0]"),
+    (["cartpole_mpc", "--mpc.plants", "damping=2"], "mpc.plants[0]"),  # no joint damping
     (["smoke_d2c", "--parallel.devices", "0"], "parallel.devices"),
     (["smoke_d2c", "--parallel.devices", "4096"], "parallel.devices"),
     (["smoke_d2c", "--parallel.coordinator_address", "localhost"], "parallel.coordinator_address"),

@@ -5,7 +5,7 @@ import pytest
 from mjx_surrogate.analysis.closed_loop import MATCH_TOL, cause_text, closed_loop_verdict, table
 
 
-def _rows(costs: dict, goals: dict | None = None, conditions=((1.0, 0.0), (1.0, 0.05))) -> list[dict]:
+def _rows(costs: dict, goals: dict | None = None, conditions=(("model", 0.0), ("model", 0.05))) -> list[dict]:
     """Rows of the run's shape: costs[label] one median per condition (None: diverged)."""
     out = []
     for ci, (s, w) in enumerate(conditions):
@@ -13,7 +13,7 @@ def _rows(costs: dict, goals: dict | None = None, conditions=((1.0, 0.0), (1.0, 
             out.append(
                 {
                     "controller": label,
-                    "plant_mass_scale": s,
+                    "plant": s,
                     "process_noise": w,
                     "costs": [cs[ci]],
                     "cost_median": cs[ci],
@@ -62,10 +62,10 @@ def test_in_part_and_goal_counts():
 
 def test_a_condition_where_d2c_mpc_fails_is_not_judged():
     costs = {"D2C-MPC": [100, None, 5e4], "MLP MPC": [500, 600, 1e5]}
-    conditions = ((1.0, 0.0), (1.0, 0.05), (1.5, 0.0))
+    conditions = (("model", 0.0), ("model", 0.05), ("mass=1.5", 0.0))
     v = closed_loop_verdict(_rows(costs, conditions=conditions), offline_cost=1000)
     assert [c["judged"] for c in v["conditions"]] == [True, False, False]  # diverged; over 10x the optimum
-    assert v["verdict"] == "held" and "Not judged" in v["text"] and "masses x1.5, noise 0" in v["text"]
+    assert v["verdict"] == "held" and "Not judged" in v["text"] and "plant mass=1.5, noise 0" in v["text"]
     assert closed_loop_verdict(_rows(costs, conditions=conditions), offline_cost=1e4)["conditions"][2][
         "judged"
     ]
@@ -80,10 +80,10 @@ def test_not_measured_without_both_sides_and_the_table_leads_with_the_verdict():
     rows = _rows({"D2C-MPC": [100, 120], "MLP MPC": [900, 900]})
     rows[1]["closed_loop_one_step_error"] = 0.125
     v = closed_loop_verdict(rows) | {"cause": cause_text(rows)}
-    assert "MLP MPC 12.5 %" in v["cause"] and "x1" in v["cause"]
+    assert "MLP MPC 12.5 %" in v["cause"] and "plant model" in v["cause"]
     text = table(rows, 0.1, v)
     assert text.startswith("**Closed loop, the paper's claim: held**") and "MLP MPC 12.5 %" in text
-    assert text.count("### Plant masses x1, process noise") == 2
+    assert text.count("### Plant model, process noise") == 2
 
 
 def test_the_one_step_error_against_numpy():

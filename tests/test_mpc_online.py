@@ -63,3 +63,51 @@ def test_with_no_weight_it_is_sindy_mpc_and_with_weight_it_learns_the_plant():
     X, U = np.asarray(learned.X), np.asarray(learned.U)
     np.testing.assert_allclose(X[1:] - X[:-1] @ A.T - U @ (3 * B).T, 0.0, atol=0.1)  # the plant moved it
     assert float(learned.cost) < float(plain.cost)
+
+
+def _mlp(off, epochs=200):
+    from mjx_surrogate.surrogates import mlp
+
+    spec = mlp.MLPSpec(widths=(16,), learning_rate=1e-2, batch_size=50, epochs=epochs)
+    z = jnp.concatenate([off.x, off.u], -1)
+    y = mlp.targets(off.x, off.x_next, spec.increment)
+    return spec, mlp.train(spec, jax.random.key(1), z, y, z, y).model
+
+
+def test_the_mlp_refit_loss_counts_each_episode_row_weight_times():
+    """The weighted loss with weight 3 is the plain mean squared standardised residual
+    (float64 NumPy) over the offline rows and the n filled episode rows repeated 3 times."""
+    from mjx_surrogate.mpc_online import weighted_loss
+    from mjx_surrogate.surrogates import mlp
+
+    off, on = _data(A, B, 200, 0), _data(A, 3 * B, 30, 1)
+    _, model = _mlp(off, epochs=5)
+    n = 20
+    w = 3.0 * (np.arange(30) < n)
+    z_off, z_on = (np.concatenate([t.x, t.u], -1) for t in (off, on))
+    got = weighted_loss(
+        model, model.params, z_off[:50], np.asarray(off.x_next)[:50], z_on, np.asarray(on.x_next), w
+    )
+    z = np.vstack([z_off[:50]] + [z_on[:n]] * 3)
+    y = np.vstack([np.asarray(off.x_next)[:50]] + [np.asarray(on.x_next)[:n]] * 3)
+    pred = np.asarray(mlp.apply(model.graphdef, model.params, model.norm, jnp.asarray(z)), dtype=np.float64)
+    expected = np.mean(((pred - y) / np.asarray(model.norm.y_std)) ** 2)
+    np.testing.assert_allclose(float(got), expected, rtol=1e-4)
+
+
+def test_with_no_updates_it_is_mlp_mpc_and_with_updates_it_learns_the_plant():
+    """updates = 0 replays the plain MLP-MPC; with updates on a plant with three times the
+    control authority the refitted network plans a cheaper closed loop."""
+    from mjx_surrogate.mpc_online import refitted_mlp_mpc
+
+    off = _data(A, B, 200, 0)
+    spec, model = _mlp(off)
+    A3, B3 = jnp.asarray(A), jnp.asarray(3 * B)
+    plant = from_jax(lambda x, u: A3 @ x + B3 @ u, 2, 1, 0.1)
+    args = (plant, _task(), jnp.zeros((10, 1)), jax.random.key(0), 30)
+    params = ILQRParams(max_iter=3)
+    plain = mpc.surrogate_mpc(model, *args, params, 0.02)
+    frozen = refitted_mlp_mpc(model, off, *args, spec, 0, params, 0.02, 10.0)
+    np.testing.assert_allclose(np.asarray(frozen.X), np.asarray(plain.X), atol=1e-9)
+    learned = refitted_mlp_mpc(model, off, *args, spec, 50, params, 0.02, 100.0)
+    assert float(learned.cost) < float(plain.cost), (float(learned.cost), float(plain.cost))

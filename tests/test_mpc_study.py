@@ -21,6 +21,7 @@ CONTROLLERS = (
     "predictive sampling",
     "MPPI",
     "SINDy cubic_trig MPC refitted online",
+    "MLP MPC refitted online",
 )
 
 
@@ -50,9 +51,11 @@ def _mj_step_loop(model: mujoco.MjModel, substeps: int, x0: np.ndarray, U: np.nd
 def test_every_controllers_episodes_replay_on_the_plant_with_mj_step(smoke_mpc):
     path, m, arrays = smoke_mpc
     cfg = json.loads((path / "config.json").read_text())
-    plant = mujoco.MjModel.from_binary_path(str(path / "plant_x1.2.mjb"))
+    plant = mujoco.MjModel.from_binary_path(str(path / "plant_mass1.2_length1.1_damping2.mjb"))
     model = mujoco.MjModel.from_binary_path(str(path / "model.mjb"))
     assert np.allclose(plant.body_mass[1:], 1.2 * model.body_mass[1:])
+    assert np.allclose(plant.body_ipos[1:], 1.1 * model.body_ipos[1:])
+    assert np.allclose(plant.dof_damping, 2 * model.dof_damping)
     substeps = cfg["system"]["substeps"]
     rows = m["mpc_rows"]
     labels = {r["controller"] for r in rows}
@@ -91,8 +94,10 @@ def test_the_sampling_budget_matches_d2c_and_the_table_and_figures_are_written(s
     assert all(r["compute_per_step_s"] > 0 and r["real_time_factor"] > 0 for r in rows)
     assert m["stages"]["mpc/surrogates"]["status"] == "done"
     table = (path / "mpc_table.md").read_text()
-    assert table.count("### Plant masses x1.2") == 2 and "TVLQR tracking" in table
-    for name in ("mpc_cost_vs_noise_x1.2.png", "mpc_cost_vs_calls.png", "mpc_trajectories.png"):
+    assert table.count("### Plant mass=1.2,length=1.1,damping=2, process noise") == 2
+    assert "TVLQR tracking" in table and all(r["plant"] == "mass=1.2,length=1.1,damping=2" for r in rows)
+    fig = "mpc_cost_vs_noise_mass1.2_length1.1_damping2.png"
+    for name in (fig, "mpc_cost_vs_calls.png", "mpc_trajectories.png"):
         assert_png(str(path / name))
 
 
@@ -138,7 +143,7 @@ def test_the_videos_show_the_stored_trajectories(smoke_mpc):
     assert np.corrcoef(cy, np.cos(q))[0, 1] < -0.98  # image rows grow downwards
     episodes = np.array(imageio.mimread(str(path / "mpc_episodes.mp4")))
     order = m["mpc_video_order"]
-    assert episodes.shape == (7, 240, 320 * len(order), 3) and len(order) == 8  # one refitted online
+    assert episodes.shape == (7, 240, 320 * len(order), 3) and len(order) == 9  # two refitted online
     band = episodes[:, : video.LABEL_HEIGHT].reshape(7, video.LABEL_HEIGHT, len(order), 320, 3)
     assert band.mean() < 80 and all((band[0, :, i].min(-1) > 180).sum() > 20 for i in range(len(order)))
     first = arrays[m["videos"]["mpc_episodes.mp4"]["trajectories"][0]][0]  # D2C-MPC, episode 0

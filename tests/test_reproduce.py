@@ -13,9 +13,11 @@ import pytest
 from helpers import assert_png
 
 from experiments import reproduce
+from experiments.run import load_config
 from mjx_surrogate.config import Config, from_dict
 from mjx_surrogate.resolution import resolve
 from mjx_surrogate.results import load_run
+from mjx_surrogate.systems.plant import parse_plant, plant_label, plant_slug
 from mjx_surrogate.systems.registry import is_function_system
 from mjx_surrogate.tasks import trajectory_cost
 
@@ -107,7 +109,9 @@ def test_quick_reproduction_produces_every_figure_and_resumes(tmp_path, capsys, 
             folder, m = _metrics(str(out), name)
             assert m["mpc_verdict"]["verdict"] in verdicts, (name, m["mpc_verdict"])
             assert f"**Claim:** **{m['mpc_verdict']['verdict']}**" in text
-            assert_png(glob.glob(os.path.join(folder, "mpc_cost_vs_noise_x*.png"))[0])
+            plant = m["mpc_conditions"][0]["plant"]  # the quick run keeps the last plant
+            assert plant == plant_label(parse_plant(load_config(name).mpc.plants[-1]))
+            assert_png(os.path.join(folder, f"mpc_cost_vs_noise_{plant_slug(parse_plant(plant))}.png"))
     for link in re.findall(r"\]\(([^)]+\.png)\)", text):
         assert os.path.exists(tmp_path / link), link
     capsys.readouterr()
@@ -260,3 +264,18 @@ def assert_every_optimum_replays_natively(out):
                 surrogate_checked += 1
     assert checked >= 5, checked  # the optimum of every predict, analysis and control run
     assert surrogate_checked >= 2, surrogate_checked
+
+
+def test_an_experiments_folders_are_its_own(tmp_path):
+    """pendulum_mpc's run folders are not gym_inverted_pendulum_mpc's, whose name ends
+    with it (the report once showed the gymnasium run under the pendulum)."""
+    for n in ("20261126-100000_pendulum_mpc", "20261126-110000_gym_inverted_pendulum_mpc"):
+        (tmp_path / n).mkdir()
+        (tmp_path / n / "metrics.json").write_text(json.dumps({"status": "converged"}))
+    (tmp_path / "20261126-120000_pendulum_mpc_1").mkdir()  # a second run in the same second
+    (tmp_path / "20261126-120000_pendulum_mpc_1" / "metrics.json").write_text('{"status": "failed"}')
+    assert reproduce.finished(str(tmp_path), "pendulum_mpc").endswith("100000_pendulum_mpc")
+    assert reproduce.unfinished(str(tmp_path), "pendulum_mpc").endswith("120000_pendulum_mpc_1")
+    assert reproduce.finished(str(tmp_path), "gym_inverted_pendulum_mpc").endswith(
+        "_gym_inverted_pendulum_mpc"
+    )

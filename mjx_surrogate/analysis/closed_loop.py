@@ -32,7 +32,7 @@ def _cost(r: dict) -> float:
 
 
 def _where(c: dict) -> str:
-    return f"masses x{c['plant_mass_scale']:g}, noise {c['process_noise']:g}"
+    return f"plant {c['plant']}, noise {c['process_noise']:g}"
 
 
 def _condition(at: dict, surrogates: list[str], offline_cost: float | None) -> dict:
@@ -44,7 +44,7 @@ def _condition(at: dict, surrogates: list[str], offline_cost: float | None) -> d
     ]
     works = math.isfinite(base) and (offline_cost is None or base <= WORKS_FACTOR * offline_cost)
     return {
-        "plant_mass_scale": d["plant_mass_scale"],
+        "plant": d["plant"],
         "process_noise": d["process_noise"],
         "d2c_cost": base if math.isfinite(base) else None,
         "d2c_goal_reached": d["goal_reached"],
@@ -56,7 +56,7 @@ def _condition(at: dict, surrogates: list[str], offline_cost: float | None) -> d
 
 def closed_loop_verdict(rows: list[dict], offline_cost: float | None = None) -> dict:
     """{verdict: held | did not hold | held in part | inconclusive | not measured, text,
-    conditions: [{plant_mass_scale, process_noise, d2c_cost, d2c_goal_reached, judged,
+    conditions: [{plant, process_noise, d2c_cost, d2c_goal_reached, judged,
     ratios {label: cost / D2C-MPC's}, matches [labels]}], match_tol, works_factor}.
     offline_cost: the offline optimum's cost over the episodes' steps (None: not checked)."""
     surrogates = list(
@@ -66,8 +66,8 @@ def closed_loop_verdict(rows: list[dict], offline_cost: float | None = None) -> 
         missing = "the run had no D2C-MPC or no global surrogate"
         return {"verdict": "not measured", "text": missing, "conditions": []}
     per = []
-    for key in dict.fromkeys((r["plant_mass_scale"], r["process_noise"]) for r in rows):
-        at = {r["controller"]: r for r in rows if (r["plant_mass_scale"], r["process_noise"]) == key}
+    for key in dict.fromkeys((r["plant"], r["process_noise"]) for r in rows):
+        at = {r["controller"]: r for r in rows if (r["plant"], r["process_noise"]) == key}
         if D2C in at:
             per.append(_condition(at, surrogates, offline_cost))
     judged = [c for c in per if c["judged"]]
@@ -121,10 +121,10 @@ def cause_text(rows: list[dict]) -> str:
     }
     if not errs:
         return ""
-    plant = next(r["plant_mass_scale"] for r in rows if r.get("closed_loop_one_step_error") is not None)
+    plant = next(r["plant"] for r in rows if r.get("closed_loop_one_step_error") is not None)
     return (
-        f"One-step prediction error along each surrogate's own closed loop (plant masses "
-        f"x{plant:g}, least noise; median over steps, relative to the optimum's RMS state): "
+        f"One-step prediction error along each surrogate's own closed loop (plant {plant}, "
+        "least noise; median over steps, relative to the optimum's RMS state): "
         + ", ".join(f"{n} {100 * e:.3g} %" for n, e in errs.items())
         + "."
     )
@@ -134,15 +134,15 @@ def table(rows: list[dict], dt: float, verdict: dict | None = None) -> str:
     """The side-by-side table (Markdown), one block per condition, after the verdict."""
     f = lambda v: "-" if v is None else f"{v:.4g}"  # noqa: E731
     out = []
-    for s, w in dict.fromkeys((r["plant_mass_scale"], r["process_noise"]) for r in rows):
+    for p, w in dict.fromkeys((r["plant"], r["process_noise"]) for r in rows):
         out += [
-            f"\n### Plant masses x{s:g}, process noise {w:g}\n",
+            f"\n### Plant {p}, process noise {w:g}\n",
             "| controller | closed-loop cost (median) | min - max | goal reached | black-box steps "
             "per control step | iterations per replan | ms per control step | real-time factor |",
             "|---|---|---|---|---|---|---|---|",
         ]
         for r in rows:
-            if (r["plant_mass_scale"], r["process_noise"]) != (s, w):
+            if (r["plant"], r["process_noise"]) != (p, w):
                 continue
             c = [v for v in r["costs"] if v is not None]
             spread = (

@@ -40,19 +40,7 @@ def _import(target: str):
 
 def load_entry(entry: str) -> FunctionSystem:
     """The black box that ``entry`` names, its ``source`` set to the defining file."""
-    target, sep, attr = entry.rpartition(":")
-    if not sep or not target or not attr.isidentifier():
-        raise ConfigError(FIELD, f"{entry!r} is not {FORM}")
-    try:
-        module = _import(target)
-    except ConfigError:
-        raise
-    except BaseException as exc:  # the user's code: one line, never a traceback
-        msg = " ".join(str(exc).split())[:200]
-        raise ConfigError(FIELD, f"importing {target!r} raised {type(exc).__name__}: {msg}") from None
-    if not hasattr(module, attr):
-        raise ConfigError(FIELD, f"{target!r} has no attribute {attr!r}")
-    made = getattr(module, attr)
+    made, module = _attribute(entry)
     if callable(made) and not isinstance(made, FunctionSystem):
         try:
             made = made()
@@ -67,6 +55,29 @@ def load_entry(entry: str) -> FunctionSystem:
         )
     source = getattr(module, "__file__", None)
     return dataclasses.replace(made, source=os.path.abspath(source) if source else None)
+
+
+def entry_builder(entry: str):
+    """The function ``entry`` names (None where it names a built FunctionSystem)."""
+    made, _ = _attribute(entry)
+    return made if callable(made) and not isinstance(made, FunctionSystem) else None
+
+
+def _attribute(entry: str):
+    """(the attribute ``entry`` names, its module); ConfigError naming system.entry."""
+    target, sep, attr = entry.rpartition(":")
+    if not sep or not target or not attr.isidentifier():
+        raise ConfigError(FIELD, f"{entry!r} is not {FORM}")
+    try:
+        module = _import(target)
+    except ConfigError:
+        raise
+    except BaseException as exc:  # the user's code: one line, never a traceback
+        msg = " ".join(str(exc).split())[:200]
+        raise ConfigError(FIELD, f"importing {target!r} raised {type(exc).__name__}: {msg}") from None
+    if not hasattr(module, attr):
+        raise ConfigError(FIELD, f"{target!r} has no attribute {attr!r}")
+    return getattr(module, attr), module
 
 
 def entry_source(entry: str) -> str | None:

@@ -30,14 +30,18 @@ C_PLUS = np.array([math.sqrt(BETA * (RHO - 1)), math.sqrt(BETA * (RHO - 1)), RHO
 C_MINUS = C_PLUS * np.array([-1.0, -1.0, 1.0])
 
 
-def vector_field(x, u):
+def vector_field(x, u, sigma: float = SIGMA, rho: float = RHO, beta: float = BETA):
     """dx/dt [3] at x [3], u [1]."""
-    return jnp.stack([SIGMA * (x[1] - x[0]) + u[0], x[0] * (RHO - x[2]) - x[1], x[0] * x[1] - BETA * x[2]])
+    return jnp.stack([sigma * (x[1] - x[0]) + u[0], x[0] * (rho - x[2]) - x[1], x[0] * x[1] - beta * x[2]])
 
 
-def make_system(dt: float = 0.01, substeps: int = 10) -> FunctionSystem:
+def make_system(
+    dt: float = 0.01, substeps: int = 10, sigma: float = SIGMA, rho: float = RHO, beta: float = BETA
+) -> FunctionSystem:
+    """The controlled Lorenz system; sigma, rho, beta: other parameters (an MPC plant, e.g.
+    ``rho=30``)."""
     return from_jax(
-        rk4(vector_field, dt, substeps),
+        rk4(lambda x, u: vector_field(x, u, sigma, rho, beta), dt, substeps),
         3,
         1,
         dt,

@@ -95,6 +95,17 @@ def make_function_system(name: str) -> FunctionSystem:
     return _built_function(name)
 
 
+def function_builder(name: str) -> Callable[..., FunctionSystem]:
+    """The function that builds the registered function black box ``name`` (its size bound
+    for a family): called with keyword arguments, another instance of it (a plant)."""
+    if name in _FUNCTIONS:
+        return _FUNCTIONS[name]
+    if (found := _function_family(name)) is None:
+        raise ConfigError("system.name", f"unknown system {name!r}; valid: {', '.join(system_names())}")
+    make, size = found
+    return functools.partial(make, size)
+
+
 @functools.lru_cache(maxsize=None)
 def _built_function(name: str) -> FunctionSystem:
     if name in _FUNCTIONS:
