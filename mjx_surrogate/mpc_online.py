@@ -20,9 +20,9 @@ optimiser (``surrogate.mlp``: Adam, learning rate, weight decay) on the weighted
 
     L(p) = (sum_{i in batch} |r_i(p)|^2 + weight sum_{m < n} |r_m(p)|^2) / (nx (b + weight n))
 
-of its standardised residuals r, a fresh minibatch of b offline transitions per step and
-the episode's n transitions; its parameters and optimiser state carry over from replan to
-replan. With ``updates = 0`` it is the plain MLP-MPC.
+of its standardised residuals r, a fresh minibatch of b offline transitions per step
+(drawn with replacement) and the episode's n transitions; its parameters and optimiser
+state carry over from replan to replan. With ``updates = 0`` it is the plain MLP-MPC.
 """
 
 from __future__ import annotations
@@ -188,7 +188,7 @@ def refitted_mlp_mpc(
 
         def update(carry, k):
             p, state = carry
-            i = jax.random.choice(k, z_off.shape[0], (b,), replace=False)
+            i = jax.random.randint(k, (b,), 0, z_off.shape[0])  # with replacement: no sort
             g = jax.grad(lambda q: weighted_loss(model, q, z_off[i], y_off[i], z_on, y_on, w))(p)
             upd, state = opt.update(g, state, p)
             return (optax.apply_updates(p, upd), state), None
