@@ -95,15 +95,9 @@ def surrogate_mpc(
     """One episode on ``plant`` whose replans run iLQR on a differentiable surrogate (a
     pytree with ``step(x, u)``: a SindyModel, an MLPModel), Jacobians by ``jax.jacfwd``
     through it: SINDy-MPC, MLP-MPC. U0 [H, nu]; no black-box call but the plant's steps."""
-    step = model.step
-
-    def linearize(X, U, K, k):
-        return sid.exact_jacobians(step, X, U)
 
     def replan(x, plan, k):
-        return ilqr_replan(
-            Problem(step, linearize, task_cost(task), x, task.u_min, task.u_max), plan, params, k
-        )
+        return surrogate_replan(model, task, x, plan, params, k)
 
     X, U, (plan_cost, its, ident) = episode(
         replan, plant.step, task.x0, first_plan(U0, task.x0), key, steps, process_noise
@@ -189,6 +183,16 @@ def ilqr_replan(prob: Problem, plan: Plan, params: ILQRParams, key: jax.Array):
     -> (Plan, (cost, iterations, identified))."""
     r = ilqr_result(ilqr_advance(prob, warm_start(prob, plan, params, key), params))
     return Plan(r.U, r.X, r.K), (r.cost, r.iterations, r.identified)
+
+
+def surrogate_replan(model, task: Task, x: jax.Array, plan: Plan, params: ILQRParams, key: jax.Array):
+    """One replan from x of iLQR on a differentiable surrogate ``model`` (a pytree with
+    ``step(x, u)``), Jacobians by ``jax.jacfwd`` through it. -> as :func:`ilqr_replan`."""
+    step = model.step
+    prob = Problem(
+        step, lambda X, U, K, k: sid.exact_jacobians(step, X, U), task_cost(task), x, task.u_min, task.u_max
+    )
+    return ilqr_replan(prob, plan, params, key)
 
 
 def episode(

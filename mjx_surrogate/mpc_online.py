@@ -34,15 +34,14 @@ import jax.numpy as jnp
 import optax
 from flax import nnx
 
-from mjx_surrogate import sysid as sid
 from mjx_surrogate.data import Transitions
-from mjx_surrogate.ilqr import ILQRParams, Problem
+from mjx_surrogate.ilqr import ILQRParams
 from mjx_surrogate.linalg import spd_solve
-from mjx_surrogate.mpc import MPCResult, episode, first_plan, ilqr_replan
+from mjx_surrogate.mpc import MPCResult, episode, first_plan, surrogate_replan
 from mjx_surrogate.surrogates.mlp import MLPModel, MLPSpec, optimizer, targets
 from mjx_surrogate.surrogates.sindy import SindyModel, design
 from mjx_surrogate.systems.system import System
-from mjx_surrogate.tasks import Task, task_cost, trajectory_cost
+from mjx_surrogate.tasks import Task, trajectory_cost
 
 RIDGE = 1e-10  # relative to the scaled Gram's unit diagonal: keeps an empty support solvable
 
@@ -103,15 +102,7 @@ def refitted_sindy_mpc(
             _targets(model, seen.x, seen.x_next),
             w,
         )
-        prob = Problem(
-            m.step,
-            lambda X, U_, K, kk: sid.exact_jacobians(m.step, X, U_),
-            task_cost(task),
-            x,
-            task.u_min,
-            task.u_max,
-        )
-        plan, info = ilqr_replan(prob, plan, params, key)
+        plan, info = surrogate_replan(m, task, x, plan, params, key)
         return plan, info, seen
 
     X, U, (plan_cost, its, ident) = episode(
@@ -195,15 +186,7 @@ def refitted_mlp_mpc(
 
         (p, state), _ = jax.lax.scan(update, (p, state), jax.random.split(k_batch, updates))
         m = model.replace(params=p)
-        prob = Problem(
-            m.step,
-            lambda X, U_, K, kk: sid.exact_jacobians(m.step, X, U_),
-            task_cost(task),
-            x,
-            task.u_min,
-            task.u_max,
-        )
-        plan, info = ilqr_replan(prob, plan, params, k_plan)
+        plan, info = surrogate_replan(m, task, x, plan, params, k_plan)
         return plan, info, (seen, p, state)
 
     memory = (
