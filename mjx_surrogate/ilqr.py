@@ -19,18 +19,11 @@ sizes alpha = alpha_factor^i, i = 0 .. n_alphas - 1, at once (vmap); a trial is 
 when its cost is finite and (J - J_alpha) / (-(alpha dV1 + alpha^2 dV2)) > accept_ratio;
 the best accepted trial wins.
 
-Model reuse (``reuse_tol`` > 0, ``reuse_max`` > 0): when the accepted step's decrease was
-within ``reuse_tol`` of the model's promise, |ratio - 1| <= reuse_tol, the next iteration
-skips ``linearize`` and carries the model over with a secant update from the step just
-taken (:func:`secant_update`: the accepted trial is a sample too), at most ``reuse_max``
-iterations in a row; a rejected step on a carried-over model is retried on a freshly
-identified one, and no minimum is declared on a carried-over model.
-
-Coarse then fine (``linearize_fine`` given, e.g. identification at every k-th step and
-then at every step): iterations identify with ``linearize`` until a step gains at most
-``refine_tol`` |J|, or a stopping rule would fire on its model; from then on with
-``linearize_fine`` (mu restarts at mu_init). No minimum is declared, and no stall, on the
-coarse model.
+When the model is identified, and when it is carried over instead (model reuse with
+secant updates; coarse then fine identification), is decided by
+:mod:`mjx_surrogate.local_model`, which owns that state (``ILQRState.model``). One
+iteration reads: the model of the nominal -> backward pass -> line search ->
+regularisation schedule -> stopping rules, each a small function below.
 
 Stopping rules (checked in this order after every iteration; :class:`StopReason`):
 relative cost decrease <= rel_tol; max|k| <= k_tol (1 + max|U|); no trial accepted while
@@ -64,8 +57,10 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from mjx_surrogate import local_model
 from mjx_surrogate import progress as progress_lib
 from mjx_surrogate.cost import Cost, trajectory_cost
+from mjx_surrogate.local_model import ModelState, full_gains, reduced_expansion, secant_update  # noqa: F401
 from mjx_surrogate.riccati import backward_pass, cost_derivatives, tvlqr_gains
 from mjx_surrogate.trajectory import feedback_rollout, feedback_rollouts
 
@@ -221,86 +216,24 @@ class Problem(NamedTuple):
 
 
 class ILQRState(NamedTuple):
-    """The loop's carry: nominal X [T+1, nx], U [T, nu], gains, model [A B] (in the basis V
-    [T+1, nx, r] of a reduced model; V is empty for a full-order one), schedules."""
+    """The loop's carry: nominal X [T+1, nx], U [T, nu], gains K [T, nu, nx], k [T, nu],
+    cost J, regularisation mu, iteration count and stop reason, the history, and the local
+    model with its strategies' state (:class:`~mjx_surrogate.local_model.ModelState`)."""
 
     X: jax.Array
     U: jax.Array
     K: jax.Array
     k: jax.Array
-    A: jax.Array
-    B: jax.Array
-    V: jax.Array
     J: jax.Array
     mu: jax.Array
     it: jax.Array
     reason: jax.Array
-    fresh: jax.Array  # nominal changed since the last linearisation
-    stale: jax.Array  # the model was carried over (secant update), not identified here
-    fine: jax.Array  # identify with linearize_fine from now on
-    fine_model: jax.Array  # the model came from linearize_fine
-    reuse_ok: jax.Array  # the last accepted step passed the reuse test
-    reused: jax.Array  # iterations in a row on a carried-over model
-    X_model: jax.Array  # the nominal the model belongs to (for the secant update)
-    U_model: jax.Array
     key: jax.Array
     history: jax.Array  # [max_iter+1] cost after each iteration
     X_history: jax.Array
     alphas: jax.Array  # [max_iter] accepted step sizes
     identified: jax.Array  # [max_iter] int8
-    expansion: tuple  # the cost's derivatives at X_model, U_model (riccati.cost_derivatives)
-
-
-def secant_update(A: jax.Array, B: jax.Array, dX: jax.Array, dU: jax.Array) -> tuple[jax.Array, jax.Array]:
-    """Broyden's rank-one update of each W_t = [A_t B_t] to the nominal's own step:
-    W_t += (dx_{t+1} - W_t s_t) s_t' / (s_t' s_t), s_t = [dx_t; du_t], so that W_t s_t =
-    dx_{t+1} afterwards and W_t is unchanged on directions orthogonal to s_t. A [T, nx, nx],
-    B [T, nx, nu], dX [T+1, nx], dU [T, nu]; a step below round-off leaves W_t as it is."""
-    nx = A.shape[-1]
-    W = jnp.concatenate([A, B], axis=-1)  # [T, nx, nx+nu]
-    S = jnp.concatenate([dX[:-1], dU], axis=-1)  # [T, nx+nu]
-    r = dX[1:] - jnp.einsum("tij,tj->ti", W, S)
-    ss = jnp.sum(S * S, axis=-1)
-    ok = ss > (1e3 * jnp.finfo(A.dtype).eps) ** 2
-    W = W + jnp.where(ok, 1.0 / jnp.where(ok, ss, 1.0), 0.0)[:, None, None] * r[:, :, None] * S[:, None, :]
-    return W[..., :nx], W[..., nx:]
-
-
-def model_coordinates(V: jax.Array, dX: jax.Array) -> jax.Array:
-    """dX [T+1, nx] in the model's coordinates: V_t' dX_t [T+1, r] (dX itself when V is
-    empty: a full-order model)."""
-    return dX if V.size == 0 else jnp.einsum("tn,tnr->tr", dX, V)
-
-
-def reduced_expansion(derivs: tuple, V: jax.Array) -> tuple:
-    """The cost's derivatives (:func:`cost_derivatives`) in the coordinates of the basis V
-    [T+1, nx, r]: l_x V_t, V_t' l_xx V_t, l_ux V_t, V_T' V_x, V_T' V_xx V_T (unchanged when V
-    is empty)."""
-    if V.size == 0:
-        return derivs
-    lx, lu, lxx, luu, lux, VxT, VxxT = derivs
-    W, WT = V[:-1], V[-1]
-    lxx_r = jnp.einsum("tnr,tnm,tms->trs", W, lxx, W)
-    return (
-        jnp.einsum("tn,tnr->tr", lx, W),
-        lu,
-        lxx_r,
-        luu,
-        jnp.einsum("tkn,tnr->tkr", lux, W),
-        WT.T @ VxT,
-        WT.T @ VxxT @ WT,
-    )
-
-
-def full_gains(K: jax.Array, V: jax.Array) -> jax.Array:
-    """Gains K [T, nu, r] on the model's coordinates as gains on the state: K_t V_t'."""
-    return K if V.size == 0 else jnp.einsum("tkr,tnr->tkn", K, V[:-1])
-
-
-def _zero_expansion(cost: Cost, X: jax.Array, U: jax.Array) -> tuple:
-    """Zeros in the shapes of :func:`cost_derivatives` at X, U (nothing evaluated)."""
-    shapes = jax.eval_shape(lambda X, U: cost_derivatives(cost, X, U), X, U)
-    return jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), shapes)
+    model: ModelState
 
 
 def ilqr_init(
@@ -320,8 +253,6 @@ def ilqr_init(
     nx = x0.shape[0]
     dtype = x0.dtype
     U0 = jnp.clip(U0.astype(dtype), u_min, u_max)
-    r = nx if problem.model_rank is None else problem.model_rank
-    V = jnp.zeros((0,) if problem.model_rank is None else (T + 1, nx, r), dtype)
     zeros_K = jnp.zeros((T, nu, nx), dtype)
     zeros_x = jnp.zeros((T + 1, nx), dtype)
     zeros_u = jnp.zeros((T, nu), dtype)
@@ -344,127 +275,102 @@ def ilqr_init(
         if params.record_trajectories
         else jnp.zeros((0,), dtype)
     )
-    coarse = problem.linearize_fine is not None
     return ILQRState(
         X=X0,
         U=U0,
         K=zeros_K,
         k=jnp.zeros((T, nu), dtype),
-        A=jnp.zeros((T, r, r), dtype),
-        B=jnp.zeros((T, r, nu), dtype),
-        V=V,
         J=J0,
         mu=jnp.asarray(params.mu_init, dtype),
         it=jnp.asarray(0),
         reason=jnp.where(jnp.isfinite(J0), StopReason.RUNNING, StopReason.NOT_FINITE),
-        fresh=jnp.array(True),
-        stale=jnp.array(False),
-        fine=jnp.array(not coarse),
-        fine_model=jnp.array(not coarse),
-        reuse_ok=jnp.array(False),
-        reused=jnp.asarray(0),
-        X_model=X0,
-        U_model=U0,
         key=key,
         history=jnp.full((n_hist,), jnp.nan, dtype).at[0].set(J0),
         X_history=X_hist,
         alphas=jnp.zeros((params.max_iter,), dtype),
         identified=jnp.zeros((params.max_iter,), jnp.int8),
-        expansion=_zero_expansion(problem.cost, X0, U0),
+        model=local_model.init_model(problem, X0, U0),
     )
 
 
-def _iteration(problem: Problem, p: ILQRParams, progress, s: ILQRState) -> ILQRState:
-    """One iLQR iteration: model, backward pass, line search, stopping rules."""
-    step, linearize, cost, x0, u_min, u_max = problem[:6]
-    linearize_fine = problem.linearize_fine
+class LineSearch(NamedTuple):
+    """The forward pass's outcome: a trial was accepted; the nominal after it (X [T+1, nx],
+    U [T, nu], cost J: the old one if none was); the accepted step size (0: none) and its
+    actual / predicted decrease."""
+
+    accepted: jax.Array
+    X: jax.Array
+    U: jax.Array
+    J: jax.Array
+    alpha: jax.Array
+    ratio: jax.Array
+
+
+def _line_search(problem: Problem, p: ILQRParams, s: ILQRState, k, K, dV, ok) -> LineSearch:
+    """Roll out u_t = clip(u_bar_t + alpha k_t + K_t (x_t - x_bar_t)) for every step size at
+    once; accept a finite trial whose decrease is more than accept_ratio of the model's
+    promise -(alpha dV1 + alpha^2 dV2); the cheapest accepted trial wins."""
+    x0, u_min, u_max = problem.x0, problem.u_min, problem.u_max
     dtype = x0.dtype
     alphas = jnp.asarray(p.alpha_factor, dtype) ** jnp.arange(p.n_alphas, dtype=dtype)
-    key, sub = jax.random.split(s.key)
-    # A new nominal is identified afresh unless the last step passed the reuse test;
-    # then the model is carried over with a secant update, and identified afresh as
-    # soon as a step is rejected on it.
-    identify = (s.fresh & ~s.reuse_ok) | (~s.fresh & s.stale) | (s.fine & ~s.fine_model)
-    update = s.fresh & s.reuse_ok & ~identify
-
-    def with_basis(model):  # (A, B) of a full-order model, (A, B, V) of a reduced one
-        return tuple(model) if problem.model_rank is not None else (*model, s.V)
-
-    def identified_model():
-        if linearize_fine is None:
-            return with_basis(linearize(s.X, s.U, s.K, sub))
-        return jax.lax.cond(
-            s.fine,
-            lambda: with_basis(linearize_fine(s.X, s.U, s.K, sub)),
-            lambda: with_basis(linearize(s.X, s.U, s.K, sub)),
-        )
-
-    def carried_model():
-        dX = model_coordinates(s.V, s.X - s.X_model)
-        return (*secant_update(s.A, s.B, dX, s.U - s.U_model), s.V)
-
-    A, B, V = jax.lax.cond(
-        identify,
-        identified_model,
-        lambda: jax.lax.cond(update, carried_model, lambda: (s.A, s.B, s.V)),
-    )
-    stale = ~identify & (update | s.stale)
-    fine_model = jnp.where(identify, s.fine, s.fine_model)
-    reused = jnp.where(identify, 0, s.reused + update)
-    derivs = cost_derivatives(cost, s.X, s.U)
-    k, K, dV, ok, reg = backward_pass(A, B, *reduced_expansion(derivs, V), s.U, u_min, u_max, s.mu)
-    K = full_gains(K, V)
     if problem.trial_rollouts is None:
-        Xa, Ua = feedback_rollouts(step, x0, s.X, s.U, K, alphas[:, None, None] * k[None], u_min, u_max)
+        Xa, Ua = feedback_rollouts(
+            problem.step, x0, s.X, s.U, K, alphas[:, None, None] * k[None], u_min, u_max
+        )
     else:
         Xa, Ua = problem.trial_rollouts(x0, s.X, s.U, k, K, alphas, u_min, u_max)
-    Ja = jax.vmap(trajectory_cost, in_axes=(None, 0, 0))(cost, Xa, Ua)
+    Ja = jax.vmap(trajectory_cost, in_axes=(None, 0, 0))(problem.cost, Xa, Ua)
     expected = -(alphas * dV[0] + alphas**2 * dV[1])
     ratio = (s.J - Ja) / jnp.where(expected > 0, expected, jnp.inf)
     accept = ok & jnp.isfinite(Ja) & (Ja < s.J) & (ratio > p.accept_ratio)
     any_acc = jnp.any(accept)
     best = jnp.argmin(jnp.where(accept, Ja, jnp.inf))
-    J = jnp.where(any_acc, Ja[best], s.J)
-    X = jnp.where(any_acc, Xa[best], s.X)
-    # A step accepted only at a small size says the model's Newton step reaches too far:
-    # optionally treated as a rejection by the schedule (a trust region on the step).
-    # Raised that way mu stays at most mu_max: only rejections stop the solve there.
-    short_step = any_acc & (alphas[best] < p.mu_raise_alpha)
-    raised = jnp.maximum(s.mu * p.mu_factor, p.mu_min)
-    mu = jnp.where(
-        any_acc,
-        jnp.where(short_step, jnp.minimum(raised, p.mu_max), jnp.maximum(s.mu / p.mu_factor, p.mu_min)),
-        raised,
+    return LineSearch(
+        accepted=any_acc,
+        X=jnp.where(any_acc, Xa[best], s.X),
+        U=jnp.where(any_acc, Ua[best], s.U),
+        J=jnp.where(any_acc, Ja[best], s.J),
+        alpha=jnp.where(any_acc, alphas[best], 0.0),
+        ratio=ratio[best],
     )
-    it = s.it + 1
-    scale_u = 1.0 + jnp.max(jnp.abs(s.U))
-    # A small step, gain or promise means a minimum only if the regularisation did not
-    # make it small: each scales like 1 / (1 + reg), so they are judged undone.
+
+
+def _schedule(p: ILQRParams, mu: jax.Array, ls: LineSearch) -> jax.Array:
+    """mu after the step: down by mu_factor after an accepted step, up after a rejected one.
+    A step accepted only at a size below mu_raise_alpha says the model's Newton step reaches
+    too far: it raises mu too (a trust region on the step), to at most mu_max, so that only
+    rejections stop the solve there."""
+    raised = jnp.maximum(mu * p.mu_factor, p.mu_min)
+    short_step = ls.accepted & (ls.alpha < p.mu_raise_alpha)
+    lowered = jnp.where(short_step, jnp.minimum(raised, p.mu_max), jnp.maximum(mu / p.mu_factor, p.mu_min))
+    return jnp.where(ls.accepted, lowered, raised)
+
+
+def _minimum_tests(p: ILQRParams, s: ILQRState, ls: LineSearch, k, dV, ok, reg) -> tuple:
+    """(small cost change, small step, noise floor): the rules that declare a minimum. A
+    small step, gain or promise means a minimum only if the regularisation did not make it
+    small: each scales like 1 / (1 + reg), so they are judged undone. The noise floor: no
+    trial accepted although the model promises almost nothing (the resolution of the black
+    box / the LTV estimate)."""
     unreg = 1.0 + reg
+    scale_u = 1.0 + jnp.max(jnp.abs(s.U))
+    small_dJ = ls.accepted & (unreg * (s.J - ls.J) <= p.rel_tol * jnp.abs(s.J))
     small_k = ok & (unreg * jnp.max(jnp.abs(k)) < p.k_tol * scale_u)
-    small_dJ = any_acc & (unreg * (s.J - J) <= p.rel_tol * jnp.abs(s.J))
-    # No trial accepted although the model promises almost nothing: a minimum, up to
-    # the noise of the black box / the LTV estimate.
-    floor = ok & ~any_acc & (unreg * jnp.abs(dV[0] + dV[1]) <= p.rel_tol * jnp.abs(s.J))
-    # Minima are declared on identified, fine models only: on a carried-over model the
-    # next iteration identifies; a coarse one (``linearize`` when a fine one is given)
-    # hands over to the fine one where it would have stopped, or once a step gains at
-    # most refine_tol.
-    at_min = small_dJ | small_k | floor
-    gain_small = any_acc & (s.J - J <= p.refine_tol * jnp.abs(s.J))
-    coarse_end = ~fine_model & (at_min | (mu > p.mu_max) | gain_small)
-    fine = s.fine | coarse_end
-    mu = jnp.where(coarse_end, jnp.asarray(p.mu_init, mu.dtype), mu)  # a new model, a new schedule
-    done = at_min & ~stale & fine_model
-    near = jnp.abs(ratio[best] - 1.0) <= p.reuse_tol
-    reuse_ok = any_acc & near & (reused < p.reuse_max) & ~at_min
-    stop = progress_lib.poll(progress, it, J, mu) if progress is not None else jnp.array(False)
-    reason = jnp.select(
+    floor = ok & ~ls.accepted & (unreg * jnp.abs(dV[0] + dV[1]) <= p.rel_tol * jnp.abs(s.J))
+    return small_dJ, small_k, floor
+
+
+def _stop_reason(p: ILQRParams, it, mu, model: ModelState, minimum: tuple, stop) -> jax.Array:
+    """The first rule that holds (:class:`StopReason`; RUNNING if none): minima only on a
+    trusted model, a stall only on a fine one (:mod:`mjx_surrogate.local_model`)."""
+    small_dJ, small_k, floor = minimum
+    trusted = local_model.trusted(model)
+    return jnp.select(
         [
-            done & small_dJ,
-            done & small_k,
-            done & floor,
-            fine_model & (mu > p.mu_max),
+            trusted & small_dJ,
+            trusted & small_k,
+            trusted & floor,
+            local_model.is_fine(model) & (mu > p.mu_max),
             it >= p.max_iter,
             stop,
         ],
@@ -478,34 +384,44 @@ def _iteration(problem: Problem, p: ILQRParams, progress, s: ILQRState) -> ILQRS
         ],
         StopReason.RUNNING,
     )
+
+
+def _iteration(problem: Problem, p: ILQRParams, progress, s: ILQRState) -> ILQRState:
+    """One iLQR iteration: the model of the nominal, backward pass, line search,
+    regularisation schedule, stopping rules."""
+    key, sub = jax.random.split(s.key)
+    derivs = cost_derivatives(problem.cost, s.X, s.U)
+    model, how = local_model.model_for(problem, s.model, s.X, s.U, s.K, sub, derivs)
+    expansion = reduced_expansion(derivs, model.V)
+    k, K, dV, ok, reg = backward_pass(model.A, model.B, *expansion, s.U, problem.u_min, problem.u_max, s.mu)
+    K = full_gains(K, model.V)
+    ls = _line_search(problem, p, s, k, K, dV, ok)
+    mu = _schedule(p, s.mu, ls)
+    minimum = _minimum_tests(p, s, ls, k, dV, ok, reg)
+    at_min = minimum[0] | minimum[1] | minimum[2]
+    gain_small = ls.accepted & (s.J - ls.J <= p.refine_tol * jnp.abs(s.J))
+    outcome = local_model.StepOutcome(ls.accepted, ls.ratio, at_min, gain_small, mu > p.mu_max)
+    after, handover = local_model.after_step(p, model, outcome)
+    mu = jnp.where(handover, jnp.asarray(p.mu_init, mu.dtype), mu)  # a new model, a new schedule
+    it = s.it + 1
+    stop = progress_lib.poll(progress, it, ls.J, mu) if progress is not None else jnp.array(False)
+    # judged on the model the step was taken on (a coarse one that handed over stops nothing)
+    reason = _stop_reason(p, it, mu, model, minimum, stop)
     return ILQRState(
-        X=X,
-        U=jnp.where(any_acc, Ua[best], s.U),
-        K=jnp.where(any_acc, K, s.K),
-        k=jnp.where(any_acc, k, s.k),
-        A=A,
-        B=B,
-        V=V,
-        J=J,
+        X=ls.X,
+        U=ls.U,
+        K=jnp.where(ls.accepted, K, s.K),
+        k=jnp.where(ls.accepted, k, s.k),
+        J=ls.J,
         mu=mu,
         it=it,
         reason=reason,
-        fresh=any_acc,
-        stale=stale,
-        fine=fine,
-        fine_model=fine_model,
-        reuse_ok=reuse_ok,
-        reused=reused,
-        X_model=s.X,
-        U_model=s.U,
         key=key,
-        history=s.history.at[it].set(J),
-        X_history=s.X_history.at[it].set(X) if p.record_trajectories else s.X_history,
-        alphas=s.alphas.at[it - 1].set(jnp.where(any_acc, alphas[best], 0.0)),
-        identified=s.identified.at[it - 1].set(
-            jnp.where(identify, 1 + (fine_model & (linearize_fine is not None)), 0).astype(jnp.int8)
-        ),
-        expansion=derivs,
+        history=s.history.at[it].set(ls.J),
+        X_history=s.X_history.at[it].set(ls.X) if p.record_trajectories else s.X_history,
+        alphas=s.alphas.at[it - 1].set(ls.alpha),
+        identified=s.identified.at[it - 1].set(how),
+        model=after,
     )
 
 
@@ -536,18 +452,20 @@ def ilqr_advance(
 
 def final_gains(problem: Problem, s: ILQRState, p: ILQRParams) -> jax.Array:
     """The feedback gains K [T, nu, nx] of a finished solve: TVLQR on the last model and
-    the cost's expansion at the same nominal (X_model, U_model: the final one unless the
-    last step was accepted), with the least regularisation, 0 or else mu_min mu_factor^j up
+    the cost's expansion at the same nominal (``s.model``'s X, U: the final one unless
+    the last step was accepted), with the least regularisation, 0 or else mu_min mu_factor^j up
     to mu_max, that makes every Q_uu positive definite (the solve's gains if none does).
     Not the last iteration's gains: mu B'B pushes those towards -(B'B)^-1 B'A, gains that
     cancel the dynamics: after a stall (mu past mu_max) a closed loop with them cost about
     twice the open loop under 1 % control noise (UR5e, dm_control humanoid)."""
 
+    m = s.model
+
     def gains(c):  # the loop holds the one call site, so the sweep is compiled once
         mu = jnp.where(c[0] < 0, 0.0, jnp.maximum(c[0] * p.mu_factor, p.mu_min))
-        expansion = reduced_expansion(s.expansion, s.V)
-        K, ok = tvlqr_gains(s.A, s.B, *expansion, s.U_model, problem.u_min, problem.u_max, mu)
-        return mu, full_gains(K, s.V), ok
+        expansion = reduced_expansion(m.expansion, m.V)
+        K, ok = tvlqr_gains(m.A, m.B, *expansion, m.U, problem.u_min, problem.u_max, mu)
+        return mu, full_gains(K, m.V), ok
 
     start = (-jnp.ones((), s.X.dtype), s.K, jnp.array(False))
     _, K, ok = jax.lax.while_loop(lambda c: ~c[2] & (c[0] <= p.mu_max), gains, start)

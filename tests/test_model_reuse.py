@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from mjx_surrogate import sysid
-from mjx_surrogate.ilqr import Cost, ILQRParams, StopReason, ilqr, secant_update
+from mjx_surrogate.ilqr import Cost, ILQRParams, StopReason, ilqr
+from mjx_surrogate.local_model import secant_update
 
 rng = np.random.default_rng(4)
 
