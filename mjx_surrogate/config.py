@@ -611,8 +611,34 @@ _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,99}$")
 def validate_static(cfg: Config) -> None:
     """Checks that need no model: types, choices, signs, ranges, finiteness, names."""
     _check_types(cfg)
-    s = cfg.solver
-    ex = cfg.experiment
+    _check_experiment(cfg.experiment)
+    _check_parallel(cfg.parallel)
+    _check_mpc(cfg.mpc)
+    _check_solver(cfg.solver)
+    _check_system(cfg.system)
+    _check_function_system(cfg.system)
+    _check_task(cfg.task)
+    _check_data(cfg.data)
+    _check_surrogates(cfg.surrogate)
+    _check_registered(cfg)
+    _check_analysis(cfg.analysis)
+
+
+def _at_least(lowest: int, fields: dict) -> None:
+    """Each integer field >= ``lowest``."""
+    for field, v in fields.items():
+        if v < lowest:
+            raise ConfigError(field, f"must be >= {lowest}, got {v}")
+
+
+def _nonnegative(fields: dict) -> None:
+    """Each field a finite number >= 0."""
+    for field, v in fields.items():
+        if not (math.isfinite(v) and v >= 0):
+            raise ConfigError(field, f"must be a finite number >= 0, got {v}")
+
+
+def _check_experiment(ex: ExperimentConfig) -> None:
     if not 0 <= ex.seed < 2**31:
         raise ConfigError("experiment.seed", f"must be an integer in [0, 2**31 - 1], got {ex.seed}")
     if ex.name is not None and (not _NAME.match(ex.name) or ".." in ex.name):
@@ -622,30 +648,25 @@ def validate_static(cfg: Config) -> None:
         )
     if not ex.out_dir:
         raise ConfigError("experiment.out_dir", "must name a directory")
-    _check_parallel(cfg.parallel)
-    _check_mpc(cfg.mpc)
-    if not (math.isfinite(s.accept_ratio) and 0 < s.accept_ratio < 1):
-        raise ConfigError("solver.accept_ratio", f"must be in (0, 1), got {s.accept_ratio}")
-    if not (math.isfinite(s.alpha_factor) and 0 < s.alpha_factor < 1):
-        raise ConfigError("solver.alpha_factor", f"must be in (0, 1), got {s.alpha_factor}")
-    if not (math.isfinite(s.sysid_refine_tol) and s.sysid_refine_tol >= 0):
-        raise ConfigError("solver.sysid_refine_tol", f"must be finite and >= 0, got {s.sysid_refine_tol}")
-    if not (math.isfinite(s.reuse_tol) and s.reuse_tol >= 0):
-        raise ConfigError("solver.reuse_tol", f"must be a finite number >= 0, got {s.reuse_tol}")
-    if s.reuse_max < 0:
-        raise ConfigError("solver.reuse_max", f"must be >= 0, got {s.reuse_max}")
+    _at_least(1, {"experiment.n_rollouts": ex.n_rollouts, "experiment.n_noise_trials": ex.n_noise_trials})
+    _nonnegative(
+        {"experiment.rollout_sigma_x": ex.rollout_sigma_x, "experiment.rollout_sigma_u": ex.rollout_sigma_u}
+    )
+    check_finite("experiment.noise_levels", ex.noise_levels)
+    if any(v < 0 for v in ex.noise_levels):
+        raise ConfigError("experiment.noise_levels", "noise levels must be >= 0")
+
+
+def _check_solver(s: SolverConfig) -> None:
+    for field, v in (("accept_ratio", s.accept_ratio), ("alpha_factor", s.alpha_factor)):
+        if not (math.isfinite(v) and 0 < v < 1):
+            raise ConfigError(f"solver.{field}", f"must be in (0, 1), got {v}")
     if s.n_samples is not None and s.n_samples < 1:
         raise ConfigError("solver.n_samples", f"must be >= 1 (or unset), got {s.n_samples}")
-    positive_int = {
-        "solver.max_iter": s.max_iter,
-        "solver.n_alphas": s.n_alphas,
-        "solver.n_starts": s.n_starts,
-        "experiment.n_rollouts": cfg.experiment.n_rollouts,
-        "experiment.n_noise_trials": cfg.experiment.n_noise_trials,
-    }
-    for field, v in positive_int.items():
-        if v < 1:
-            raise ConfigError(field, f"must be >= 1, got {v}")
+    _at_least(0, {"solver.reuse_max": s.reuse_max})
+    _at_least(
+        1, {"solver.max_iter": s.max_iter, "solver.n_alphas": s.n_alphas, "solver.n_starts": s.n_starts}
+    )
     positive = {
         "solver.sigma_x": _SYSID.sigma_x if s.sigma_x is None else s.sigma_x,
         "solver.sigma_u": _SYSID.sigma_u if s.sigma_u is None else s.sigma_u,
@@ -655,26 +676,26 @@ def validate_static(cfg: Config) -> None:
     for field, v in positive.items():
         if not (math.isfinite(v) and v > 0):
             raise ConfigError(field, f"must be a finite positive number, got {v}")
-    for field, v in {
-        "experiment.rollout_sigma_x": cfg.experiment.rollout_sigma_x,
-        "experiment.rollout_sigma_u": cfg.experiment.rollout_sigma_u,
-        "solver.rel_tol": s.rel_tol,
-        "solver.k_tol": s.k_tol,
-        "solver.init_scale": s.init_scale,
-        "solver.mu_init": s.mu_init,
-        "solver.mu_min": s.mu_min,
-        "solver.mu_raise_alpha": s.mu_raise_alpha,
-        "solver.sysid_noise_floor": 0.0 if s.sysid_noise_floor is None else s.sysid_noise_floor,
-        "solver.sysid_significance": s.sysid_significance,
-        "solver.sysid_rank_tol": s.sysid_rank_tol,
-    }.items():
-        if not (math.isfinite(v) and v >= 0):
-            raise ConfigError(field, f"must be a finite number >= 0, got {v}")
-    if cfg.task.T is not None and cfg.task.T < 1:
-        raise ConfigError("task.T", f"horizon must be a positive integer, got {cfg.task.T}")
-    if cfg.system.substeps is not None and cfg.system.substeps < 1:
-        raise ConfigError("system.substeps", f"must be >= 1, got {cfg.system.substeps}")
-    sy = cfg.system
+    _nonnegative(
+        {
+            "solver.sysid_refine_tol": s.sysid_refine_tol,
+            "solver.reuse_tol": s.reuse_tol,
+            "solver.rel_tol": s.rel_tol,
+            "solver.k_tol": s.k_tol,
+            "solver.init_scale": s.init_scale,
+            "solver.mu_init": s.mu_init,
+            "solver.mu_min": s.mu_min,
+            "solver.mu_raise_alpha": s.mu_raise_alpha,
+            "solver.sysid_noise_floor": 0.0 if s.sysid_noise_floor is None else s.sysid_noise_floor,
+            "solver.sysid_significance": s.sysid_significance,
+            "solver.sysid_rank_tol": s.sysid_rank_tol,
+        }
+    )
+
+
+def _check_system(sy: SystemConfig) -> None:
+    if sy.substeps is not None and sy.substeps < 1:
+        raise ConfigError("system.substeps", f"must be >= 1, got {sy.substeps}")
     for field, v in (("system.timestep", sy.timestep), ("system.control_dt", sy.control_dt)):
         if v is not None and not (math.isfinite(v) and v > 0):
             raise ConfigError(field, f"must be a finite number of seconds > 0, got {v}")
@@ -684,8 +705,11 @@ def validate_static(cfg: Config) -> None:
         raise ConfigError(
             "system.native_threads", f"must be >= 1 (or unset: all cores), got {sy.native_threads}"
         )
-    _check_function_system(sy)
-    t = cfg.task
+
+
+def _check_task(t: TaskConfig) -> None:
+    if t.T is not None and t.T < 1:
+        raise ConfigError("task.T", f"horizon must be a positive integer, got {t.T}")
     if not (math.isfinite(t.goal_tolerance) and 0 < t.goal_tolerance <= 1):
         raise ConfigError("task.goal_tolerance", f"must be in (0, 1], got {t.goal_tolerance}")
     for i, g in enumerate(t.goals):
@@ -695,20 +719,11 @@ def validate_static(cfg: Config) -> None:
         if len(g.target) != 3:
             raise ConfigError(f"{where}.target", f"needs 3 numbers (x, y, z), got {len(g.target)}")
         check_finite(f"{where}.target", g.target)
-        for w in ("weight", "final_weight"):
-            v = getattr(g, w)
-            if not (math.isfinite(v) and v >= 0):
-                raise ConfigError(f"{where}.{w}", f"must be a finite number >= 0, got {v}")
-    d, m, mp = cfg.data, cfg.surrogate.sindy, cfg.surrogate.mlp
-    for field, v in {
-        "data.n_traj": d.n_traj,
-        "data.n_seeds": d.n_seeds,
-        "surrogate.sindy.harmonics": m.harmonics,
-        "surrogate.mlp.batch_size": mp.batch_size,
-        "surrogate.mlp.epochs": mp.epochs,
-    }.items():
-        if v < 1:
-            raise ConfigError(field, f"must be >= 1, got {v}")
+        _nonnegative({f"{where}.weight": g.weight, f"{where}.final_weight": g.final_weight})
+
+
+def _check_data(d: DataConfig) -> None:
+    _at_least(1, {"data.n_traj": d.n_traj, "data.n_seeds": d.n_seeds})
     check_finite("data.levels", d.levels)
     if not d.levels or any(v <= 0 for v in d.levels):
         bad = ", ".join(f"{v:g}" for v in d.levels if v <= 0) or "none"
@@ -717,15 +732,27 @@ def validate_static(cfg: Config) -> None:
         raise ConfigError("data.test_fraction", f"must be in (0, 1), got {d.test_fraction}")
     if d.n_traj < 2:
         raise ConfigError("data.n_traj", f"needs >= 2 trajectories to split, got {d.n_traj}")
-    for field, v in {
-        "data.x0_sigma": d.x0_sigma,
-        "surrogate.sindy.stlsq_threshold": m.stlsq_threshold,
-        "surrogate.sindy.stlsq_alpha": m.stlsq_alpha,
-        "surrogate.mlp.weight_decay": mp.weight_decay,
-    }.items():
-        if not (math.isfinite(v) and v >= 0):
-            raise ConfigError(field, f"must be a finite number >= 0, got {v}")
-    tol = cfg.surrogate.reduced_ltv_tol
+    _nonnegative({"data.x0_sigma": d.x0_sigma})
+
+
+def _check_surrogates(sc: SurrogateConfig) -> None:
+    m, mp = sc.sindy, sc.mlp
+    _at_least(
+        1,
+        {
+            "surrogate.sindy.harmonics": m.harmonics,
+            "surrogate.mlp.batch_size": mp.batch_size,
+            "surrogate.mlp.epochs": mp.epochs,
+        },
+    )
+    _nonnegative(
+        {
+            "surrogate.sindy.stlsq_threshold": m.stlsq_threshold,
+            "surrogate.sindy.stlsq_alpha": m.stlsq_alpha,
+            "surrogate.mlp.weight_decay": mp.weight_decay,
+        }
+    )
+    tol = sc.reduced_ltv_tol
     if tol is not None and not (math.isfinite(tol) and 0 <= tol < 1):
         raise ConfigError("surrogate.reduced_ltv_tol", f"must be in [0, 1) (or unset), got {tol}")
     if mp.stop_window < 0:
@@ -741,8 +768,9 @@ def validate_static(cfg: Config) -> None:
     bad = [e for e in mp.checkpoints if not 0 <= e <= mp.epochs]
     if bad:
         raise ConfigError("surrogate.mlp.checkpoints", f"{bad} outside 0..mlp.epochs={mp.epochs}")
-    _check_registered(cfg)
-    a = cfg.analysis
+
+
+def _check_analysis(a: AnalysisConfig) -> None:
     for field, v in {
         "analysis.n_datasets": a.n_datasets - 1,
         "analysis.gram_points": a.gram_points,
@@ -767,9 +795,6 @@ def validate_static(cfg: Config) -> None:
             raise ConfigError(field, "levels and scales must be > 0")
     if a.theory_max_order > 14:
         raise ConfigError("analysis.theory_max_order", "at most 14 (exact rational arithmetic)")
-    check_finite("experiment.noise_levels", cfg.experiment.noise_levels)
-    if any(v < 0 for v in cfg.experiment.noise_levels):
-        raise ConfigError("experiment.noise_levels", "noise levels must be >= 0")
 
 
 def _check_registered(cfg: Config) -> None:
