@@ -7,6 +7,7 @@ import os
 import shutil
 
 from experiments import report_control, report_mpc, report_pde
+from experiments.report_rules import RULES, rules_table
 from mjx_surrogate.results import read_json, versions
 
 
@@ -42,7 +43,7 @@ def _state_scale(folder: str | None) -> float | None:
     return float(np.sqrt(np.mean(X**2)))
 
 
-LOCAL_SPREAD = 0.5  # a data set is local when its median relative spread is below this
+LOCAL_SPREAD = RULES["prediction"].value("local_spread")  # a data set is local below this spread
 
 
 def _predict_claim(m: dict, scale: float | None = None) -> tuple[bool | None, str]:
@@ -69,7 +70,8 @@ def _predict_claim(m: dict, scale: float | None = None) -> tuple[bool | None, st
         f"{100 * m['levels'][0]:g} % the LTV error is {_f(ltv_lo / best_glob_lo if ltv_lo else None)}x "
         f"the best global model's."
     )
-    accurate = ltv_lo is not None and scale is not None and ltv_lo <= 0.1 * scale
+    rule = RULES["prediction"]
+    accurate = ltv_lo is not None and scale is not None and ltv_lo <= rule.value("ltv_state_fraction") * scale
     if scale is not None and ltv_lo is not None:
         text += (
             f" The LTV error at the lowest level is {_f(ltv_lo / scale)} of the RMS state "
@@ -84,7 +86,9 @@ def _predict_claim(m: dict, scale: float | None = None) -> tuple[bool | None, st
             + ", ".join(f"{_f(spread.get(lv))} at {100 * float(lv):g} %" for lv in levels)
             + f"; open-loop gain of the optimum {_f(loc.get('open_loop_gain'))}."
         )
-    held = all(grows.values()) and accurate and ltv_lo <= 1.5 * best_glob_lo and local
+    held = (
+        all(grows.values()) and accurate and ltv_lo <= rule.value("ltv_over_global") * best_glob_lo and local
+    )
     if not held and spread and not local:
         text += (
             f" Cause: the data did not stay local even at the lowest level (spread "
@@ -134,6 +138,8 @@ def _section(lines, title, caption, figures, measured, verdict, note=""):
 
 
 def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wall: float) -> str:
+    """The report's Markdown, its figures copied into ``fig_dir`` (links relative to
+    ``base``), from the run folders of each experiment (None: missing)."""
     os.makedirs(fig_dir, exist_ok=True)
 
     def fig(name: str, file: str) -> str | None:
@@ -144,6 +150,22 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
         shutil.copyfile(src, dst)
         return os.path.relpath(dst, base)
 
+    L = _header(folders, times, quick, wall)
+    _prediction_sections(L, folders, fig)
+    a = _load(folders.get("cartpole_analysis"))
+    _analysis_sections(L, a, fig)
+    report_control.control_sections(L, folders, fig, _section, _verdict, _f, _read)
+    report_control.swimmer15_section(L, folders, fig, _section, _verdict, _f)
+    _theory_section(L, folders, fig)
+    report_control.horizon_sections(L, folders, fig, _section, _verdict, _f)
+    report_pde.pde_sections(L, folders, fig, _section, _verdict, _f, _read)
+    report_mpc.closed_loop_sections(L, folders, fig, _section, _read)
+    _reading(L, folders, a)
+    L += rules_table()
+    return "\n".join(L) + "\n"
+
+
+def _header(folders: dict, times: dict, quick: bool, wall: float) -> list[str]:
     L = [
         "# Reproduction report" + (" (--quick: pipeline check, not evidence)" if quick else ""),
         "",
@@ -158,75 +180,73 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
         "|---|---|---|",
     ]
     L += [f"| {n} | `{folders.get(n) or 'missing'}` | {_f(times.get(n), 4)} |" for n in folders]
-    L += [
+    return L + [
         f"\nTotal wall time of the experiments on this machine: "
         f"{_f(sum(times.values()), 4)} s, each experiment timed by the invocation that ran "
         f"it (this invocation: {wall:.0f} s).",
         "",
     ]
 
+
+PREDICTIONS = (
+    (
+        "pendulum_predict",
+        "Pendulum swing-up (Fig. LTV)",
+        "Comparing the performance of the nonlinear SINDY and MLP models with the LTV model "
+        "on swing-up pendulum trajectories.",
+        ("predict_10pct.png", "predict_60pct.png"),
+    ),
+    (
+        "cartpole_predict",
+        "Cartpole swing-up (Fig. LTV_Cartpole)",
+        "Comparing the performance of the SINDY and MLP models with the LTV model on "
+        "swing-up Cartpole trajectories.",
+        ("predict_10pct.png", "predict_60pct.png"),
+    ),
+    (
+        "fish_predict",
+        "Fish (Fig. Fish)",
+        "Performance of the surrogate models on Fish trajectories.",
+        ("predict_5pct.png", "predict_30pct.png"),
+    ),
+)
+
+
+def _prediction_sections(L: list, folders: dict, fig) -> None:
     L += ["## Sampling distributions and predictions", ""]
-    for name, title, caption, figs in (
-        (
-            "pendulum_predict",
-            "Pendulum swing-up (Fig. LTV)",
-            "Comparing the performance of the nonlinear SINDY and MLP models with the LTV model "
-            "on swing-up pendulum trajectories.",
-            ("predict_10pct.png", "predict_60pct.png"),
-        ),
-        (
-            "cartpole_predict",
-            "Cartpole swing-up (Fig. LTV_Cartpole)",
-            "Comparing the performance of the SINDY and MLP models with the LTV model on "
-            "swing-up Cartpole trajectories.",
-            ("predict_10pct.png", "predict_60pct.png"),
-        ),
-        (
-            "fish_predict",
-            "Fish (Fig. Fish)",
-            "Performance of the surrogate models on Fish trajectories.",
-            ("predict_5pct.png", "predict_30pct.png"),
-        ),
-    ):
+    for name, title, caption, figs in PREDICTIONS:
         m = _load(folders.get(name))
         held, text = _predict_claim(m, _state_scale(folders.get(name)))
         figs = [fig(name, f) for f in figs] + [
             fig(name, n) for n in ("multi_step_median_vs_level.png", "locality.png")
         ]
         table = _read(folders.get(name), "rmse_table.md")
-        _section(
-            L,
-            title,
-            caption,
-            figs,
-            text + ("\n\n" + table if table else ""),
-            _verdict(held),
-            "Claim: the global models' error grows with the perturbation level while the "
-            "local LTV model stays accurate near its trajectory (rule used: every global "
-            "model's error grows from the lowest to the highest level; at the lowest level "
-            "the LTV error is below 10 % of the RMS state along the optimum and at most "
-            "1.5x the best global model's; the lowest level's data stayed local, median "
-            f"relative spread below {LOCAL_SPREAD:g}).",
-        )
+        measured = text + ("\n\n" + table if table else "")
+        _section(L, title, caption, figs, measured, _verdict(held), RULES["prediction"].note())
 
-    a = _load(folders.get("cartpole_analysis"))
+
+CONVERGENCE = (
+    (
+        "SINDy",
+        ("convergence_sindy_10pct.png", "convergence_sindy_100pct.png"),
+        "Convergence of the SINDY model learned on datasets with random initial seeds, with "
+        "perturbations of 10% U_max (a)-(b), and 100% U_max (c)-(d) w.r.t. the optimal swingup "
+        "trajectory.",
+    ),
+    (
+        "MLP",
+        ("convergence_mlp_5pct.png", "convergence_mlp_25pct.png"),
+        "Convergence of the MLP model learned on datasets with random initial seeds, with "
+        "perturbations of 5% and 25% U_max w.r.t. the optimal swingup trajectory.",
+    ),
+)
+
+
+def _analysis_sections(L: list, a: dict, fig) -> None:
+    """Convergence across seeds, Gram conditioning and variance (cartpole_analysis)."""
     L += ["## Model convergence, ill-conditioning and variance (cartpole)", ""]
     conv = a.get("convergence", {})
-    for kind, files, caption in (
-        (
-            "SINDy",
-            ("convergence_sindy_10pct.png", "convergence_sindy_100pct.png"),
-            "Convergence of the SINDY model learned on datasets with random initial seeds, with "
-            "perturbations of 10% U_max (a)-(b), and 100% U_max (c)-(d) w.r.t. the optimal swingup "
-            "trajectory.",
-        ),
-        (
-            "MLP",
-            ("convergence_mlp_5pct.png", "convergence_mlp_25pct.png"),
-            "Convergence of the MLP model learned on datasets with random initial seeds, with "
-            "perturbations of 5% and 25% U_max w.r.t. the optimal swingup trajectory.",
-        ),
-    ):
+    for kind, files, caption in CONVERGENCE:
         rows = {k: v for k, v in conv.items() if k.startswith(kind)}
         spreads = [v["prediction_spread"] for v in rows.values()]
         held = (spreads[-1] > spreads[0]) if len(spreads) >= 2 else None
@@ -235,30 +255,37 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
             + ", ".join(f"{k}: {_f(v['prediction_spread'])}" for k, v in rows.items())
             + "."
         )
+        figs = [fig("cartpole_analysis", f) for f in files]
         _section(
             L,
             f"{kind} convergence across seeds",
             caption,
-            [fig("cartpole_analysis", f) for f in files],
+            figs,
             text,
             _verdict(held),
-            "Claim: the spread across seeds grows with the perturbation level.",
+            RULES["convergence"].note(),
         )
-    ill = a.get("ill_conditioning", {})
+    _conditioning_sections(L, a.get("ill_conditioning", {}), fig)
+    _variance_sections(L, a.get("variance", {}), fig)
+
+
+def _ill_conditioned(rows: dict) -> bool | None:
+    floor = RULES["ill_conditioning"].value("min_condition")
+    return all(v["condition"] is None or v["condition"] > floor for v in rows.values()) if rows else None
+
+
+def _conditioning_sections(L: list, ill: dict, fig) -> None:
     sindy_c = {k: v for k, v in ill.items() if k.startswith("SINDy")}
     mlp_c = {k: v for k, v in ill.items() if k.startswith("MLP")}
-    gram_fig = fig("cartpole_analysis", "gram_spectra.png")
     _section(
         L,
         "SINDy Gram conditioning (Fig. IllCond_SINDY)",
         "Conditioning of the SINDY model learned on perturbations of 5% U_max w.r.t. the "
         "optimal Cartpole swingup trajectory. We assume two sets of basis functions.",
-        [gram_fig],
+        [fig("cartpole_analysis", "gram_spectra.png")],
         "; ".join(f"{k}: cond {_f(v['condition'])} ({v['precision']})" for k, v in sindy_c.items()),
-        _verdict(
-            all(v["condition"] is None or v["condition"] > 1e6 for v in sindy_c.values()) if sindy_c else None
-        ),
-        "Claim: the Gram matrix is severely ill-conditioned.",
+        _verdict(_ill_conditioned(sindy_c)),
+        RULES["ill_conditioning"].note(),
     )
     _section(
         L,
@@ -271,12 +298,12 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
             f"{v['n_params']} eigenvalues below 1e-12 of the largest"
             for k, v in mlp_c.items()
         ),
-        _verdict(
-            all(v["condition"] is None or v["condition"] > 1e6 for v in mlp_c.values()) if mlp_c else None
-        ),
-        "(Spectra in the SINDy figure above.)",
+        _verdict(_ill_conditioned(mlp_c)),
+        RULES["ill_conditioning"].note() + " (Spectra in the SINDy figure above.)",
     )
-    var = a.get("variance", {})
+
+
+def _variance_sections(L: list, var: dict, fig) -> None:
     sv = {k: v for k, v in var.items() if k.startswith("SINDy")}
     vals = [v["projection_std_mean"] for v in sv.values()]
     _section(
@@ -288,9 +315,10 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
         "Std across data sets of the error projections (1/R) Theta'(y - Theta C_pooled), mean "
         "over basis functions: " + ", ".join(f"{k}: {_f(v['projection_std_mean'])}" for k, v in sv.items()),
         _verdict(vals[-1] > vals[0] if len(vals) >= 2 else None),
-        "Claim: the spread grows with basis order and perturbation level.",
+        RULES["sindy_variance"].note(),
     )
     mv = {k: v for k, v in var.items() if k.startswith("MLP")}
+    max_cos = RULES["mlp_variance"].value("max_cosine")
     _section(
         L,
         "MLP variance (Fig. Variance MLP)",
@@ -300,13 +328,12 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
         "Mean pairwise cosine between the descent directions (1/R) H' Delta of networks with "
         "the same initial weights trained on different data sets: "
         + ", ".join(f"{k}: {_f(v['mean_pairwise_cosine'])}" for k, v in mv.items()),
-        _verdict(min(v["mean_pairwise_cosine"] for v in mv.values()) < 0.99 if mv else None),
-        "Claim: different data sets give different descent directions.",
+        _verdict(min(v["mean_pairwise_cosine"] for v in mv.values()) < max_cos if mv else None),
+        RULES["mlp_variance"].note(),
     )
 
-    report_control.control_sections(L, folders, fig, _section, _verdict, _f, _read)
-    report_control.swimmer15_section(L, folders, fig, _section, _verdict, _f)
 
+def _theory_section(L: list, folders: dict, fig) -> None:
     t = _load(folders.get("theory"))
     L += ['## The theory, numerically (Section "Data Driven Solutions")', ""]
     figs = (
@@ -330,7 +357,8 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
         figs,
         text + "\n\n" + _read(folders.get("theory"), "theory_table.md"),
         _verdict(all(d["monomial_variance_formula_exact"] for d in fnd.values()) if fnd else None),
-        "The monomial variance formula is exact. The printed Hermite formula keeps only the "
+        RULES["theory"].note() + " "
+        "The printed Hermite formula keeps only the "
         "leading monomial and carries a sigma^(2N) factor, while the normalised basis "
         "He_N(x/sigma)/sqrt(N!) is scale-free: its exact variance (2, 14, 92, 638, ...) is "
         "the same for every sigma, so the formula is off by orders of magnitude either way. "
@@ -338,9 +366,9 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
         "normalised Legendre basis grows slowly (about 2.5x from N = 1 to 10): there the "
         "paper's claim of combinatorial-exponential sample complexity does not hold.",
     )
-    report_control.horizon_sections(L, folders, fig, _section, _verdict, _f)
-    report_pde.pde_sections(L, folders, fig, _section, _verdict, _f, _read)
-    report_mpc.closed_loop_sections(L, folders, fig, _section, _read)
+
+
+def _reading(L: list, folders: dict, a: dict) -> None:
     L += ["## Reading these results", ""]
     for name in ("pendulum_predict", "cartpole_predict", "fish_predict"):
         loc = _load(folders.get(name)).get("locality") or {}
@@ -359,4 +387,3 @@ def render(folders: dict, times: dict, fig_dir: str, base: str, quick: bool, wal
         "`python -m experiments.reproduce` to regenerate them and this report.",
         "",
     ]
-    return "\n".join(L) + "\n"

@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 from typing import Callable
 
+from experiments.report_rules import RULES
 from mjx_surrogate.results import read_json
 from mjx_surrogate.systems.plant import parse_plant, plant_slug
 
@@ -85,8 +86,7 @@ def closed_loop_sections(L: list, folders: dict, fig: Callable, section: Callabl
             figs,
             text,
             f"**{verdicts[name]}**",
-            "Claim (the paper's, carried into closed loop): global surrogates fail where local LTV models "
-            "(D2C-MPC) work.",
+            RULES["closed_loop"].note(),
         )
     counts = {}
     for name, v in verdicts.items():

@@ -1,0 +1,133 @@
+"""The reproduction report's claims and the rules that judge them, as data.
+
+Each :class:`Rule` names whose claim it is, the claim, the rule that decides it on the
+measured numbers (in words, with its thresholds filled in) and the thresholds themselves;
+the report's sections read their thresholds here, state each rule under its verdict
+(:meth:`Rule.note`) and end with the table of all of them (:func:`rules_table`).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+from mjx_surrogate.analysis.closed_loop import MATCH_TOL, WORKS_FACTOR
+
+
+class Rule(NamedTuple):
+    """``rule`` may name a threshold as ``{name}`` (printed with ``:g``) or ``{name_pct}``
+    (100 x the threshold, a percentage)."""
+
+    source: str
+    claim: str
+    rule: str
+    thresholds: tuple[tuple[str, float], ...] = ()
+
+    def value(self, name: str) -> float:
+        """A threshold by name."""
+        return dict(self.thresholds)[name]
+
+    def rule_text(self) -> str:
+        values = {k: f"{v:g}" for k, v in self.thresholds}
+        values |= {f"{k}_pct": f"{100 * v:g}" for k, v in self.thresholds}
+        return self.rule.format(**values)
+
+    def note(self) -> str:
+        """The line under a section's verdict."""
+        return f"Claim ({self.source}): {self.claim} (rule: {self.rule_text()})."
+
+
+RULES: dict[str, Rule] = {
+    "prediction": Rule(
+        "the paper's",
+        "the global models' error grows with the perturbation level while the local LTV model "
+        "stays accurate near its trajectory",
+        "every global model's error grows from the lowest to the highest level; at the lowest "
+        "level the LTV error is below {ltv_state_fraction_pct} % of the RMS state along the "
+        "optimum and at most {ltv_over_global}x the best global model's; the lowest level's "
+        "data stayed local, median relative spread below {local_spread}",
+        (("ltv_state_fraction", 0.1), ("ltv_over_global", 1.5), ("local_spread", 0.5)),
+    ),
+    "convergence": Rule(
+        "the paper's",
+        "the spread across seeds grows with the perturbation level",
+        "the spread of the predicted trajectories at the highest level exceeds the lowest level's",
+    ),
+    "ill_conditioning": Rule(
+        "the paper's",
+        "the Gram matrix is severely ill-conditioned",
+        "every model's condition number is above {min_condition}, or infinite",
+        (("min_condition", 1e6),),
+    ),
+    "sindy_variance": Rule(
+        "the paper's",
+        "the spread grows with basis order and perturbation level",
+        "the last library's mean spread of the error projections exceeds the first's",
+    ),
+    "mlp_variance": Rule(
+        "the paper's",
+        "different data sets give different descent directions",
+        "some network's mean pairwise cosine between descent directions below {max_cosine}",
+        (("max_cosine", 0.99),),
+    ),
+    "theory": Rule(
+        "the paper's, Section 3",
+        "the variance formula of the monomial basis is exact",
+        "it equals the exact variance at every order and scale",
+    ),
+    "control": Rule(
+        "the paper's",
+        "the LTV approach reaches the optimum from a random start; the surrogate-based controllers do not",
+        "D2C converged, within {exact_gap_pct} % of the exact oracle where it ran, and every "
+        "surrogate-based controller is more than {surrogate_worse_pct} % worse than D2C on the "
+        "black box",
+        (("exact_gap", 0.01), ("surrogate_worse", 0.01)),
+    ),
+    "swimmer15": Rule(
+        "this project's",
+        "D2C converges on the 15-link swimmer",
+        "its status is converged: the relative cost change fell below `rel_tol`",
+    ),
+    "horizon": Rule(
+        "Pfrommer et al.",
+        "under the gains the rollouts stay close to the nominal and the identified closed-loop "
+        "model keeps its accuracy to the end of the horizon",
+        "at every level the closed-loop rollouts' spread at T is below the open-loop rollouts', "
+        "and the error of A + BK over the last quarter of the horizon is no larger",
+    ),
+    "ro_d2c": Rule(
+        "this project's",
+        "RO-D2C converges to the exact oracle's cost",
+        "converged, and within {gap_pct} % of the oracle's cost",
+        (("gap", 0.01),),
+    ),
+    "pde_prediction": Rule(
+        "the paper's, carried to a PDE",
+        "a local LTV model predicts the trajectories near the optimum better than every global surrogate",
+        "at the lowest level the best local model's multi-step error is below the best global model's",
+    ),
+    "closed_loop": Rule(
+        "the paper's, carried into closed loop",
+        "global surrogates fail where local LTV models (D2C-MPC) work",
+        "judged where D2C-MPC's median cost is finite and at most {works_factor}x the offline "
+        "optimum's; a surrogate's MPC matches it when its median cost is within {match_tol_pct} % "
+        "and it reaches the goal as often; held where none matches in any judged condition, did "
+        "not hold where one matches in every one, in part otherwise",
+        (("works_factor", WORKS_FACTOR), ("match_tol", MATCH_TOL)),
+    ),
+}
+
+
+def rules_table() -> list[str]:
+    """The report's last part: every rule, its claim and thresholds."""
+    lines = [
+        "## The rules behind the verdicts",
+        "",
+        "Defined in `experiments/report_rules.py`; each section above states its own.",
+        "",
+        "| rule | whose claim | claim | decided by | thresholds |",
+        "|---|---|---|---|---|",
+    ]
+    for name, r in RULES.items():
+        t = ", ".join(f"{k} = {v:g}" for k, v in r.thresholds) or "-"
+        lines.append(f"| `{name}` | {r.source} | {r.claim} | {r.rule_text()} | {t} |")
+    return lines + [""]
