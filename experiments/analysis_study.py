@@ -8,6 +8,7 @@ meter naming the fit or training it runs), each figure drawn once its stage is w
 from __future__ import annotations
 
 import time
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -15,10 +16,13 @@ import numpy as np
 
 from mjx_surrogate import data, pipeline, plots, progress, step_models
 from mjx_surrogate.analysis import spectra
+from mjx_surrogate.config import Config
 from mjx_surrogate.resolution import Resolved, analysis_library_specs
 from mjx_surrogate.results import Run
 from mjx_surrogate.surrogates import mlp, sindy
 from mjx_surrogate.surrogates.registry import library_specs, mlp_spec
+from mjx_surrogate.systems import System
+from mjx_surrogate.tasks import Task
 
 
 def _datasets(system, task, X_star, U_star, key, cfg, level):
@@ -47,104 +51,127 @@ def _spread(P: np.ndarray) -> float:
     return float(np.nanmean(np.nanstd(P, axis=0))) if np.isfinite(P).any() else float("inf")
 
 
+class _Study(NamedTuple):
+    """What every stage of the study needs: the config, system and task, the optimum X_star
+    [T+1, nx], U_star [T, nu], the libraries, the MLP's spec, a key per stage."""
+
+    cfg: Config
+    system: System
+    task: Task
+    X_star: jax.Array
+    U_star: jax.Array
+    specs: dict
+    spec_mlp: mlp.MLPSpec
+    keys: dict
+
+
 def run(res: Resolved, record: Run, key: jax.Array) -> str:
     cfg, system, task = res
-    a = cfg.analysis
-    specs = library_specs(cfg, system) | analysis_library_specs(cfg, system)
     keys = dict(zip(("opt", "conv", "gram", "var"), jax.random.split(key, 4)))
     record.add_arrays({"x0": task.x0})
     m_opt, a_opt = record.stage("optimum", pipeline.optimum_stage(res, keys["opt"]))
     if m_opt["cost"] is None:
         return "diverged"
     X_star, U_star = jnp.asarray(a_opt["X_star"]), jnp.asarray(a_opt["U_star"])
-    labels = list(system.state_labels)
-    t = np.arange(task.T + 1) * system.dt
+    specs = library_specs(cfg, system) | analysis_library_specs(cfg, system)
+    s = _Study(cfg, system, task, X_star, U_star, specs, mlp_spec(cfg), keys)
+    _, a_conv = record.stage("convergence", lambda: _convergence(s))
+    _convergence_figures(record, s, a_conv)
+    _, a_gram = record.stage("ill_conditioning", lambda: _ill_conditioning(s))
+    _gram_figure(record, s, a_gram)
+    _, a_var = record.stage("variance", lambda: _variance(s))
+    _variance_figures(record, s, a_var)
+    record.folder.write_text("analysis_table.md", _table(record.metrics))
+    return m_opt["status"]
+
+
+def _convergence(s: _Study) -> tuple[dict, dict]:
+    """1. Model convergence across data sets: each model's open-loop prediction of the
+    optimal controls, trained on ``n_datasets`` data sets per level."""
+    a = s.cfg.analysis
+    conv, arrays = {}, {}
+    x0, U1 = s.X_star[0][None], s.U_star[None]
+    runs = [
+        *(("SINDy", lv, j) for j, lv in enumerate(a.convergence_sindy_levels)),
+        *(("MLP", lv, j) for j, lv in enumerate(a.convergence_mlp_levels)),
+    ]
+    with progress.steps("analysis: model convergence", len(runs), s.cfg.experiment.progress) as meter:
+        for kind, level, j in runs:
+            meter.advance(f"{kind} {100 * level:g}%: {a.n_datasets} data sets")
+            k = jax.random.fold_in(s.keys["conv"], 100 * j + len(kind))
+            sets = _datasets(s.system, s.task, s.X_star, s.U_star, k, s.cfg, level)
+            steps, extra = _sindy_fits(s, sets) if kind == "SINDy" else _mlp_fits(s, sets, j)
+            P = np.stack(
+                [np.asarray(step_models.predict(step_models.time_invariant(f), x0, U1))[0] for f in steps]
+            )
+            conv[f"{kind} {100 * level:g}%"] = {
+                "prediction_spread": _spread(P),
+                **extra,
+                "final_state_spread": np.nanstd(P[:, -1], axis=0).tolist(),
+            }
+            arrays[f"convergence_{kind}_{level:g}"] = P
+    return conv, arrays
+
+
+def _sindy_fits(s: _Study, sets: list) -> tuple[list, dict]:
+    """One SINDy fit per data set: their steps, and the coefficients' relative spread."""
+    sc = s.cfg.surrogate
+    spec = s.specs[s.cfg.analysis.convergence_library]
+    fits = [
+        sindy.fit(spec, tr.x, tr.u, tr.x_next, increment=sc.increment, method=sc.sindy.method)
+        for tr, _ in sets
+    ]
+    C = np.stack([np.asarray(m.coef) for m in fits])
+    return [m.step for m in fits], {
+        "coef_rel_std": float(np.mean(C.std(0)) / max(np.mean(np.abs(C.mean(0))), 1e-300))
+    }
+
+
+def _mlp_fits(s: _Study, sets: list, j: int) -> tuple[list, dict]:
+    """One network per data set, trained together: their steps, and how long they trained."""
+    nx, spec_mlp, n = s.system.nx, s.spec_mlp, s.cfg.analysis.n_datasets
+    z, xn = _common([tr for tr, _ in sets])
+    zt, xnt = _common([te for _, te in sets])
+    y = mlp.targets(z[..., :nx], xn, spec_mlp.increment)
+    yt = mlp.targets(zt[..., :nx], xnt, spec_mlp.increment)
+    kk = jax.random.split(jax.random.fold_in(s.keys["conv"], 7 + j), n)
+    t0 = time.perf_counter()
+    trained = jax.block_until_ready(mlp.train_seeds(spec_mlp, kk, z, y, zt, yt, mesh=s.system.mesh))
+    steps = [mlp.unstack(trained, i).model.step for i in range(n)]
+    return steps, _training(trained, time.perf_counter() - t0)
+
+
+def _convergence_figures(record: Run, s: _Study, a_conv: dict) -> None:
+    a, system = s.cfg.analysis, s.system
+    t = np.arange(s.task.T + 1) * system.dt
     coords = list(range(min(system.nq, 2)))
-    x0, U1 = X_star[0][None], U_star[None]
-    spec_mlp = mlp_spec(cfg)
-
-    show = cfg.experiment.progress
-
-    def convergence():  # 1. Model convergence across data sets
-        conv, arrays = {}, {}
-        n = len(a.convergence_sindy_levels) + len(a.convergence_mlp_levels)
-        with progress.steps("analysis: model convergence", n, show) as meter:
-            for kind, level, j in [
-                *(("SINDy", lv, j) for j, lv in enumerate(a.convergence_sindy_levels)),
-                *(("MLP", lv, j) for j, lv in enumerate(a.convergence_mlp_levels)),
-            ]:
-                meter.advance(f"{kind} {100 * level:g}%: {a.n_datasets} data sets")
-                k = jax.random.fold_in(keys["conv"], 100 * j + len(kind))
-                sets = _datasets(system, task, X_star, U_star, k, cfg, level)
-                if kind == "SINDy":
-                    spec = specs[a.convergence_library]
-                    fits = [
-                        sindy.fit(
-                            spec,
-                            tr.x,
-                            tr.u,
-                            tr.x_next,
-                            increment=cfg.surrogate.increment,
-                            method=cfg.surrogate.sindy.method,
-                        )
-                        for tr, _ in sets
-                    ]
-                    steps = [m.step for m in fits]
-                    C = np.stack([np.asarray(m.coef) for m in fits])
-                    extra = {
-                        "coef_rel_std": float(np.mean(C.std(0)) / max(np.mean(np.abs(C.mean(0))), 1e-300))
-                    }
-                else:
-                    z, xn = _common([tr for tr, _ in sets])
-                    zt, xnt = _common([te for _, te in sets])
-                    y, yt = (
-                        mlp.targets(z[..., : system.nx], xn, spec_mlp.increment),
-                        mlp.targets(zt[..., : system.nx], xnt, spec_mlp.increment),
-                    )
-                    kk = jax.random.split(jax.random.fold_in(keys["conv"], 7 + j), a.n_datasets)
-                    t0 = time.perf_counter()
-                    trained = jax.block_until_ready(
-                        mlp.train_seeds(spec_mlp, kk, z, y, zt, yt, mesh=system.mesh)
-                    )
-                    steps = [mlp.unstack(trained, i).model.step for i in range(a.n_datasets)]
-                    extra = _training(trained, time.perf_counter() - t0)
-                P = np.stack(
-                    [np.asarray(step_models.predict(step_models.time_invariant(s), x0, U1))[0] for s in steps]
-                )
-                conv[f"{kind} {100 * level:g}%"] = {
-                    "prediction_spread": _spread(P),
-                    **extra,
-                    "final_state_spread": np.nanstd(P[:, -1], axis=0).tolist(),
-                }
-                arrays[f"convergence_{kind}_{level:g}"] = P
-        return conv, arrays
-
-    conv, a_conv = record.stage("convergence", convergence)
     for kind, levels in (("SINDy", a.convergence_sindy_levels), ("MLP", a.convergence_mlp_levels)):
         for level in levels:
             record.figure(
                 f"convergence_{kind.lower()}_{100 * level:g}pct.png",
                 lambda: plots.seed_overlay(
                     t,
-                    np.asarray(X_star),
+                    np.asarray(s.X_star),
                     a_conv[f"convergence_{kind}_{level:g}"],
                     coords,
-                    labels,
+                    list(system.state_labels),
                     f"{kind} trained on {a.n_datasets} data sets, {100 * level:g}% U_max: optimal controls",
                 ),
             )
 
-    def ill_conditioning():  # 2. Gram spectra
-        n = len(a.gram_libraries) + len(a.gram_mlp_levels)
-        with progress.steps("analysis: Gram spectra", n, show) as meter:
-            return _gram(meter)
 
-    def _gram(meter):
-        gram, arrays = {}, {}
-        ((tr, _),) = _datasets(system, task, X_star, U_star, keys["gram"], _one(cfg), a.gram_sindy_level)
+def _ill_conditioning(s: _Study) -> tuple[dict, dict]:
+    """2. Gram spectra: SINDy's design Gram per library, the MLP's Jacobian Gram per level."""
+    a, system, cfg = s.cfg.analysis, s.system, s.cfg
+    gram, arrays = {}, {}
+    n = len(a.gram_libraries) + len(a.gram_mlp_levels)
+    with progress.steps("analysis: Gram spectra", n, cfg.experiment.progress) as meter:
+        ((tr, _),) = _datasets(
+            system, s.task, s.X_star, s.U_star, s.keys["gram"], _one(cfg), a.gram_sindy_level
+        )
         for name in a.gram_libraries:
             meter.advance(f"SINDy {name}")
-            theta = sindy.design(specs[name], tr.x, tr.u)
+            theta = sindy.design(s.specs[name], tr.x, tr.u)
             eig = spectra.eigenvalues(sindy.gram(theta))
             gram[f"SINDy {name} {100 * a.gram_sindy_level:g}%"] = {
                 "condition": spectra.condition(eig),
@@ -154,48 +181,58 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             arrays[f"sindy_gram_eigs_{name}"] = eig
         for j, level in enumerate(a.gram_mlp_levels):
             meter.advance(f"MLP {100 * level:g}%: training, Jacobian Gram")
-            ((tr, te),) = _datasets(
-                system, task, X_star, U_star, jax.random.fold_in(keys["gram"], j + 1), _one(cfg), level
-            )
-            z = jnp.concatenate([tr.x, tr.u], -1)
-            zt = jnp.concatenate([te.x, te.u], -1)
-            r = mlp.train(
-                spec_mlp,
-                jax.random.fold_in(keys["gram"], 50 + j),
-                z,
-                mlp.targets(tr.x, tr.x_next, spec_mlp.increment),
-                zt,
-                mlp.targets(te.x, te.x_next, spec_mlp.increment),
-            )
-            zs, _ = spectra.standardise(r.model, z[: a.gram_points], z[: a.gram_points, : system.nx])
-            eig = spectra.eigenvalues(spectra.mlp_gram(r.model, zs))
-            gram[f"MLP {100 * level:g}%"] = {
-                "condition": spectra.condition(eig),
-                "n_params": int(eig.size),
-                "eigenvalues_below_1e-12_of_max": int(np.sum(eig < 1e-12 * eig[0])),
-                "precision": "float64 Gram of float32 Jacobians",
-            }
-            arrays[f"mlp_gram_eigs_{level:g}"] = eig
-        return gram, arrays
+            gram[f"MLP {100 * level:g}%"], arrays[f"mlp_gram_eigs_{level:g}"] = _mlp_gram(s, j, level)
+    return gram, arrays
 
-    _, a_gram = record.stage("ill_conditioning", ill_conditioning)
+
+def _mlp_gram(s: _Study, j: int, level: float) -> tuple[dict, np.ndarray]:
+    """One network trained at ``level``: its Jacobian Gram's spectrum on gram_points inputs."""
+    a, spec_mlp, key = s.cfg.analysis, s.spec_mlp, s.keys["gram"]
+    ((tr, te),) = _datasets(
+        s.system, s.task, s.X_star, s.U_star, jax.random.fold_in(key, j + 1), _one(s.cfg), level
+    )
+    z = jnp.concatenate([tr.x, tr.u], -1)
+    zt = jnp.concatenate([te.x, te.u], -1)
+    r = mlp.train(
+        spec_mlp,
+        jax.random.fold_in(key, 50 + j),
+        z,
+        mlp.targets(tr.x, tr.x_next, spec_mlp.increment),
+        zt,
+        mlp.targets(te.x, te.x_next, spec_mlp.increment),
+    )
+    zs, _ = spectra.standardise(r.model, z[: a.gram_points], z[: a.gram_points, : s.system.nx])
+    eig = spectra.eigenvalues(spectra.mlp_gram(r.model, zs))
+    return {
+        "condition": spectra.condition(eig),
+        "n_params": int(eig.size),
+        "eigenvalues_below_1e-12_of_max": int(np.sum(eig < 1e-12 * eig[0])),
+        "precision": "float64 Gram of float32 Jacobians",
+    }, eig
+
+
+def _gram_figure(record: Run, s: _Study, a_gram: dict) -> None:
+    a = s.cfg.analysis
     spectra_plot = {f"SINDy {n}": np.sqrt(a_gram[f"sindy_gram_eigs_{n}"]) for n in a.gram_libraries}
     spectra_plot |= {
         f"MLP {100 * lv:g}%": np.sqrt(a_gram[f"mlp_gram_eigs_{lv:g}"]) for lv in a.gram_mlp_levels
     }  # singular values of Theta / sqrt(R)
     record.figure("gram_spectra.png", lambda: plots.spectra(spectra_plot, "Gram matrix spectra"))
 
-    def variance():  # 3. Variance of the projections across data sets
-        with progress.steps("analysis: variance", len(a.variance_libraries) + 1, show) as meter:
-            return _variance(meter)
 
-    def _variance(meter):
-        var, arrays = {}, {}
+def _variance(s: _Study) -> tuple[dict, dict]:
+    """3. Variance of the error projections across data sets (SINDy), and the MLP's descent
+    directions across data sets."""
+    a, cfg, system = s.cfg.analysis, s.cfg, s.system
+    var, arrays = {}, {}
+    with progress.steps(
+        "analysis: variance", len(a.variance_libraries) + 1, cfg.experiment.progress
+    ) as meter:
         for j, (name, level) in enumerate(zip(a.variance_libraries, a.variance_levels)):
             meter.advance(f"SINDy {name} {100 * level:g}%: {a.n_datasets} data sets")
-            sets = _datasets(system, task, X_star, U_star, jax.random.fold_in(keys["var"], j), cfg, level)
-            spec = specs[name]
-            thetas = [sindy.design(spec, tr.x, tr.u) for tr, _ in sets]
+            key = jax.random.fold_in(s.keys["var"], j)
+            sets = _datasets(system, s.task, s.X_star, s.U_star, key, cfg, level)
+            thetas = [sindy.design(s.specs[name], tr.x, tr.u) for tr, _ in sets]
             ys = [tr.x_next - tr.x if cfg.surrogate.increment else tr.x_next for tr, _ in sets]
             pooled = sindy.lstsq(jnp.concatenate(thetas), jnp.concatenate(ys), cfg.surrogate.sindy.method)
             D = np.asarray(spectra.error_projections(thetas, ys, pooled))  # [S, P, nx]
@@ -207,10 +244,14 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             }
             arrays[f"variance_projections_{name}_{level:g}"] = D
         meter.advance(f"MLP {100 * a.gram_mlp_levels[0]:g}%: descent directions, {a.n_datasets} data sets")
-        var.update(_mlp_directions(cfg, system, task, X_star, U_star, keys["var"], spec_mlp, arrays))
-        return var, arrays
+        var.update(
+            _mlp_directions(cfg, system, s.task, s.X_star, s.U_star, s.keys["var"], s.spec_mlp, arrays)
+        )
+    return var, arrays
 
-    var, a_var = record.stage("variance", variance)
+
+def _variance_figures(record: Run, s: _Study, a_var: dict) -> None:
+    a = s.cfg.analysis
     level = a.gram_mlp_levels[0]
     dirs = {}
     for when in ("epoch0", "trained"):
@@ -223,12 +264,10 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         lambda: plots.projections(dirs, "parameter index (first 200)", "unit descent direction"),
     )
     proj_plot = {
-        f"SINDy {n} {100 * lv:g}%": a_var[f"variance_projections_{n}_{lv:g}"][..., 1 % system.nx]
+        f"SINDy {n} {100 * lv:g}%": a_var[f"variance_projections_{n}_{lv:g}"][..., 1 % s.system.nx]
         for n, lv in zip(a.variance_libraries, a.variance_levels)
     }  # a velocity-like equation
     record.figure("variance_projections.png", lambda: plots.projections(proj_plot))
-    record.folder.write_text("analysis_table.md", _table(record.metrics))
-    return m_opt["status"]
 
 
 def _mlp_directions(cfg, system, task, X_star, U_star, key, spec_mlp, arrays) -> dict:

@@ -152,7 +152,7 @@ def unfinished(out: str, name: str) -> str | None:
     return None
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="CI-scale sizes")
     ap.add_argument("--out", default=None, help="folder of the run folders")
@@ -181,35 +181,30 @@ def main(argv: list[str] | None = None) -> int:
         "experiment spreads its batches over them (docs/scaling.md); a CPU device runs a\n"
         "vmapped program mostly on one core. Must come before JAX starts its backend.",
     )
-    a = ap.parse_args(argv)
-    if a.cpu_devices is not None:
-        if a.cpu_devices < 1:
-            print(f"error: --cpu-devices: must be >= 1, got {a.cpu_devices}", file=sys.stderr)
-            return 2
-        if backend_started():
-            print(
-                "error: --cpu-devices: the JAX backend has already started in this process", file=sys.stderr
-            )
-            return 2
-        import jax
+    return ap
 
-        jax.config.update("jax_num_cpu_devices", a.cpu_devices)
-    out = a.out or os.path.join("runs", "reproduce-quick" if a.quick else "reproduce")
-    os.makedirs(out, exist_ok=True)
-    names = a.only or list(EXPERIMENTS)
-    if a.distributed:
-        configure_runtime()
-        try:
-            distributed.initialize(ParallelConfig(distributed=True))
-        except ConfigError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 2
-    configure_runtime()  # the report records the runtime flags, even when nothing is run
-    mine = distributed.my_share(names) if a.distributed else names
-    t_start = time.perf_counter()
-    suffix = f"-p{distributed.process_index()}" if a.distributed and distributed.process_count() > 1 else ""
-    timing_file = os.path.join(out, f"wall_times{suffix}.json")
-    times = json.load(open(timing_file)) if os.path.exists(timing_file) else {}
+
+def _split_cpu(n: int | None) -> int:
+    """Split the host CPU into n JAX devices; 2 (and a line on stderr) if that cannot be done."""
+    if n is None:
+        return 0
+    if n < 1:
+        print(f"error: --cpu-devices: must be >= 1, got {n}", file=sys.stderr)
+        return 2
+    if backend_started():
+        print("error: --cpu-devices: the JAX backend has already started in this process", file=sys.stderr)
+        return 2
+    import jax
+
+    jax.config.update("jax_num_cpu_devices", n)
+    return 0
+
+
+def _run_experiments(
+    a: argparse.Namespace, out: str, names: list[str], mine: list[str], times: dict, timing_file: str
+) -> int:
+    """Run this process's share of ``names`` that is not finished yet (resuming unfinished
+    ones), recording each one's wall time in ``timing_file``; 130 if one was interrupted."""
     for i, name in enumerate(names, 1):
         if name not in mine:
             continue
@@ -234,12 +229,11 @@ def main(argv: list[str] | None = None) -> int:
         with open(timing_file + ".tmp", "w") as f:
             json.dump(times, f, indent=1)
         os.replace(timing_file + ".tmp", timing_file)
-    if a.distributed:
-        distributed.barrier("reproduce: every experiment finished")
-        if not distributed.is_writer():
-            return 0
-        for other in sorted(glob.glob(os.path.join(out, "wall_times-p*.json"))):
-            times |= json.load(open(other))
+    return 0
+
+
+def _write_report(a: argparse.Namespace, out: str, times: dict, wall: float) -> tuple[str, dict]:
+    """Render the report of the finished run folders; its path and the folders."""
     folders = {n: finished(out, n) for n in EXPERIMENTS}
     path = a.report or (
         os.path.join(out, "reproduction.md") if a.quick else os.path.join("docs", "reproduction.md")
@@ -248,13 +242,43 @@ def main(argv: list[str] | None = None) -> int:
     if os.path.isdir(fig_dir) and not a.quick:  # the report's own figures, NAME__FILE; others stay
         for old in glob.glob(os.path.join(fig_dir, "*__*")):
             os.remove(old)
-    text = report.render(
-        folders, times, fig_dir, os.path.dirname(path) or ".", a.quick, time.perf_counter() - t_start
-    )
+    text = report.render(folders, times, fig_dir, os.path.dirname(path) or ".", a.quick, wall)
     tmp = path + ".tmp"
     with open(tmp, "w") as f:
         f.write(text)
     os.replace(tmp, path)
+    return path, folders
+
+
+def main(argv: list[str] | None = None) -> int:
+    a = _parser().parse_args(argv)
+    if code := _split_cpu(a.cpu_devices):
+        return code
+    out = a.out or os.path.join("runs", "reproduce-quick" if a.quick else "reproduce")
+    os.makedirs(out, exist_ok=True)
+    names = a.only or list(EXPERIMENTS)
+    if a.distributed:
+        configure_runtime()
+        try:
+            distributed.initialize(ParallelConfig(distributed=True))
+        except ConfigError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+    configure_runtime()  # the report records the runtime flags, even when nothing is run
+    mine = distributed.my_share(names) if a.distributed else names
+    t_start = time.perf_counter()
+    suffix = f"-p{distributed.process_index()}" if a.distributed and distributed.process_count() > 1 else ""
+    timing_file = os.path.join(out, f"wall_times{suffix}.json")
+    times = json.load(open(timing_file)) if os.path.exists(timing_file) else {}
+    if code := _run_experiments(a, out, names, mine, times, timing_file):
+        return code
+    if a.distributed:
+        distributed.barrier("reproduce: every experiment finished")
+        if not distributed.is_writer():
+            return 0
+        for other in sorted(glob.glob(os.path.join(out, "wall_times-p*.json"))):
+            times |= json.load(open(other))
+    path, folders = _write_report(a, out, times, time.perf_counter() - t_start)
     print(f"report: {path}")
     missing = [n for n in names if folders.get(n) is None]
     return 1 if missing else 0

@@ -356,30 +356,12 @@ def run(
     import jax
 
     from mjx_surrogate import distributed, progress
-    from mjx_surrogate.model_defaults import default_x64
-    from mjx_surrogate.resolution import resolve
-    from mjx_surrogate.results import Interrupted, Run, RunFolder, WriteError
+    from mjx_surrogate.results import Interrupted, Run, WriteError
 
-    validate_static(cfg)  # before joining other processes, which may wait for minutes
-    check_out_dir(cfg.experiment.out_dir)
-    configure_runtime(x64=(cfg.experiment.x64 or default_x64(cfg.system.name)) or None)
-    parallel = distributed.initialize(cfg.parallel)
-    # Record the precision actually used (a session may already run in x64).
-    cfg = dataclasses.replace(
-        cfg, experiment=dataclasses.replace(cfg.experiment, x64=bool(jax.config.jax_enable_x64))
-    )
-    res = resolve(cfg, local=local)
+    res, parallel = _resolved(cfg, local)
     ex = res.config.experiment
     writer = local or distributed.is_writer()
-    out_dir = (
-        ex.out_dir if writer else tempfile.mkdtemp(prefix=f"mjx_surrogate_p{distributed.process_index()}_")
-    )
-    try:
-        folder = RunFolder(out_dir, ex.name or name)
-    except WriteError as exc:
-        raise RunWriteFailed(f"no run folder could be made in {out_dir}: {exc}") from None
-    for path in folder.recovered:
-        print(f"note: recovered a run folder left unfinished by a killed process: {path}", file=sys.stderr)
+    folder, out_dir = _open_folder(ex.out_dir, ex.name or name, writer)
     record = Run(folder, resume_from)
     key = jax.random.key(ex.seed)
     status, error, write_failure = "failed", None, None
@@ -412,17 +394,57 @@ def run(
     if not writer:
         shutil.rmtree(out_dir, ignore_errors=True)
         return path
-    write_failure = write_failure or (error if isinstance(error, WriteError) else None)
-    if write_failure is not None:
-        cause = write_failure.cause
-        raise RunWriteFailed(
-            f"run folder {path}: cannot write {os.path.basename(write_failure.path)} "
-            f"([Errno {cause.errno}] {cause.strerror or cause}); status failed, "
-            "the stages finished before are kept"
-        )
+    _raise_write_failure(write_failure or (error if isinstance(error, WriteError) else None), path)
     _write_page(path)
     print(summary_screen(record.metrics, path))
     return path
+
+
+def _resolved(cfg: Config, local: bool):
+    """Validate (before joining other processes, which may wait for minutes), configure the
+    runtime and the processes, resolve; the config records the precision actually used (a
+    session may already run in x64)."""
+    import jax
+
+    from mjx_surrogate import distributed
+    from mjx_surrogate.model_defaults import default_x64
+    from mjx_surrogate.resolution import resolve
+
+    validate_static(cfg)
+    check_out_dir(cfg.experiment.out_dir)
+    configure_runtime(x64=(cfg.experiment.x64 or default_x64(cfg.system.name)) or None)
+    parallel = distributed.initialize(cfg.parallel)
+    x64 = bool(jax.config.jax_enable_x64)
+    cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(cfg.experiment, x64=x64))
+    return resolve(cfg, local=local), parallel
+
+
+def _open_folder(out_dir: str, name: str, writer: bool):
+    """The run folder (in a temporary folder for a process that does not write) and where."""
+    from mjx_surrogate import distributed
+    from mjx_surrogate.results import RunFolder, WriteError
+
+    if not writer:
+        out_dir = tempfile.mkdtemp(prefix=f"mjx_surrogate_p{distributed.process_index()}_")
+    try:
+        folder = RunFolder(out_dir, name)
+    except WriteError as exc:
+        raise RunWriteFailed(f"no run folder could be made in {out_dir}: {exc}") from None
+    for path in folder.recovered:
+        print(f"note: recovered a run folder left unfinished by a killed process: {path}", file=sys.stderr)
+    return folder, out_dir
+
+
+def _raise_write_failure(failure, path: str) -> None:
+    """A disk that refused the run's files: :class:`RunWriteFailed`, saying what was kept."""
+    if failure is None:
+        return
+    cause = failure.cause
+    raise RunWriteFailed(
+        f"run folder {path}: cannot write {os.path.basename(failure.path)} "
+        f"([Errno {cause.errno}] {cause.strerror or cause}); status failed, "
+        "the stages finished before are kept"
+    )
 
 
 def _write_page(path: str) -> None:
