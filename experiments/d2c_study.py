@@ -66,37 +66,62 @@ def _shown_states(task, mj_model) -> list[int] | None:
 
 def run(res: Resolved, record: Run, key: jax.Array) -> str:
     cfg, system, task = res
-    ex, sc = cfg.experiment, cfg.solver
+    sc = cfg.solver
     # iterates are kept for the trajectory figure unless that would take > 80 MB (float64)
     params, sid_params = solver_params(
         cfg, record_trajectories=pipeline.record_history(sc.max_iter, task.T, system.nx)
     )
     _, _, k_ltv, k_noise = pipeline.experiment_keys(cfg.experiment.seed)
-    dtype = task.x0.dtype
     record.add_arrays({"x0": task.x0})
-
-    def d2c_stage():
-        title = f"D2C multi-start x{sc.n_starts}" if sc.n_starts > 1 else "D2C (LTV identification + iLQR)"
-        with progress.meter(title, sc.max_iter, ex.progress) as pm:
-            timed, U0, costs = pipeline.solve_config(res, pm)
-        result = timed.out
-        extra = {} if costs is None else {"multistart_costs": np.asarray(costs).tolist()}
-        m, X_bb = pipeline.summary(result, system, task, cfg.task.goal_tolerance, _names("d2c"))
-        m.update(
-            extra,
-            compile_s=timed.compile_s,
-            run_s=timed.run_s,
-            **pipeline.simulation_metrics(result, task.T, sc.n_alphas, sid_params),
-        )
-        arrays = {"d2c_U0": U0, **_solve_arrays("d2c", result, X_bb)}
-        return m, arrays
-
-    m_d2c, a_d2c = record.stage("d2c", d2c_stage)
-    X_d2c, U_d2c, K_d2c = (jnp.asarray(a_d2c[k]) for k in ("d2c_X", "d2c_U", "d2c_K"))
-    U0 = jnp.asarray(a_d2c["d2c_U0"])
+    m_d2c, a_d2c = record.stage("d2c", lambda: _d2c_stage(res, sid_params))
     d2c_hist = a_d2c["d2c_cost_history"][: m_d2c["iterations"] + 1]
-    per_id = pipeline.steps_per_identification(sid_params, task.T, task.u_min.shape[-1])
+    _d2c_figures(record, res, m_d2c, a_d2c, sid_params)
+    hist = {"D2C (LTV)": d2c_hist}
+    exact_hist = _exact(record, res, params, sid_params, m_d2c, a_d2c, k_ltv)
+    if exact_hist is not None:
+        hist["exact Jacobians"] = exact_hist
+    record.figure("cost_history.png", lambda: plots.cost_history(hist, f"{system.name}: {cfg.task.preset}"))
+    _, a_fb = record.stage("feedback", lambda: _feedback_stage(res, a_d2c, k_noise))
+    record.figure(
+        "feedback_noise.png",
+        lambda: plots.cost_vs_noise(
+            np.asarray(cfg.experiment.noise_levels),
+            {
+                "closed loop (u* + K dx)": a_fb["feedback_closed_costs"],
+                "open loop (u*)": a_fb["feedback_open_costs"],
+            },
+            f"{system.name}: cost under control noise",
+        ),
+    )
+    return m_d2c["status"]
+
+
+def _d2c_stage(res: Resolved, sid_params) -> tuple[dict, dict]:
+    """The D2C solve of the config (multi-start if asked), its metrics and arrays."""
+    cfg, system, task = res
+    ex, sc = cfg.experiment, cfg.solver
+    title = f"D2C multi-start x{sc.n_starts}" if sc.n_starts > 1 else "D2C (LTV identification + iLQR)"
+    with progress.meter(title, sc.max_iter, ex.progress) as pm:
+        timed, U0, costs = pipeline.solve_config(res, pm)
+    result = timed.out
+    extra = {} if costs is None else {"multistart_costs": np.asarray(costs).tolist()}
+    m, X_bb = pipeline.summary(result, system, task, cfg.task.goal_tolerance, _names("d2c"))
+    m.update(
+        extra,
+        compile_s=timed.compile_s,
+        run_s=timed.run_s,
+        **pipeline.simulation_metrics(result, task.T, sc.n_alphas, sid_params),
+    )
+    return m, {"d2c_U0": U0, **_solve_arrays("d2c", result, X_bb)}
+
+
+def _d2c_figures(record: Run, res: Resolved, m_d2c: dict, a_d2c: dict, sid_params) -> None:
+    """Cost against black-box control steps, and the trajectories of the iterates."""
+    cfg, system, task = res
+    sc = cfg.solver
     n_it = m_d2c["iterations"]
+    d2c_hist = a_d2c["d2c_cost_history"][: n_it + 1]
+    per_id = pipeline.steps_per_identification(sid_params, task.T, task.u_min.shape[-1])
     curve = pipeline.simulation_curve(a_d2c["d2c_identified"], n_it, task.T, sc.n_alphas, *per_id)
     record.figure(
         "cost_vs_simulations.png",
@@ -106,7 +131,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         ),
     )
     t = np.arange(task.T + 1) * system.dt
-    Xh = a_d2c.get("d2c_X_history", a_d2c["d2c_X"][None])[: m_d2c["iterations"] + 1]
+    Xh = a_d2c.get("d2c_X_history", a_d2c["d2c_X"][None])[: n_it + 1]
     record.figure(
         "trajectory_evolution.png",
         lambda: plots.trajectory_evolution(
@@ -119,70 +144,54 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         ),
     )
 
-    exact_hist = None
+
+def _exact(
+    record: Run, res: Resolved, params, sid_params, m_d2c: dict, a_d2c: dict, k_ltv
+) -> np.ndarray | None:
+    """The oracle's solve from D2C's start and the LTV models' error against its Jacobians,
+    if ``experiment.exact_oracle``; the oracle's cost history (None: not run or failed)."""
+    cfg, system, task = res
+    ex, sc = cfg.experiment, cfg.solver
     if not ex.exact_oracle:
         record.set("exact", {"skipped": "experiment.exact_oracle is false (a user model's default)"})
-    else:
+        return None
+    U0 = jnp.asarray(a_d2c["d2c_U0"])
 
-        def exact_stage():
-            with progress.meter("exact-Jacobian iLQR (oracle)", sc.max_iter, ex.progress) as pm:
-                timed = chunked.solve_exact(system, task, U0, params, pm, ex.oracle)
-            m, X_bb = pipeline.summary(timed.out, system, task, cfg.task.goal_tolerance, _names("exact"))
-            m.update(compile_s=timed.compile_s, run_s=timed.run_s)
-            return m, _solve_arrays("exact", timed.out, X_bb)
+    def exact_stage():
+        with progress.meter("exact-Jacobian iLQR (oracle)", sc.max_iter, ex.progress) as pm:
+            timed = chunked.solve_exact(system, task, U0, params, pm, ex.oracle)
+        m, X_bb = pipeline.summary(timed.out, system, task, cfg.task.goal_tolerance, _names("exact"))
+        m.update(compile_s=timed.compile_s, run_s=timed.run_s)
+        return m, _solve_arrays("exact", timed.out, X_bb)
 
-        try:
-            m_ex, a_ex = record.stage("exact", exact_stage)
-        except Interrupted:
-            raise
-        except Exception as exc:  # e.g. a user model using a feature MJX lacks
-            record.set("exact", {"error": f"{type(exc).__name__}: {exc}"})
-        else:
-            exact_hist = a_ex["exact_cost_history"][: m_ex["iterations"] + 1]
-            c_d, c_e = m_d2c["cost"], m_ex["cost"]
-            if c_d is not None and c_e is not None:
-                record.set("d2c_vs_exact_relative_gap", (c_d - c_e) / abs(c_e))
-            record.stage(
-                "ltv_relative_error",
-                lambda: (
-                    ltv_error(
-                        system, jnp.asarray(a_d2c["d2c_X"]), U_d2c, K_d2c, k_ltv, sid_params, ex.oracle
-                    ),
-                    {},
-                ),
-            )
+    try:
+        m_ex, a_ex = record.stage("exact", exact_stage)
+    except Interrupted:
+        raise
+    except Exception as exc:  # e.g. a user model using a feature MJX lacks
+        record.set("exact", {"error": f"{type(exc).__name__}: {exc}"})
+        return None
+    c_d, c_e = m_d2c["cost"], m_ex["cost"]
+    if c_d is not None and c_e is not None:
+        record.set("d2c_vs_exact_relative_gap", (c_d - c_e) / abs(c_e))
+    X, U, K = (jnp.asarray(a_d2c[k]) for k in ("d2c_X", "d2c_U", "d2c_K"))
+    record.stage("ltv_relative_error", lambda: (ltv_error(system, X, U, K, k_ltv, sid_params, ex.oracle), {}))
+    return a_ex["exact_cost_history"][: m_ex["iterations"] + 1]
 
-    hist = {"D2C (LTV)": d2c_hist}
-    if exact_hist is not None:
-        hist["exact Jacobians"] = exact_hist
-    record.figure("cost_history.png", lambda: plots.cost_history(hist, f"{system.name}: {cfg.task.preset}"))
 
-    def feedback_stage():
-        levels = jnp.asarray(ex.noise_levels, dtype)
-        closed, opened = evaluate_feedback(
-            system, task, X_d2c, U_d2c, K_d2c, levels, k_noise, ex.n_noise_trials
-        )
-        closed, opened = np.asarray(closed), np.asarray(opened)
-        m = {
-            "noise_levels": list(ex.noise_levels),
-            "noise": "std = level * U_max per channel (the actuator limit where finite, else max|u*|)",
-            "closed_loop_median": np.median(closed, axis=1).tolist(),
-            "open_loop_median": np.median(opened, axis=1).tolist(),
-        }
-        m["gains"] = pipeline.gains_verdict(ex.noise_levels, m["closed_loop_median"], m["open_loop_median"])
-        return m, {"feedback_closed_costs": closed, "feedback_open_costs": opened}
-
-    _, a_fb = record.stage("feedback", feedback_stage)
-
-    record.figure(
-        "feedback_noise.png",
-        lambda: plots.cost_vs_noise(
-            np.asarray(ex.noise_levels),
-            {
-                "closed loop (u* + K dx)": a_fb["feedback_closed_costs"],
-                "open loop (u*)": a_fb["feedback_open_costs"],
-            },
-            f"{system.name}: cost under control noise",
-        ),
-    )
-    return m_d2c["status"]
+def _feedback_stage(res: Resolved, a_d2c: dict, k_noise) -> tuple[dict, dict]:
+    """The optimum under control noise, open loop (u*) and closed by its gains (u* + K dx)."""
+    cfg, system, task = res
+    ex = cfg.experiment
+    X, U, K = (jnp.asarray(a_d2c[k]) for k in ("d2c_X", "d2c_U", "d2c_K"))
+    levels = jnp.asarray(ex.noise_levels, task.x0.dtype)
+    closed, opened = evaluate_feedback(system, task, X, U, K, levels, k_noise, ex.n_noise_trials)
+    closed, opened = np.asarray(closed), np.asarray(opened)
+    m = {
+        "noise_levels": list(ex.noise_levels),
+        "noise": "std = level * U_max per channel (the actuator limit where finite, else max|u*|)",
+        "closed_loop_median": np.median(closed, axis=1).tolist(),
+        "open_loop_median": np.median(opened, axis=1).tolist(),
+    }
+    m["gains"] = pipeline.gains_verdict(ex.noise_levels, m["closed_loop_median"], m["open_loop_median"])
+    return m, {"feedback_closed_costs": closed, "feedback_open_costs": opened}

@@ -48,58 +48,17 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
 
     errors, cl_errors, spreads, per_level = {}, {}, {}, {}
     for i, level in enumerate(cfg.data.levels):
-
-        def compute(level=level, i=i):
-            out = horizon.identification_errors(
-                system,
-                X,
-                U,
-                K,
-                A_ref,
-                B_ref,
-                jax.random.fold_in(k_roll, i),
-                cfg.data.n_traj,
-                level * x_scale,
-                level * u_scale,
-                task.u_min,
-                task.u_max,
-            )
-            e, ec, s = (np.asarray(a) for a in (out.error, out.closed_loop_error, out.spread))
-            m = {}
-            for j, mode in enumerate(("open_loop", "closed_loop")):
-                first, last = _quarter_median(e[j], False), _quarter_median(e[j], True)
-                m[mode] = {
-                    "error_first_quarter": first,
-                    "error_last_quarter": last,
-                    "growth": last / first if first and last is not None else None,
-                    "A_plus_BK_error_last_quarter": _quarter_median(ec[j], True),
-                    "spread_first": float(s[j, 0]) if np.isfinite(s[j, 0]) else None,
-                    "spread_last": float(s[j, -1]) if np.isfinite(s[j, -1]) else None,
-                }
-            return m, {f"errors_{level:g}": e, f"cl_errors_{level:g}": ec, f"spreads_{level:g}": s}
-
-        m, arrays = record.stage(f"levels/{level:g}", compute)
+        perturbation = (jax.random.fold_in(k_roll, i), level * x_scale, level * u_scale)
+        m, arrays = record.stage(
+            f"levels/{level:g}", lambda p=perturbation, lv=level: _level(res, X, U, K, A_ref, B_ref, lv, *p)
+        )
         per_level[f"{level:g}"] = m
         for j, mode in enumerate(("open loop", "closed loop")):
             errors[f"{mode}, {100 * level:g}% U_max"] = arrays[f"errors_{level:g}"][j]
             cl_errors[f"{mode}, {100 * level:g}% U_max"] = arrays[f"cl_errors_{level:g}"][j]
             spreads[f"{mode}, {100 * level:g}% U_max"] = arrays[f"spreads_{level:g}"][j]
     record.set("levels", per_level)
-    record.set(
-        "finding",
-        {
-            lv: {
-                "closed_loop_below_open_loop_at_the_end": (
-                    m["closed_loop"]["error_last_quarter"] is not None
-                    and (
-                        m["open_loop"]["error_last_quarter"] is None
-                        or m["closed_loop"]["error_last_quarter"] < m["open_loop"]["error_last_quarter"]
-                    )
-                ),
-            }
-            for lv, m in per_level.items()
-        },
-    )
+    record.set("finding", {lv: _finding(m) for lv, m in per_level.items()})
     t = np.arange(task.T + 1)
     record.figure(
         "horizon.png",
@@ -113,3 +72,33 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         ),
     )
     return m_opt["status"]
+
+
+def _level(res: Resolved, X, U, K, A_ref, B_ref, level: float, key, sigma_x, sigma_u) -> tuple[dict, dict]:
+    """One perturbation level: the errors of the models identified from open-loop and
+    closed-loop rollouts of every length, and the rollouts' spread."""
+    cfg, system, task = res
+    out = horizon.identification_errors(
+        system, X, U, K, A_ref, B_ref, key, cfg.data.n_traj, sigma_x, sigma_u, task.u_min, task.u_max
+    )
+    e, ec, s = (np.asarray(a) for a in (out.error, out.closed_loop_error, out.spread))
+    m = {}
+    for j, mode in enumerate(("open_loop", "closed_loop")):
+        first, last = _quarter_median(e[j], False), _quarter_median(e[j], True)
+        m[mode] = {
+            "error_first_quarter": first,
+            "error_last_quarter": last,
+            "growth": last / first if first and last is not None else None,
+            "A_plus_BK_error_last_quarter": _quarter_median(ec[j], True),
+            "spread_first": float(s[j, 0]) if np.isfinite(s[j, 0]) else None,
+            "spread_last": float(s[j, -1]) if np.isfinite(s[j, -1]) else None,
+        }
+    return m, {f"errors_{level:g}": e, f"cl_errors_{level:g}": ec, f"spreads_{level:g}": s}
+
+
+def _finding(m: dict) -> dict:
+    """Whether the closed-loop model's error over the last quarter is below the open loop's."""
+    closed, opened = m["closed_loop"]["error_last_quarter"], m["open_loop"]["error_last_quarter"]
+    return {
+        "closed_loop_below_open_loop_at_the_end": closed is not None and (opened is None or closed < opened)
+    }
