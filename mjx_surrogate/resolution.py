@@ -277,28 +277,7 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     system = build_system_from_config(cfg.system, mesh)
     tc, task = resolve_task(cfg.task, system)
     kind = cfg.experiment.kind
-    reduced = get_scheme(cfg.solver.sysid).reduced
-    n_samples = cfg.solver.n_samples or default_n_samples(system.nx, system.nu, reduced)
-    if kind == "horizon" and cfg.data.n_traj < system.nx + system.nu:
-        raise ConfigError(
-            "data.n_traj",
-            f"must be >= nx + nu = {system.nx + system.nu} for the per-step least squares, "
-            f"got {cfg.data.n_traj}",
-        )
-    if kind in ("d2c", "control", "predict", "analysis", "horizon", "mpc"):
-        if reduced and not 1 <= n_samples <= system.nx:
-            raise ConfigError(
-                "solver.n_samples",
-                f"the reduced scheme's snapshots (its largest rank) must be between 1 and nx = {system.nx}, "
-                f"got {n_samples}",
-            )
-        if not reduced and n_samples < system.nx + system.nu:
-            raise ConfigError(
-                "solver.n_samples",
-                f"must be >= nx + nu = {system.nx + system.nu} "
-                f"for the LTV least squares to be determined, got {n_samples}",
-            )
-        check_memory(cfg, system, int(tc.T), n_samples)
+    n_samples = _check_samples(cfg, system, int(tc.T))
     sigma_u = sigma if cfg.solver.sigma_u is None else cfg.solver.sigma_u
     check_start(system, task, sigma_x)
     if kind in ("predict", "analysis", "control") or (kind == "mpc" and "surrogates" in cfg.mpc.controllers):
@@ -342,6 +321,35 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     )
     resolved = dataclasses.replace(cfg, system=sc, task=tc, experiment=ex, solver=solver, mpc=mpc)
     return Resolved(resolved, system, task)
+
+
+def _check_samples(cfg: Config, system: System, T: int) -> int:
+    """The identification's samples (the config's or the default), checked against what its
+    scheme needs, and the horizon study's rollouts against its least squares."""
+    kind = cfg.experiment.kind
+    reduced = get_scheme(cfg.solver.sysid).reduced
+    n_samples = cfg.solver.n_samples or default_n_samples(system.nx, system.nu, reduced)
+    if kind == "horizon" and cfg.data.n_traj < system.nx + system.nu:
+        raise ConfigError(
+            "data.n_traj",
+            f"must be >= nx + nu = {system.nx + system.nu} for the per-step least squares, "
+            f"got {cfg.data.n_traj}",
+        )
+    if kind in ("d2c", "control", "predict", "analysis", "horizon", "mpc"):
+        if reduced and not 1 <= n_samples <= system.nx:
+            raise ConfigError(
+                "solver.n_samples",
+                f"the reduced scheme's snapshots (its largest rank) must be between 1 and nx = {system.nx}, "
+                f"got {n_samples}",
+            )
+        if not reduced and n_samples < system.nx + system.nu:
+            raise ConfigError(
+                "solver.n_samples",
+                f"must be >= nx + nu = {system.nx + system.nu} "
+                f"for the LTV least squares to be determined, got {n_samples}",
+            )
+        check_memory(cfg, system, T, n_samples)
+    return n_samples
 
 
 def analysis_library_specs(cfg: Config, system: System) -> dict:
