@@ -3,33 +3,23 @@ across data sets, Gram-matrix spectra (linear and quadratic libraries, the MLP's
 Jacobian) and variance across data sets, around the D2C optimum at 5 % and 60 % of U_max,
 100 trajectories, three data sets (docs/pde.md). About 100 s on 2 cores."""
 
-from mjx_surrogate.config import (
-    AnalysisConfig,
-    Config,
-    DataConfig,
-    ExperimentConfig,
-    MLPConfig,
-    SindyConfig,
-    SurrogateConfig,
-    SystemConfig,
-    TaskConfig,
-)
+from configs import preset
 
-CONFIG = Config(
-    system=SystemConfig(name="burgers32"),
-    task=TaskConfig(preset="burgers_damp"),
-    experiment=ExperimentConfig(kind="analysis"),
-    data=DataConfig(n_traj=100),
-    surrogate=SurrogateConfig(sindy=SindyConfig(libraries=("poly2",)), mlp=MLPConfig(epochs=10)),
-    analysis=AnalysisConfig(
-        n_datasets=3,
-        convergence_library="poly2",
-        convergence_sindy_levels=(0.05, 0.6),
-        convergence_mlp_levels=(0.05, 0.6),
-        gram_sindy_level=0.05,
-        gram_libraries=("poly1", "poly2"),
-        gram_mlp_levels=(0.05,),
-        variance_libraries=("poly1", "poly2"),
-        variance_levels=(0.05, 0.6),
-    ),
+CONFIG = preset(
+    system={"name": "burgers32"},
+    task={"preset": "burgers_damp"},
+    experiment={"kind": "analysis"},
+    data={"n_traj": 100},
+    surrogate={"sindy.libraries": ("poly2",), "mlp.epochs": 10},
+    analysis={
+        "n_datasets": 3,
+        "convergence_library": "poly2",
+        "convergence_sindy_levels": (0.05, 0.6),
+        "convergence_mlp_levels": (0.05, 0.6),
+        "gram_sindy_level": 0.05,
+        "gram_libraries": ("poly1", "poly2"),
+        "gram_mlp_levels": (0.05,),
+        "variance_libraries": ("poly1", "poly2"),
+        "variance_levels": (0.05, 0.6),
+    },
 )

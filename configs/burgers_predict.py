@@ -5,28 +5,19 @@ quadratic libraries), the paper's MLP, and the local LTV model, in full order an
 data's snapshot basis per t; open-loop prediction error against the perturbation level
 (docs/pde.md)."""
 
-from mjx_surrogate.config import (
-    Config,
-    DataConfig,
-    ExperimentConfig,
-    MLPConfig,
-    PodSindyConfig,
-    SindyConfig,
-    SurrogateConfig,
-    SystemConfig,
-    TaskConfig,
-)
+from configs import preset
 
-CONFIG = Config(
-    system=SystemConfig(name="burgers64"),
-    task=TaskConfig(preset="burgers_damp"),
-    experiment=ExperimentConfig(kind="predict"),
-    data=DataConfig(n_traj=200, levels=(0.05, 0.10, 0.30, 0.60, 1.00)),
-    surrogate=SurrogateConfig(
-        kinds=("sindy", "pod_sindy", "mlp"),
-        reduced_ltv_tol=1e-8,
-        sindy=SindyConfig(libraries=("poly2",)),
-        pod_sindy=PodSindyConfig(rank=8, libraries=("poly1", "poly2")),
-        mlp=MLPConfig(epochs=50),
-    ),
+CONFIG = preset(
+    system={"name": "burgers64"},
+    task={"preset": "burgers_damp"},
+    experiment={"kind": "predict"},
+    data={"n_traj": 200, "levels": (0.05, 0.10, 0.30, 0.60, 1.00)},
+    surrogate={
+        "kinds": ("sindy", "pod_sindy", "mlp"),
+        "reduced_ltv_tol": 1e-8,
+        "sindy.libraries": ("poly2",),
+        "pod_sindy.rank": 8,
+        "pod_sindy.libraries": ("poly1", "poly2"),
+        "mlp.epochs": 50,
+    },
 )

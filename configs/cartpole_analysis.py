@@ -6,28 +6,18 @@ paper's 5000 epochs, stopping once the best test loss fell by less than 10 % ove
 100 epochs (the convergence test; on 2 cores 5000 epochs of the 17 networks would take
 about an hour)."""
 
-from mjx_surrogate.config import (
-    AnalysisConfig,
-    Config,
-    DataConfig,
-    ExperimentConfig,
-    MLPConfig,
-    SindyConfig,
-    SolverConfig,
-    SurrogateConfig,
-    SystemConfig,
-    TaskConfig,
-)
+from configs import derive
+from mjx_surrogate.config import DataConfig
 
-CONFIG = Config(
-    system=SystemConfig(name="cartpole"),
-    task=TaskConfig(preset="cartpole_swingup"),
-    solver=SolverConfig(n_samples=25, max_iter=300, rel_tol=1e-6, init="zeros"),
-    experiment=ExperimentConfig(kind="analysis", x64=True),
-    data=DataConfig(n_traj=2000),
-    surrogate=SurrogateConfig(
-        sindy=SindyConfig(libraries=("cubic_trig", "quartic")),
-        mlp=MLPConfig(epochs=5000, stop_window=100, stop_rel_tol=0.1),
-    ),
-    analysis=AnalysisConfig(n_datasets=5, gram_points=1000),
+CONFIG = derive(
+    "cartpole_predict",
+    experiment={"kind": "analysis"},
+    data={"levels": DataConfig().levels},
+    surrogate={
+        "sindy.libraries": ("cubic_trig", "quartic"),
+        "mlp.epochs": 5000,
+        "mlp.stop_window": 100,
+        "mlp.stop_rel_tol": 0.1,
+    },
+    analysis={"n_datasets": 5, "gram_points": 1000},
 )

@@ -7,32 +7,14 @@ for testing) around the offline optimum; SINDy with the system's polynomial term
 (degree 2 and 3) and an MLP. Besides the model, the plant Lorenz with sigma = 13 instead
 of 10 (the fixed points stay where they are; the flow between them is faster)."""
 
-from mjx_surrogate.config import (
-    Config,
-    DataConfig,
-    ExperimentConfig,
-    MLPConfig,
-    MPCConfig,
-    SindyConfig,
-    SolverConfig,
-    SurrogateConfig,
-    SystemConfig,
-    TaskConfig,
-)
+from configs import preset
 
-CONFIG = Config(
-    system=SystemConfig(name="lorenz"),
-    task=TaskConfig(preset="lorenz_stabilize"),
-    solver=SolverConfig(max_iter=300),
-    experiment=ExperimentConfig(kind="mpc"),
-    data=DataConfig(n_traj=3, test_fraction=1 / 3),
-    surrogate=SurrogateConfig(sindy=SindyConfig(libraries=("poly2", "poly3")), mlp=MLPConfig(epochs=100)),
-    mpc=MPCConfig(
-        horizon=10,
-        steps=500,
-        max_iter=5,
-        process_noise=(0.0, 0.1, 0.5),
-        plants=("model", "sigma=13"),
-        n_episodes=4,
-    ),
+CONFIG = preset(
+    system={"name": "lorenz"},
+    task={"preset": "lorenz_stabilize"},
+    solver={"max_iter": 300},
+    experiment={"kind": "mpc"},
+    data={"n_traj": 3, "test_fraction": 1 / 3},
+    surrogate={"sindy.libraries": ("poly2", "poly3"), "mlp.epochs": 100},
+    mpc={"horizon": 10, "steps": 500, "process_noise": (0.0, 0.1, 0.5), "plants": ("model", "sigma=13")},
 )

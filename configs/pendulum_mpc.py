@@ -6,33 +6,21 @@ refitted online from each episode's own transitions (each weighing 10 training o
 task is D2C 2.0's swing-up with a running state cost (Q = 0.01 Q_f): with the paper's
 terminal-only cost a receding horizon keeps postponing the swing (docs/mpc.md)."""
 
-from mjx_surrogate.config import (
-    Config,
-    DataConfig,
-    ExperimentConfig,
-    MLPConfig,
-    MPCConfig,
-    SindyConfig,
-    SolverConfig,
-    SurrogateConfig,
-    SystemConfig,
-    TaskConfig,
-)
+from configs import preset
 
-CONFIG = Config(
-    system=SystemConfig(name="pendulum", backend="native"),
-    task=TaskConfig(preset="pendulum_d2c", T=60, Q_diag=(9.0, 0.9)),
-    solver=SolverConfig(max_iter=100, rel_tol=1e-6),
-    experiment=ExperimentConfig(kind="mpc", x64=True),
-    data=DataConfig(n_traj=200),
-    surrogate=SurrogateConfig(sindy=SindyConfig(libraries=("cubic_trig",)), mlp=MLPConfig(epochs=200)),
-    mpc=MPCConfig(
-        horizon=30,
-        steps=60,
-        max_iter=5,
-        process_noise=(0.0, 0.02, 0.05),
-        plants=("model", "mass=1.5", "length=1.2,damping=2"),
-        refit_weight=10.0,
-        n_episodes=4,
-    ),
+CONFIG = preset(
+    system={"backend": "native"},
+    task={"T": 60, "Q_diag": (9.0, 0.9)},
+    experiment={"kind": "mpc", "x64": True},
+    data={"n_traj": 200},
+    surrogate={"sindy.libraries": ("cubic_trig",), "mlp.epochs": 200},
+    mpc={
+        "horizon": 30,
+        "steps": 60,
+        "max_iter": 5,
+        "process_noise": (0.0, 0.02, 0.05),
+        "plants": ("model", "mass=1.5", "length=1.2,damping=2"),
+        "refit_weight": 10.0,
+        "n_episodes": 4,
+    },
 )

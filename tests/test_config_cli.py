@@ -241,3 +241,27 @@ def test_the_summary_accounts_for_the_wall_time():
     metrics = {"stages": {"d2c": {"wall_s": 1.0}, "feedback": {"wall_s": 2.5}}, "wall_time_s": 4.0}
     assert time_line(metrics) == "  time: d2c 1.0 s, feedback 2.5 s, setup and files 0.5 s (total 4.0 s)"
     assert time_line({"wall_time_s": 4.0}) == ""
+
+
+def test_a_derived_preset_changes_only_what_it_states():
+    """Presets are data: ``derive`` takes the parent and the stated fields, nothing else,
+    and refuses a field the config does not have."""
+    import dataclasses
+
+    import configs
+    from mjx_surrogate.config import to_dict
+
+    parent = configs.load("cartpole_predict")
+    child = configs.derive("cartpole_predict", solver={"max_iter": 7}, surrogate={"mlp.epochs": 3})
+    want = dataclasses.replace(
+        parent,
+        solver=dataclasses.replace(parent.solver, max_iter=7),
+        surrogate=dataclasses.replace(
+            parent.surrogate, mlp=dataclasses.replace(parent.surrogate.mlp, epochs=3)
+        ),
+    )
+    assert to_dict(child) == to_dict(want)
+    assert configs.load("cartpole_horizon").solver == parent.solver  # a derived preset, as written
+    for bad in ({"solver": {"max_iters": 7}}, {"surrogate": {"mlp.epoch": 3}}, {"solvers": {"max_iter": 7}}):
+        with pytest.raises(KeyError, match="has no field"):
+            configs.derive("cartpole_predict", **bad)
