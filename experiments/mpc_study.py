@@ -2,7 +2,8 @@
 section ``mpc`` side by side (docs/mpc.md).
 
 Stages: ``d2c``, the offline optimum on the task's T steps (TVLQR's reference, the centre
-of the surrogates' data and every planner's first plan), then ``mpc/<controller>``:
+of the surrogates' data and every planner's first plan), then one per planner and
+condition, ``mpc/<controller>/<tag>`` (a stop keeps the conditions finished before it):
 episodes of ``mpc.steps`` control steps on each plant (``mpc.plants``) at each
 process-noise level, ``mpc.n_episodes`` each (batched by ``vmap``, the same keys, hence the
 same noise draws, for every controller). "surrogates" first fits every kind of
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 import functools
 import time
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -124,70 +126,99 @@ def _calls(controller, result, res, samples) -> float | None:
     return 0.0 if controller in ("tvlqr", "surrogates") else None
 
 
-def _controller_stage(controller, res, record, plants, optimum, plan_task, U0, samples, key, fit):
+def _controller(controller, res, record, plants, optimum, plan_task, U0, samples, key, fit) -> list[dict]:
+    """Every episode batch of one controller: a stage per planner, plant and noise level
+    (``mpc/<controller>/<tag>``), so that a stop or a failure keeps the conditions finished
+    before it and a resumed run reuses them. Returns their rows."""
     cfg, system, task = res
     m = cfg.mpc
     conditions = [(p, w) for p in plants for w in m.process_noise]
+    rows = []
+    with progress.steps(f"MPC {controller}", 1 + len(conditions), cfg.experiment.progress) as meter:
+        meter.advance("fit the surrogates" if controller == "surrogates" else "set up")
+        planners = _planners(controller, res, optimum, plan_task, U0, samples, fit)
+        meter.extend(len(conditions) * (len(planners) - 1))
+        for label, one in planners.items():
+            for pi, (name, plant) in enumerate(plants.items()):
+                batch = jax.jit(
+                    lambda keys, w, plant=plant, one=one: jax.vmap(lambda k: one(plant, k, w))(keys)
+                )
+                compiled = {}  # once per planner and plant, for every noise level
+                for ni, noise in enumerate(m.process_noise):
+                    meter.advance(f"{label}, plant {name}, noise {noise:g}")
+                    ci = pi * len(m.process_noise) + ni
+                    tag = f"mpc_{label.split(' (')[0].replace(' ', '_')}_{ci}"
+                    error_here = pi == 0 and noise == min(m.process_noise)  # the one-step error's condition
+                    episodes = _Episodes(controller, label, name, noise, ci, tag, error_here)
 
-    def compute():
-        with progress.steps(f"MPC {controller}", 1 + len(conditions), cfg.experiment.progress) as meter:
-            meter.advance("fit the surrogates" if controller == "surrogates" else "set up")
-            planners = _planners(controller, res, optimum, plan_task, U0, samples, fit)
-            models = fit()[0] if controller == "surrogates" else {}
-            meter.extend(len(conditions) * (len(planners) - 1))
-            rows, arrays = [], {}
-            for label, one in planners.items():
-                for pi, (name, plant) in enumerate(plants.items()):
-                    batch = jax.jit(
-                        lambda keys, w, plant=plant, one=one: jax.vmap(lambda k: one(plant, k, w))(keys)
-                    )
-                    compiled, compile_s = None, 0.0
-                    for ni, noise in enumerate(m.process_noise):
-                        meter.advance(f"{label}, plant {name}, noise {noise:g}")
-                        ci = pi * len(m.process_noise) + ni
-                        keys = jax.random.split(jax.random.fold_in(key, ci), m.n_episodes)
-                        w = jnp.asarray(noise, task.x0.dtype)
-                        if compiled is None:
-                            t0 = time.perf_counter()
-                            compiled = batch.lower(keys, w).compile()
-                            compile_s = time.perf_counter() - t0
-                        t0 = time.perf_counter()
-                        r = jax.block_until_ready(compiled(keys, w))
-                        run_s = time.perf_counter() - t0
-                        row, X, U = _row(res, label, controller, name, noise, r, run_s, samples)
-                        row["compile_s"] = compile_s if ni == 0 else 0.0
-                        model = models.get(label.removesuffix(" MPC"))  # not the refitted ones
-                        if model is not None and pi == 0 and noise == min(m.process_noise):
-                            row["closed_loop_one_step_error"] = _one_step_error(model, X[0], U[0], optimum)
-                        tag = f"mpc_{label.split(' (')[0].replace(' ', '_')}_{ci}"
-                        row["arrays"] = {"X": f"{tag}_X", "U": f"{tag}_U"}
-                        arrays[f"{tag}_X"], arrays[f"{tag}_U"] = X, U
-                        rows.append(row)
-        return {"rows": rows}, arrays
+                    def compute(e=episodes, batch=batch):
+                        return _condition(res, e, batch, compiled, optimum, samples, fit, key)
 
-    def _row(res, label, controller, plant, noise, r, run_s, samples):
-        X, U = np.asarray(r.X), np.asarray(r.U)
-        costs = np.asarray(r.cost, dtype=float)
-        goals = [pipeline.goal_test(task, x, cfg.task.goal_tolerance) for x in X]
-        per_step = run_s / (m.n_episodes * m.steps)
-        row = {
-            "controller": label,
-            "plant": plant,
-            "process_noise": noise,
-            "costs": [finite_or_none(c) for c in costs],
-            "cost_median": finite_or_none(np.median(costs)),
-            "goal_reached": sum(g["reached"] for g in goals) / len(goals),
-            "final_goal_cost_median": finite_or_none(
-                np.median([g["goal_cost_final"] or np.inf for g in goals])
-            ),
-            "black_box_steps_per_control_step": _calls(controller, r, res, samples),
-            "iterations_per_replan": float(np.mean(r.iterations)) if controller in ITERATIVE else None,
-            "compute_per_step_s": per_step,
-            "real_time_factor": float(system.dt) / per_step,
-        }
-        return row, X, U
+                    row, _ = record.stage(f"mpc/{controller}/{tag}", compute)
+                    rows.append(row)
+    return rows
 
-    return compute
+
+class _Episodes(NamedTuple):
+    """One condition of one planner: its controller kind and label, plant, noise level,
+    condition index (its keys), array tag, and whether a surrogate's one-step error along
+    its closed loop is measured here (the first plant, the least noise)."""
+
+    controller: str
+    label: str
+    plant: str
+    noise: float
+    index: int
+    tag: str
+    one_step_error: bool
+
+
+def _condition(res, e: _Episodes, batch, compiled: dict, optimum, samples, fit, key) -> tuple[dict, dict]:
+    """The row and arrays of one condition's ``mpc.n_episodes`` episodes, run as one batch
+    (compiled once per planner and plant, the compile timed apart)."""
+    cfg, _, task = res
+    m = cfg.mpc
+    keys = jax.random.split(jax.random.fold_in(key, e.index), m.n_episodes)
+    w = jnp.asarray(e.noise, task.x0.dtype)
+    compile_s = 0.0
+    if "program" not in compiled:
+        t0 = time.perf_counter()
+        compiled["program"] = batch.lower(keys, w).compile()
+        compile_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    r = jax.block_until_ready(compiled["program"](keys, w))
+    run_s = time.perf_counter() - t0
+    row, X, U = _row(res, e, r, run_s, samples)
+    row["compile_s"] = compile_s
+    models = fit()[0] if e.controller == "surrogates" else {}
+    model = models.get(e.label.removesuffix(" MPC"))  # not the refitted ones
+    if model is not None and e.one_step_error:
+        row["closed_loop_one_step_error"] = _one_step_error(model, X[0], U[0], optimum)
+    row["arrays"] = {"X": f"{e.tag}_X", "U": f"{e.tag}_U"}
+    return row, {f"{e.tag}_X": X, f"{e.tag}_U": U}
+
+
+def _row(res, e: _Episodes, r, run_s: float, samples) -> tuple[dict, np.ndarray, np.ndarray]:
+    cfg, system, task = res
+    m = cfg.mpc
+    X, U = np.asarray(r.X), np.asarray(r.U)
+    costs = np.asarray(r.cost, dtype=float)
+    goals = [pipeline.goal_test(task, x, cfg.task.goal_tolerance) for x in X]
+    per_step = run_s / (m.n_episodes * m.steps)
+    row = {
+        "controller": e.label,
+        "plant": e.plant,
+        "process_noise": e.noise,
+        "costs": [finite_or_none(c) for c in costs],
+        "cost_median": finite_or_none(np.median(costs)),
+        "goal_reached": sum(g["reached"] for g in goals) / len(goals),
+        "final_goal_cost_median": finite_or_none(np.median([g["goal_cost_final"] or np.inf for g in goals])),
+        "black_box_steps_per_control_step": _calls(e.controller, r, res, samples),
+        "iterations_per_replan": float(np.mean(r.iterations)) if e.controller in ITERATIVE else None,
+        "compute_per_step_s": per_step,
+        "real_time_factor": float(system.dt) / per_step,
+    }
+    return row, X, U
 
 
 def _one_step_error(model, X, U, optimum) -> float | None:
@@ -250,12 +281,10 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     if "oracle" in m.controllers and "oracle" not in chosen:
         record.set("mpc_skipped", {"oracle": "experiment.exact_oracle is off"})
     for c in chosen:
-        out, _ = record.stage(
-            f"mpc/{c}", _controller_stage(c, res, record, plants, optimum, plan_task, U0, samples, k_mpc, fit)
-        )
-        rows += out["rows"]
+        done = _controller(c, res, record, plants, optimum, plan_task, U0, samples, k_mpc, fit)
+        rows += done
         if c == "d2c" and m.samples is None:  # the sampling MPCs get D2C-MPC's budget
-            calls = np.median([r["black_box_steps_per_control_step"] for r in out["rows"]])
+            calls = np.median([r["black_box_steps_per_control_step"] for r in done])
             samples = max(2, int(round(calls / H)))
     record.set("mpc_rows", rows)
     N = m.steps  # the offline optimum's cost over an episode's steps: what "works" is judged on

@@ -34,9 +34,11 @@ def summary_screen(metrics: dict, path: str) -> str:
 def time_line(metrics: dict) -> str:
     """Where the wall time went: each stage (compiles included), then the rest (loading,
     checks, the model and figure files)."""
-    stages = {
-        k: v["wall_s"] for k, v in (metrics.get("stages") or {}).items() if isinstance(v.get("wall_s"), float)
-    }
+    stages: dict = {}
+    for k, v in (metrics.get("stages") or {}).items():
+        if isinstance(v.get("wall_s"), float):  # mpc/<controller>/<condition>: one sum per controller
+            group = "/".join(k.split("/")[:2])
+            stages[group] = stages.get(group, 0.0) + v["wall_s"]
     total = metrics.get("wall_time_s")
     if not stages or not isinstance(total, (int, float)):
         return ""

@@ -92,13 +92,58 @@ def test_the_sampling_budget_matches_d2c_and_the_table_and_figures_are_written(s
     ps = [r for r in rows if r["controller"].startswith("predictive sampling")]
     assert abs(ps[0]["black_box_steps_per_control_step"] - d2c) <= 5 / 2  # S H with H = 5
     assert all(r["compute_per_step_s"] > 0 and r["real_time_factor"] > 0 for r in rows)
-    assert m["stages"]["mpc/surrogates"]["status"] == "done"
+    surrogate_stages = [v for k, v in m["stages"].items() if k.startswith("mpc/surrogates/")]
+    assert len(surrogate_stages) == 8 and all(v["status"] == "done" for v in surrogate_stages)
     table = (path / "mpc_table.md").read_text()
     assert table.count("### Plant mass=1.2,length=1.1,damping=2, process noise") == 2
     assert "TVLQR tracking" in table and all(r["plant"] == "mass=1.2,length=1.1,damping=2" for r in rows)
     fig = "mpc_cost_vs_noise_mass1.2_length1.1_damping2.png"
     for name in (fig, "mpc_cost_vs_calls.png", "mpc_trajectories.png"):
         assert_png(str(path / name))
+
+
+@pytest.mark.slow
+def test_a_failed_batch_keeps_the_finished_conditions_and_a_resumed_run_reuses_them(
+    smoke_mpc, tmp_path, monkeypatch
+):
+    """A stage per planner and condition: the conditions finished before a failure are
+    kept, and resuming runs only the others, to the same costs as an uninterrupted run."""
+    import dataclasses
+
+    from experiments import mpc_study
+
+    _, m0, _ = smoke_mpc
+    cfg = cli.load_config("smoke_mpc")
+    cfg = dataclasses.replace(
+        cfg,
+        mpc=dataclasses.replace(cfg.mpc, controllers=("d2c", "tvlqr")),
+        experiment=dataclasses.replace(cfg.experiment, out_dir=str(tmp_path), video=False),
+    )
+    real = mpc_study._row
+
+    def failing(res, e, *args):
+        if e.controller == "tvlqr" and e.index == 1:
+            raise RuntimeError("a planted failure")
+        return real(res, e, *args)
+
+    monkeypatch.setattr(mpc_study, "_row", failing)
+    path = cli.run(cfg, "first")
+    m = json.loads(open(os.path.join(path, "metrics.json")).read())
+    assert m["status"] == "failed"
+    done = {k for k, v in m["stages"].items() if k.startswith("mpc/") and v["status"] == "done"}
+    assert done == {"mpc/d2c/mpc_D2C-MPC_0", "mpc/d2c/mpc_D2C-MPC_1", "mpc/tvlqr/mpc_TVLQR_tracking_0"}
+
+    monkeypatch.setattr(mpc_study, "_row", real)
+    again = cli.run(cfg, "again", resume_from=path)
+    m2 = json.loads(open(os.path.join(again, "metrics.json")).read())
+    assert m2["status"] == m0["status"]
+    resumed = {k for k, v in m2["stages"].items() if v.get("resumed")}
+    assert resumed == done | {"d2c"}
+    costs = {(r["controller"], r["process_noise"]): r["costs"] for r in m2["mpc_rows"]}
+    reference = {(r["controller"], r["process_noise"]): r["costs"] for r in m0["mpc_rows"]}
+    assert len(costs) == 4
+    for k, v in costs.items():
+        np.testing.assert_allclose(v, reference[k], rtol=1e-9)
 
 
 @pytest.mark.slow
