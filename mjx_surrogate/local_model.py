@@ -22,6 +22,7 @@ V [T+1, nx, r] of a reduced model; V is empty (shape (0,)) for a full-order one 
 
 from __future__ import annotations
 
+import enum
 from typing import TYPE_CHECKING, NamedTuple
 
 import jax
@@ -32,6 +33,14 @@ from mjx_surrogate.riccati import cost_derivatives
 
 if TYPE_CHECKING:
     from mjx_surrogate.ilqr import Problem
+
+
+class How(enum.IntEnum):
+    """How an iteration's model was made (``ILQRResult.identified``)."""
+
+    KEPT = 0  # carried over by a secant update, or kept after a rejected step
+    IDENTIFIED = 1  # by ``linearize``
+    IDENTIFIED_FINE = 2  # by ``linearize_fine``
 
 
 class ReuseState(NamedTuple):
@@ -163,7 +172,7 @@ def model_for(
 ) -> tuple[ModelState, jax.Array]:
     """The model of the nominal X [T+1, nx], U [T, nu] (gains K [T, nu, nx] for the schemes
     that use them), with the cost's derivatives there, and how it was made (int8: 0
-    carried over or kept, 1 identified by ``linearize``, 2 by ``linearize_fine``)."""
+    carried over or kept, 1 identified by ``linearize``, 2 by ``linearize_fine``: :class:`How`)."""
     reuse, refine = m.reuse, m.refine
     # A new nominal is identified afresh unless the last step passed the reuse test; then
     # the model is carried over with a secant update, and identified afresh as soon as a
@@ -191,7 +200,8 @@ def model_for(
     reuse = reuse._replace(
         stale=~identify & (update | reuse.stale), count=jnp.where(identify, 0, reuse.count + update)
     )
-    how = jnp.where(identify, 1 + (fine_model & (problem.linearize_fine is not None)), 0).astype(jnp.int8)
+    by = jnp.where(fine_model & (problem.linearize_fine is not None), How.IDENTIFIED_FINE, How.IDENTIFIED)
+    how = jnp.where(identify, by, How.KEPT).astype(jnp.int8)
     return ModelState(A, B, V, X, U, expansion, reuse, refine._replace(fine_model=fine_model)), how
 
 

@@ -19,6 +19,7 @@ from mjx_surrogate import chunked, data, native_replay, progress
 from mjx_surrogate import sysid as sid
 from mjx_surrogate.evaluation import finite_or_none
 from mjx_surrogate.ilqr import ILQRParams, ILQRResult, StopReason, verdict
+from mjx_surrogate.local_model import How
 from mjx_surrogate.model_defaults import half_ranges, hold_controls
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.resolution import solver_params
@@ -121,7 +122,8 @@ def simulation_curve(
     it = int(iterations)
     ident = np.asarray(identified)[:it]
     fine = per_identification if per_fine_identification is None else per_fine_identification
-    per = np.where(ident == 2, fine, np.where(ident == 1, per_identification, 0))
+    coarse = np.where(ident == How.IDENTIFIED, per_identification, 0)
+    per = np.where(ident == How.IDENTIFIED_FINE, fine, coarse)
     return T + np.concatenate([[0], np.cumsum(n_alphas * T + per)])
 
 
