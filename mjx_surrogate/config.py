@@ -142,7 +142,7 @@ class SolverConfig:
     instead of lowering it: a trust region on the step (``mjx_surrogate.ilqr``); 0: off.
     reuse_tol, reuse_max: after an accepted step whose actual decrease was within reuse_tol
     of the model's promise, carry the model over (secant update) instead of identifying,
-    at most reuse_max iterations in a row (``mjx_surrogate.ilqr``); 0: always identify.
+    at most reuse_max iterations in a row (``mjx_surrogate.local_model``); 0: always identify.
     """
 
     # (defaults: the solver's own ILQRParams, one source of truth)
@@ -333,23 +333,25 @@ class MPCConfig:
       solver's settings.
     """
 
-    controllers: Tuple[str, ...] = MPC_CONTROLLERS
-    horizon: Optional[int] = None
-    steps: Optional[int] = None
-    max_iter: int = 5
-    process_noise: Tuple[float, ...] = (0.0, 0.01)
-    plants: Tuple[str, ...] = ("model",)
-    n_episodes: int = 4
-    data_level: float = 0.1
-    samples: Optional[int] = None
-    sampling_sigma: float = 1.0
-    mppi_temperature: float = 0.01
-    sampling_knots: int = 0
-    refit_weight: float = 0.0
-    refit_updates: int = 20
-    first_plan: Literal["optimum", "zeros"] = "optimum"
-    n_samples: Optional[int] = None
-    sysid_design: Literal["gaussian", "orthogonal"] = "orthogonal"
+    controllers: Tuple[str, ...] = (
+        MPC_CONTROLLERS  # d2c, oracle, tvlqr, surrogates, predictive_sampling, mppi
+    )
+    horizon: Optional[int] = None  # control steps per plan H (None: task.T)
+    steps: Optional[int] = None  # control steps of an episode (None: task.T)
+    max_iter: int = 5  # iLQR iterations per replan
+    process_noise: Tuple[float, ...] = (0.0, 0.01)  # noise std added after each plant step, per level
+    plants: Tuple[str, ...] = ("model",)  # "model" or NAME=VALUE[,NAME=VALUE...], e.g. "mass=1.5"
+    n_episodes: int = 4  # episodes per controller and condition
+    data_level: float = 0.1  # the surrogates' training data: perturbation level x U_max
+    samples: Optional[int] = None  # sampling MPCs' samples per replan (None: D2C-MPC's budget)
+    sampling_sigma: float = 1.0  # the samples' spread, control units
+    mppi_temperature: float = 0.01  # MPPI's temperature, a fraction of the first plan's cost
+    sampling_knots: int = 0  # 0: samples at every step; k: at k knots, interpolated
+    refit_weight: float = 0.0  # > 0: surrogates refitted online, an episode's transition weighing this
+    refit_updates: int = 20  # MLP refit: optimiser steps before every replan (0: no MLP refit)
+    first_plan: Literal["optimum", "zeros"] = "optimum"  # every planner's first warm start
+    n_samples: Optional[int] = None  # D2C-MPC's samples per identification (None: nx + nu)
+    sysid_design: Literal["gaussian", "orthogonal"] = "orthogonal"  # D2C-MPC's perturbations
 
 
 @dataclasses.dataclass(frozen=True)
