@@ -1,8 +1,8 @@
 """The iLQR backward pass now and before the regularisation share ``reg`` was added.
 
 Same run, same inputs, compile apart: ``python benchmarks/backward_pass.py BEFORE.py``
-where BEFORE.py is an earlier ``mjx_surrogate/riccati.py`` (``mjx_surrogate/ilqr.py`` before
-the backward pass had its own module; e.g. ``git show REV:mjx_surrogate/riccati.py``).
+where BEFORE.py is an earlier ``mjx_surrogate/control/riccati.py`` (``mjx_surrogate/control/ilqr.py`` before
+the backward pass had its own module; e.g. ``git show REV:mjx_surrogate/control/riccati.py``).
 Shapes: cartpole (T 30, nx 4, nu 1) and fish (T 600, nx 27, nu 5), unbounded and boxed.
 """
 
@@ -36,7 +36,7 @@ def main() -> None:
     import jax
     import jax.numpy as jnp
 
-    from mjx_surrogate.riccati import backward_pass
+    from mjx_surrogate.control.riccati import backward_pass
 
     spec = importlib.util.spec_from_file_location("ilqr_before", sys.argv[1])
     before = importlib.util.module_from_spec(spec)

@@ -68,9 +68,9 @@ def bench(
     from sample_efficiency import solver_overrides
 
     from configs import load as load_config
-    from mjx_surrogate.d2c import solve_d2c, solve_exact
-    from mjx_surrogate.pipeline import initial_controls, simulation_metrics
-    from mjx_surrogate.resolution import resolve, solver_params
+    from mjx_surrogate.control.d2c import solve_d2c, solve_exact
+    from mjx_surrogate.runs.pipeline import initial_controls, simulation_metrics
+    from mjx_surrogate.runs.resolution import resolve, solver_params
     from mjx_surrogate.timing import compile_then_run
 
     cfg = load_config(f"{name}_d2c")

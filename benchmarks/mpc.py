@@ -76,9 +76,9 @@ def run(
     import jax.numpy as jnp
     import numpy as np
 
-    from mjx_surrogate import mpc, mpc_sampling
-    from mjx_surrogate.config import Config, SystemConfig, TaskConfig
-    from mjx_surrogate.resolution import mpc_params, resolve
+    from mjx_surrogate.control import mpc, mpc_sampling
+    from mjx_surrogate.runs.config import Config, SystemConfig, TaskConfig
+    from mjx_surrogate.runs.resolution import mpc_params, resolve
     from mjx_surrogate.tasks import goal_cost, trajectory_cost
     from mjx_surrogate.trajectory import open_loop
 

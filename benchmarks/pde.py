@@ -42,11 +42,12 @@ def one(system_name: str, n: int, method: str) -> dict:
     import jax
     import jax.numpy as jnp
 
-    from mjx_surrogate import d2c, pipeline
-    from mjx_surrogate.ilqr import ILQRParams, StopReason
-    from mjx_surrogate.model_defaults import default_n_samples
+    from mjx_surrogate.control import d2c
+    from mjx_surrogate.control.ilqr import ILQRParams, StopReason
+    from mjx_surrogate.identification.sysid import SysIdParams
     from mjx_surrogate.progress import NO_PROGRESS
-    from mjx_surrogate.sysid import SysIdParams
+    from mjx_surrogate.runs import pipeline
+    from mjx_surrogate.runs.model_defaults import default_n_samples
     from mjx_surrogate.systems import allen_cahn, burgers, registry
     from mjx_surrogate.tasks import make_task
 
@@ -99,7 +100,7 @@ def basis_timings(grids: list[int], repeats: int = 20) -> None:
     import jax
     import jax.numpy as jnp
 
-    from mjx_surrogate.sysid_reduced import snapshot_basis
+    from mjx_surrogate.identification.sysid_reduced import snapshot_basis
 
     def gram_basis(dX, tol):
         def one(S):  # S [n, nx]

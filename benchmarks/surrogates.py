@@ -33,11 +33,11 @@ def main() -> None:
 
     configure_runtime()
     from configs import load as load_config
-    from mjx_surrogate import data
-    from mjx_surrogate.d2c import solve_d2c
-    from mjx_surrogate.pipeline import initial_controls
-    from mjx_surrogate.resolution import library_specs, resolve, solver_params
-    from mjx_surrogate.rollout import rollout
+    from mjx_surrogate.control.d2c import solve_d2c
+    from mjx_surrogate.identification import data
+    from mjx_surrogate.identification.rollout import rollout
+    from mjx_surrogate.runs.pipeline import initial_controls
+    from mjx_surrogate.runs.resolution import library_specs, resolve, solver_params
     from mjx_surrogate.surrogates import mlp, sindy
 
     jax.config.update("jax_enable_x64", True)

@@ -38,12 +38,12 @@ def main() -> None:
 
     configure_runtime()
     from configs import load as load_config
-    from mjx_surrogate.d2c import exact_linearize, solve_d2c, solve_exact
-    from mjx_surrogate.ilqr import StopReason
+    from mjx_surrogate.control.d2c import exact_linearize, solve_d2c, solve_exact
+    from mjx_surrogate.control.ilqr import StopReason
+    from mjx_surrogate.identification.sysid import SCHEMES, ltv_linearize
     from mjx_surrogate.linalg import ltv_relative_error
-    from mjx_surrogate.pipeline import initial_controls
-    from mjx_surrogate.resolution import resolve, solver_params
-    from mjx_surrogate.sysid import SCHEMES, ltv_linearize
+    from mjx_surrogate.runs.pipeline import initial_controls
+    from mjx_surrogate.runs.resolution import resolve, solver_params
 
     print(f"n_samples={a.n_samples}, sigma={a.sigma}, float32, backend={a.backend}\n")
     print("| system | scheme | LTV rel. error median | max | D2C cost | exact cost | gap % | iters | stop |")

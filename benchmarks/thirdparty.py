@@ -45,9 +45,9 @@ def main() -> None:
     import jax.numpy as jnp
     from test_thirdparty import CASES, case_config
 
-    from mjx_surrogate.d2c import solve_d2c, solve_exact
-    from mjx_surrogate.pipeline import summary
-    from mjx_surrogate.resolution import resolve, solver_params
+    from mjx_surrogate.control.d2c import solve_d2c, solve_exact
+    from mjx_surrogate.runs.pipeline import summary
+    from mjx_surrogate.runs.resolution import resolve, solver_params
 
     print(
         "| model | nx, nu | contacts | D2C status | D2C cost | iterations | goal reached "

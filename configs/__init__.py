@@ -12,21 +12,21 @@ def names() -> list[str]:
 
 
 def load(name: str):
-    """The ``CONFIG`` of preset ``name`` (a :class:`mjx_surrogate.config.Config`)."""
+    """The ``CONFIG`` of preset ``name`` (a :class:`mjx_surrogate.runs.config.Config`)."""
     return importlib.import_module(f"{__name__}.{name}").CONFIG
 
 
 def preset(**sections: dict):
-    """A preset as data: the default :class:`mjx_surrogate.config.Config` with the fields
+    """A preset as data: the default :class:`mjx_surrogate.runs.config.Config` with the fields
     each keyword section states (as :func:`derive` takes them)."""
-    from mjx_surrogate.config import Config
+    from mjx_surrogate.runs.config import Config
 
     return _changed(Config(), sections)
 
 
 def derive(parent: str, **sections: dict):
     """Preset ``parent``'s config with the changes a derived preset states, and nothing else:
-    each keyword is a section of :class:`mjx_surrogate.config.Config` mapping its fields
+    each keyword is a section of :class:`mjx_surrogate.runs.config.Config` mapping its fields
     to new values, a nested section's field written with a dot (``surrogate={"mlp.epochs":
     50}``). An unknown section or field raises, as a typo must not pass unseen."""
     return _changed(load(parent), sections)

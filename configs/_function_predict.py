@@ -4,7 +4,7 @@ SINDy with polynomials up to degree 3 (both systems' own terms are polynomials o
 at most 3), MLP and LTV open-loop predictions."""
 
 from configs import preset
-from mjx_surrogate.config import Config
+from mjx_surrogate.runs.config import Config
 
 
 def predict_config(system: str, task_preset: str) -> Config:

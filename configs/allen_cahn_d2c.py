@@ -2,7 +2,7 @@
 D2C grows the +1 phase in the middle of a field at w = -1 in 1 s, against the jacfwd
 oracle. In 2-D: ``--system.name allen_cahn2d16``; reduced-order: ``--solver.sysid reduced``."""
 
-from mjx_surrogate.config import Config, ExperimentConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import Config, ExperimentConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(
     system=SystemConfig(name="allen_cahn64"),

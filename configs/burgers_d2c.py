@@ -2,7 +2,7 @@
 the steepening wave sin(2 pi xi) to rest in 0.5 s, against the jacfwd oracle. For a finer
 grid and the reduced-order scheme: ``--system.name burgers1024 --solver.sysid reduced``."""
 
-from mjx_surrogate.config import Config, ExperimentConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import Config, ExperimentConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(
     system=SystemConfig(name="burgers64"),

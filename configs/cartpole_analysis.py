@@ -7,7 +7,7 @@ paper's 5000 epochs, stopping once the best test loss fell by less than 10 % ove
 about an hour)."""
 
 from configs import derive
-from mjx_surrogate.config import DataConfig
+from mjx_surrogate.runs.config import DataConfig
 
 CONFIG = derive(
     "cartpole_predict",

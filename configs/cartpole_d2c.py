@@ -7,7 +7,7 @@ stop at a second stationary point. ``--solver.sysid central_difference --solver.
 --solver.sysid_design gaussian --solver.n_alphas 8`` is D2C 2.0's LLS-CD.
 """
 
-from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(
     system=SystemConfig(name="cartpole", timestep=0.1, substeps=1),

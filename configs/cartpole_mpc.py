@@ -8,7 +8,7 @@ divergence (docs/mpc.md)."""
 import dataclasses
 
 from configs.pendulum_mpc import CONFIG as _PENDULUM
-from mjx_surrogate.config import DataConfig, MPCConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import DataConfig, MPCConfig, SystemConfig, TaskConfig
 
 CONFIG = dataclasses.replace(
     _PENDULUM,

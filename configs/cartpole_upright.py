@@ -1,6 +1,6 @@
 """Paper: cartpole from hanging to upright at the origin, from a random trajectory."""
 
-from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(
     system=SystemConfig(name="cartpole"),

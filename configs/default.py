@@ -4,7 +4,7 @@ The solver runs on SolverConfig's own defaults, so that this preset and
 ``Config(system=SystemConfig(name="pendulum"), task=TaskConfig(preset="pendulum_d2c"))``
 from Python are the same run."""
 
-from mjx_surrogate.config import Config, ExperimentConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import Config, ExperimentConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(
     system=SystemConfig(name="pendulum"),

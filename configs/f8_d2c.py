@@ -2,7 +2,7 @@
 recovery from a 26.7 deg angle of attack against the jacfwd oracle; the solver's
 defaults, up to 300 iterations."""
 
-from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(
     system=SystemConfig(name="f8"),

@@ -12,7 +12,7 @@ after 300, the prediction preset's cap), so the cap here is 800."""
 import dataclasses
 
 from configs.fish_predict import CONFIG as _PREDICT  # the same system, task and solver
-from mjx_surrogate.config import DataConfig, ExperimentConfig, MLPConfig, SindyConfig, SurrogateConfig
+from mjx_surrogate.runs.config import DataConfig, ExperimentConfig, MLPConfig, SindyConfig, SurrogateConfig
 
 CONFIG = dataclasses.replace(
     _PREDICT,

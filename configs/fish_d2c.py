@@ -6,7 +6,7 @@ second time step, interpolated between, and at every step once a step gains less
 differences to within 0.1 % of its cost, and a 2.3 % lower optimum).
 """
 
-from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(
     system=SystemConfig(name="fish", timestep=0.005, substeps=5),

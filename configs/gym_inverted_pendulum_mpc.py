@@ -10,7 +10,7 @@ minutes on 2 cores)."""
 import importlib.util
 import os
 
-from mjx_surrogate.config import Config, ExperimentConfig, MPCConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import Config, ExperimentConfig, MPCConfig, SystemConfig, TaskConfig
 
 
 def _asset(name: str) -> str:

@@ -1,7 +1,7 @@
 """SINDy-MPC's Lorenz system with control (``mjx_surrogate.systems.lorenz``): D2C from the
 fixed point C- to C+ in 2 s against the jacfwd oracle; the solver's defaults, up to 300 iterations."""
 
-from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(
     system=SystemConfig(name="lorenz"),

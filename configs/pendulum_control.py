@@ -6,7 +6,7 @@ levels, two seeds) drive iLQR from the same start, and every controller runs on 
 import dataclasses
 
 from configs.cartpole_control import CONFIG as _CARTPOLE  # the same study: data, surrogates
-from mjx_surrogate.config import SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import SolverConfig, SystemConfig, TaskConfig
 
 CONFIG = dataclasses.replace(
     _CARTPOLE,

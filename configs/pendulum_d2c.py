@@ -2,7 +2,7 @@
 The model runs at D2C 2.0's time step (timestep=0.1, substeps=1), so that times and costs compare.
 """
 
-from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(
     system=SystemConfig(name="pendulum", timestep=0.1, substeps=1),

@@ -1,6 +1,6 @@
 """Paper: pendulum swing-up from 180 deg to rest at 60 deg in 30 steps, from zero controls."""
 
-from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(
     system=SystemConfig(name="pendulum"),

@@ -1,7 +1,7 @@
 """CI smoke: the analysis experiment on the pendulum, tiny sizes."""
 
 from configs import derive
-from mjx_surrogate.config import DataConfig
+from mjx_surrogate.runs.config import DataConfig
 
 CONFIG = derive(
     "smoke_control",

@@ -1,7 +1,7 @@
 """CI smoke: D2C on the pendulum over 10 steps against the finite-difference oracle, on the
 native backend (its programs compile in seconds)."""
 
-from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(
     system=SystemConfig(name="pendulum", backend="native"),

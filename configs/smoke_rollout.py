@@ -1,6 +1,6 @@
 """CI smoke: 32 perturbed pendulum rollouts over 10 steps."""
 
-from mjx_surrogate.config import Config, ExperimentConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import Config, ExperimentConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(
     system=SystemConfig(name="pendulum"),

@@ -1,6 +1,6 @@
 """CI smoke: the theory experiment, orders 1..4, small Monte Carlo."""
 
-from mjx_surrogate.config import AnalysisConfig, Config, ExperimentConfig
+from mjx_surrogate.runs.config import AnalysisConfig, Config, ExperimentConfig
 
 CONFIG = Config(
     experiment=ExperimentConfig(kind="theory", x64=True, progress=False),

@@ -9,7 +9,7 @@ level by level and is far slower on CPU cores: docs/performance.md).
 import dataclasses
 
 from configs.swimmer6_d2c import CONFIG as SWIMMER6
-from mjx_surrogate.config import SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import SystemConfig, TaskConfig
 
 CONFIG = dataclasses.replace(
     SWIMMER6,

@@ -5,7 +5,7 @@ Up to 500 iterations (D2C 2.0 stopped at 250): from the benchmark's start, 1632.
 differences stall above the optimum (docs/performance.md).
 """
 
-from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
 
 CONFIG = Config(
     system=SystemConfig(name="swimmer6", timestep=0.01, substeps=1),

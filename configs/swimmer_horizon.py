@@ -6,7 +6,7 @@ reference Jacobians by central differences of the native step."""
 import dataclasses
 
 from configs.swimmer6_d2c import CONFIG as _D2C  # the same system, task and solver
-from mjx_surrogate.config import DataConfig, ExperimentConfig
+from mjx_surrogate.runs.config import DataConfig, ExperimentConfig
 
 CONFIG = dataclasses.replace(
     _D2C,

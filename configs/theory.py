@@ -2,7 +2,7 @@
 monomial (Gaussian), Hermite (Gaussian) and Legendre (uniform) bases, orders 1..10:
 exact rational moments, Monte Carlo, and the paper's printed formulas."""
 
-from mjx_surrogate.config import AnalysisConfig, Config, ExperimentConfig
+from mjx_surrogate.runs.config import AnalysisConfig, Config, ExperimentConfig
 
 CONFIG = Config(
     experiment=ExperimentConfig(kind="theory", x64=True),

@@ -14,11 +14,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import data, pipeline, plots, progress, step_models
+from mjx_surrogate import progress
 from mjx_surrogate.analysis import spectra
-from mjx_surrogate.config import Config
-from mjx_surrogate.resolution import Resolved, analysis_library_specs
-from mjx_surrogate.results import Run
+from mjx_surrogate.identification import data, step_models
+from mjx_surrogate.runs import pipeline, plots
+from mjx_surrogate.runs.config import Config
+from mjx_surrogate.runs.resolution import Resolved, analysis_library_specs
+from mjx_surrogate.runs.results import Run
 from mjx_surrogate.surrogates import mlp, sindy
 from mjx_surrogate.surrogates.registry import library_specs, mlp_spec
 from mjx_surrogate.systems import System

@@ -12,11 +12,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import chunked, data, pipeline, plots, progress
-from mjx_surrogate.evaluation import finite_or_none, replay
-from mjx_surrogate.resolution import Resolved, solver_params
-from mjx_surrogate.results import Run
-from mjx_surrogate.surrogate_control import solve_on_model
+from mjx_surrogate import progress
+from mjx_surrogate.analysis.evaluation import finite_or_none, replay
+from mjx_surrogate.control import chunked
+from mjx_surrogate.control.surrogate_control import solve_on_model
+from mjx_surrogate.identification import data
+from mjx_surrogate.runs import pipeline, plots
+from mjx_surrogate.runs.resolution import Resolved, solver_params
+from mjx_surrogate.runs.results import Run
 from mjx_surrogate.surrogates import FitContext, fit_all
 
 GOAL_RULE = "goal cost at x_T <= task.goal_tolerance x goal cost at x_0 (docs/results.md)"

@@ -11,12 +11,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import chunked, pipeline, plots, progress, sysid, sysid_reduced
-from mjx_surrogate.d2c import exact_linearize
-from mjx_surrogate.evaluation import evaluate_feedback
+from mjx_surrogate import progress
+from mjx_surrogate.analysis.evaluation import evaluate_feedback
+from mjx_surrogate.control import chunked
+from mjx_surrogate.control.d2c import exact_linearize
+from mjx_surrogate.identification import sysid, sysid_reduced
 from mjx_surrogate.linalg import ltv_relative_error
-from mjx_surrogate.resolution import Resolved, solver_params
-from mjx_surrogate.results import Interrupted, Run
+from mjx_surrogate.runs import pipeline, plots
+from mjx_surrogate.runs.resolution import Resolved, solver_params
+from mjx_surrogate.runs.results import Interrupted, Run
 from mjx_surrogate.systems.system import actuated_state_indices
 
 

@@ -1,6 +1,6 @@
 """Experiment kind "horizon" (beyond the paper): how the error of LTV models identified from
 perturbed rollouts grows with the rollout's length, open loop (the paper's scheme) against
-closed loop under the optimum's gains (mjx_surrogate/horizon.py; Pfrommer et al., ICML 2023).
+closed loop under the optimum's gains (mjx_surrogate/analysis/horizon.py; Pfrommer et al., ICML 2023).
 
 Stages: ``optimum`` (the task's D2C optimum and gains), ``reference`` (the oracle's
 Jacobians along it, ``experiment.oracle``), then ``levels/<level>``: data.n_traj rollouts
@@ -14,10 +14,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import horizon, pipeline, plots
-from mjx_surrogate.d2c import exact_linearize
-from mjx_surrogate.resolution import Resolved
-from mjx_surrogate.results import Run
+from mjx_surrogate.analysis import horizon
+from mjx_surrogate.control.d2c import exact_linearize
+from mjx_surrogate.runs import pipeline, plots
+from mjx_surrogate.runs.resolution import Resolved
+from mjx_surrogate.runs.results import Run
 
 
 def _quarter_median(v: np.ndarray, last: bool) -> float | None:

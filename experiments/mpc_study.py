@@ -23,12 +23,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import data, mpc, mpc_online, mpc_sampling, pipeline, plots, progress
+from mjx_surrogate import progress
 from mjx_surrogate.analysis.closed_loop import cause_text, closed_loop_verdict, table
-from mjx_surrogate.config import MPC_CONTROLLERS
-from mjx_surrogate.evaluation import finite_or_none
-from mjx_surrogate.resolution import Resolved, mpc_params, plant_builder
-from mjx_surrogate.results import Run
+from mjx_surrogate.analysis.evaluation import finite_or_none
+from mjx_surrogate.control import mpc, mpc_online, mpc_sampling
+from mjx_surrogate.identification import data
+from mjx_surrogate.runs import pipeline, plots
+from mjx_surrogate.runs.config import MPC_CONTROLLERS
+from mjx_surrogate.runs.resolution import Resolved, mpc_params, plant_builder
+from mjx_surrogate.runs.results import Run
 from mjx_surrogate.surrogates import FitContext, fit_all
 from mjx_surrogate.surrogates.mlp import MLPModel
 from mjx_surrogate.surrogates.registry import mlp_spec

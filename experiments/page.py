@@ -168,7 +168,7 @@ def render(folder: str) -> str:
 def write(folder: str, overwrite: bool = False) -> str:
     """Write ``report.html`` into ``folder``; returns its path. Raises FileExistsError where
     the page exists and ``overwrite`` is off."""
-    from mjx_surrogate.results import _atomic_write
+    from mjx_surrogate.runs.results import _atomic_write
 
     path = os.path.join(folder, PAGE)
     if os.path.exists(path) and not overwrite:

@@ -16,10 +16,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import data, locality, pipeline, plots, progress, step_models, sysid
-from mjx_surrogate.evaluation import prediction_errors
-from mjx_surrogate.resolution import Resolved
-from mjx_surrogate.results import Run
+from mjx_surrogate import progress
+from mjx_surrogate.analysis import locality
+from mjx_surrogate.analysis.evaluation import prediction_errors
+from mjx_surrogate.identification import data, step_models, sysid
+from mjx_surrogate.runs import pipeline, plots
+from mjx_surrogate.runs.resolution import Resolved
+from mjx_surrogate.runs.results import Run
 from mjx_surrogate.surrogates import FitContext, fit_all
 
 
@@ -81,7 +84,7 @@ def level_stage(res: Resolved, X_star, U_star, level: float, i: int, key: jax.Ar
 @partial(jax.jit, static_argnums=0)
 def _open_loop_gain(system, X_star, U_star):
     """The optimum's open-loop gain through its coordinate finite-difference linearisation
-    on the black box (:mod:`mjx_surrogate.locality`)."""
+    on the black box (:mod:`mjx_surrogate.analysis.locality`)."""
     A, B = sysid.finite_difference_jacobians(system.step, X_star, U_star)
     return locality.open_loop_gain(A, B)
 

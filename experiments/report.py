@@ -8,7 +8,7 @@ import shutil
 
 from experiments import report_control, report_mpc, report_pde
 from experiments.report_rules import RULES, rules_table
-from mjx_surrogate.results import read_json, versions
+from mjx_surrogate.runs.results import read_json, versions
 
 
 def _load(folder: str | None) -> dict:

@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import Callable
 
 from experiments.report_rules import RULES
-from mjx_surrogate.results import read_json
+from mjx_surrogate.runs.results import read_json
 
 CONTROL = (
     (
@@ -100,7 +100,7 @@ def horizon_sections(L: list, folders: dict, fig: Callable, section: Callable, v
         "Here `data.n_traj` rollouts per level (control noise level x U_max, start offsets "
         "level x each state's spread along the optimum) are run open loop and under the "
         "optimum's gains K, with the same draws, and [A_t B_t] is regressed per step on the "
-        "applied controls (`mjx_surrogate/horizon.py`). Errors are relative to central "
+        "applied controls (`mjx_surrogate/analysis/horizon.py`). Errors are relative to central "
         "differences of the black-box step. 'A + BK' is the loop the gains close: the error "
         "of A alone is amplified by large gains (A = (A + BK) - BK), so both are shown.",
         "",

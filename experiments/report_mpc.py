@@ -10,7 +10,7 @@ import os
 from typing import Callable
 
 from experiments.report_rules import RULES
-from mjx_surrogate.results import read_json
+from mjx_surrogate.runs.results import read_json
 from mjx_surrogate.systems.plant import parse_plant, plant_slug
 
 MPC = (

@@ -7,7 +7,7 @@ import os
 from typing import Callable
 
 from experiments.report_rules import RULES
-from mjx_surrogate.results import read_json
+from mjx_surrogate.runs.results import read_json
 
 GAP_TOL = RULES["ro_d2c"].value("gap")  # RO-D2C "reaches the oracle": within this of its cost
 

@@ -27,10 +27,10 @@ import time
 
 from experiments import report
 from experiments.run import load_config, run
-from mjx_surrogate import distributed
-from mjx_surrogate.config import ParallelConfig
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.results import SUCCESS
+from mjx_surrogate.runs import distributed
+from mjx_surrogate.runs.config import ParallelConfig
+from mjx_surrogate.runs.results import SUCCESS
 from mjx_surrogate.runtime import backend_started, configure_runtime
 from mjx_surrogate.systems.registry import is_function_system
 

@@ -9,10 +9,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import plots
-from mjx_surrogate.resolution import Resolved
-from mjx_surrogate.results import Run
-from mjx_surrogate.rollout import perturbed_rollouts, rollout
+from mjx_surrogate.identification.rollout import perturbed_rollouts, rollout
+from mjx_surrogate.runs import plots
+from mjx_surrogate.runs.resolution import Resolved
+from mjx_surrogate.runs.results import Run
 from mjx_surrogate.tasks import trajectory_cost
 
 

@@ -22,8 +22,8 @@ import tempfile
 import threading
 
 from experiments.summary import summary_line, summary_screen
-from mjx_surrogate.config import Config, PointGoal, from_dict, to_dict, validate_static
 from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.runs.config import Config, PointGoal, from_dict, to_dict, validate_static
 from mjx_surrogate.runtime import configure_runtime
 
 DEFAULT_PRESET = "default"
@@ -68,7 +68,7 @@ def load_config(spec: str) -> Config:
         module = importlib.import_module(f"configs.{spec}")
     cfg = getattr(module, "CONFIG", None)
     if not isinstance(cfg, Config):
-        raise ConfigError("CONFIG", f"{spec!r} defines no CONFIG of type mjx_surrogate.config.Config")
+        raise ConfigError("CONFIG", f"{spec!r} defines no CONFIG of type mjx_surrogate.runs.config.Config")
     return cfg
 
 
@@ -355,8 +355,9 @@ def run(
     (a sweep member, :mod:`experiments.reproduce`)."""
     import jax
 
-    from mjx_surrogate import distributed, progress
-    from mjx_surrogate.results import Interrupted, Run, WriteError
+    from mjx_surrogate import progress
+    from mjx_surrogate.runs import distributed
+    from mjx_surrogate.runs.results import Interrupted, Run, WriteError
 
     res, parallel = _resolved(cfg, local)
     ex = res.config.experiment
@@ -406,9 +407,9 @@ def _resolved(cfg: Config, local: bool):
     session may already run in x64)."""
     import jax
 
-    from mjx_surrogate import distributed
-    from mjx_surrogate.model_defaults import default_x64
-    from mjx_surrogate.resolution import resolve
+    from mjx_surrogate.runs import distributed
+    from mjx_surrogate.runs.model_defaults import default_x64
+    from mjx_surrogate.runs.resolution import resolve
 
     validate_static(cfg)
     check_out_dir(cfg.experiment.out_dir)
@@ -421,8 +422,8 @@ def _resolved(cfg: Config, local: bool):
 
 def _open_folder(out_dir: str, name: str, writer: bool):
     """The run folder (in a temporary folder for a process that does not write) and where."""
-    from mjx_surrogate import distributed
-    from mjx_surrogate.results import RunFolder, WriteError
+    from mjx_surrogate.runs import distributed
+    from mjx_surrogate.runs.results import RunFolder, WriteError
 
     if not writer:
         out_dir = tempfile.mkdtemp(prefix=f"mjx_surrogate_p{distributed.process_index()}_")
@@ -459,7 +460,7 @@ def _write_page(path: str) -> None:
 
 def _write_inputs(folder, res, parallel: dict) -> None:
     """The resolved config, the exact model and the versions, into the run folder."""
-    from mjx_surrogate.results import versions
+    from mjx_surrogate.runs.results import versions
 
     folder.write_json("config.json", to_dict(res.config))
     if res.system.mj_model is not None:
@@ -477,7 +478,7 @@ def _stop_now(record) -> None:
     poll for one (a compile, a long jitted call); end the run at once, keeping every stage
     written before, and leave the process with the interrupted status."""
     from mjx_surrogate.progress import STOP_GRACE_S
-    from mjx_surrogate.results import EXIT_CODES
+    from mjx_surrogate.runs.results import EXIT_CODES
 
     where = f"stage {record.current!r}" if record.current else "the run"
     reason = (
@@ -517,7 +518,7 @@ def model_bytes(m) -> bytes:
 def main(argv: list[str] | None = None) -> int:
     """CLI entry; exit status 0 (converged, stalled, max_iter, completed), 1 (diverged,
     failed), 2 (bad input, nothing run), 130 (interrupted)."""
-    from mjx_surrogate.results import EXIT_CODES
+    from mjx_surrogate.runs.results import EXIT_CODES
 
     argv = sys.argv[1:] if argv is None else argv
     try:

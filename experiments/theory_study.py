@@ -8,10 +8,10 @@ from fractions import Fraction
 import jax
 import numpy as np
 
-from mjx_surrogate import plots
 from mjx_surrogate.analysis import theory as th
-from mjx_surrogate.resolution import Resolved
-from mjx_surrogate.results import Run
+from mjx_surrogate.runs import plots
+from mjx_surrogate.runs.resolution import Resolved
+from mjx_surrogate.runs.results import Run
 
 BASES = (("monomial", "gauss"), ("hermite", "gauss"), ("legendre", "uniform"))
 

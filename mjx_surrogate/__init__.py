@@ -11,8 +11,15 @@ The public API, importable from here. Importing changes no global state; call
     timed, U0, _ = ms.solve_config(ms.resolve(cfg))  # exactly the command line's D2C solve
 """
 
-from mjx_surrogate import chunked, mpc, progress
-from mjx_surrogate.config import (
+from mjx_surrogate import progress
+from mjx_surrogate.control import chunked, mpc
+from mjx_surrogate.control.d2c import solve_d2c, solve_exact, solve_multistart
+from mjx_surrogate.control.ilqr import ILQRParams, ILQRResult, StopReason, ilqr
+from mjx_surrogate.control.mpc import MPCResult, receding_horizon
+from mjx_surrogate.cost import Cost
+from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.identification.sysid import IdentificationScheme, SysIdParams, register_scheme
+from mjx_surrogate.runs.config import (
     AnalysisConfig,
     Config,
     DataConfig,
@@ -25,16 +32,10 @@ from mjx_surrogate.config import (
     SystemConfig,
     TaskConfig,
 )
-from mjx_surrogate.cost import Cost
-from mjx_surrogate.d2c import solve_d2c, solve_exact, solve_multistart
-from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.ilqr import ILQRParams, ILQRResult, StopReason, ilqr
-from mjx_surrogate.mpc import MPCResult, receding_horizon
-from mjx_surrogate.pipeline import solve_config, start_controls
-from mjx_surrogate.resolution import mpc_params, resolve, solver_params
+from mjx_surrogate.runs.pipeline import solve_config, start_controls
+from mjx_surrogate.runs.resolution import mpc_params, resolve, solver_params
 from mjx_surrogate.runtime import configure_runtime
 from mjx_surrogate.surrogates import FitContext, Fitted, SurrogateKind, fit_all, register_surrogate
-from mjx_surrogate.sysid import IdentificationScheme, SysIdParams, register_scheme
 from mjx_surrogate.systems import System, from_mjcf, make_system, register_system
 from mjx_surrogate.tasks import Task, make_task
 

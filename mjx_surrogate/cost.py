@@ -2,7 +2,7 @@
 
     J(X, U) = sum_{t<T} l(x_t, u_t) + l_f(x_T),    X [T+1, nx], U [T, nu]
 
-Derivatives are taken by autodiff (:func:`mjx_surrogate.riccati.cost_derivatives`), so a cost
+Derivatives are taken by autodiff (:func:`mjx_surrogate.control.riccati.cost_derivatives`), so a cost
 term is any differentiable function, unless the cost brings its own ``derivatives`` (the
 tasks' point goals use a Gauss-Newton Hessian, :mod:`mjx_surrogate.tasks`).
 """
@@ -21,7 +21,7 @@ class Cost(NamedTuple):
     """running(x[nx], u[nu]) -> scalar; terminal(x[nx]) -> scalar.
 
     derivatives(X [T+1, nx], U [T, nu]) -> (l_x, l_u, l_xx, l_uu, l_ux, V_x, V_xx), the
-    shapes of :func:`mjx_surrogate.riccati.cost_derivatives`; None: exact, by autodiff."""
+    shapes of :func:`mjx_surrogate.control.riccati.cost_derivatives`; None: exact, by autodiff."""
 
     running: Callable[[jax.Array, jax.Array], jax.Array]
     terminal: Callable[[jax.Array], jax.Array]

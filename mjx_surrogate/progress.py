@@ -13,7 +13,7 @@ and returns its best iterate, so nothing it computed is lost.
         result = solve_d2c(system, task, U0, key, progress=pm)
 
 Any meter passed explicitly (``NO_PROGRESS`` included) shares one compiled program. A loop
-driven from the host (:mod:`mjx_surrogate.chunked`) calls :func:`report` and
+driven from the host (:mod:`mjx_surrogate.control.chunked`) calls :func:`report` and
 :func:`stop_polled` between its compiled chunks instead: no callback in the program.
 """
 
@@ -154,7 +154,7 @@ def _host_poll(meter_id, iteration, cost, mu) -> np.ndarray:
 
 
 def report(progress: ProgressMeter, iteration, cost, mu) -> None:
-    """Host side, for a loop driven from the host (:mod:`mjx_surrogate.chunked`): advance
+    """Host side, for a loop driven from the host (:mod:`mjx_surrogate.control.chunked`): advance
     ``progress``'s bar to ``iteration`` (cost and mu: the best of a batch)."""
     _update_bar(int(np.asarray(progress.meter_id)), iteration, cost, mu)
 

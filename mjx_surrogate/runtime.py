@@ -26,7 +26,7 @@ should too, before its first JAX computation:
   recompiled. ``MJX_SURROGATE_CACHE=off`` (or ``compile_cache=False``) switches it off.
   Programs with host callbacks are not cached by JAX: the native backend's simulator is
   one, and so is a progress meter polled from inside a solve; the CLI drives its solves
-  from the host instead (:mod:`mjx_surrogate.chunked`), so its MJX programs are cached.
+  from the host instead (:mod:`mjx_surrogate.control.chunked`), so its MJX programs are cached.
   JAX does not cache tracing; the MJX step's own programs are exported into the same folder
   and loaded by later runs instead of traced (:mod:`mjx_surrogate.systems.exported_step`).
 """

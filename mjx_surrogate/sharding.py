@@ -8,7 +8,7 @@ With a :class:`jax.sharding.Mesh` of D devices along the single axis :data:`AXIS
   fully manual: a host callback such as the native backend's runs once per device, on
   the host that owns the device, with that device's slice); the outputs are gathered;
 * :func:`sum_over_batch` reduces per-device sums with one ``psum``: the least-squares fit
-  of :mod:`mjx_surrogate.sysid` sums its sufficient statistics (Z'Z, Z'Y) this way, so
+  of :mod:`mjx_surrogate.identification.sysid` sums its sufficient statistics (Z'Z, Z'Y) this way, so
   raw samples never leave their device.
 
 A batch whose size is not a multiple of D is padded (edge copies for maps, zero weights

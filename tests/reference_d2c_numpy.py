@@ -1,6 +1,6 @@
 """Reference D2C in plain NumPy + native ``mujoco.rollout`` (no JAX).
 
-The same algorithm as ``mjx_surrogate.d2c.solve_d2c`` with central- or forward-difference
+The same algorithm as ``mjx_surrogate.control.d2c.solve_d2c`` with central- or forward-difference
 LTV identification: one multi-threaded ``mujoco.rollout`` call identifies all T models; the
 line search simulates all step sizes together, one batched call per control step. It is
 the same-run speed reference of ``benchmarks/d2c.py`` and an independent numerical

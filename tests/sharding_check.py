@@ -41,13 +41,14 @@ def main() -> None:
     ap.add_argument("--sweep-dir", default=None, help="then a two-experiment reproduce --distributed here")
     a = ap.parse_args()
 
-    from mjx_surrogate.config import ParallelConfig
+    from mjx_surrogate.runs.config import ParallelConfig
     from mjx_surrogate.runtime import configure_runtime
 
     configure_runtime(x64=True, compile_cache=False)
     import jax
 
-    from mjx_surrogate import distributed, sharding
+    from mjx_surrogate import sharding
+    from mjx_surrogate.runs import distributed
 
     jax.config.update("jax_num_cpu_devices", a.cpu_devices)
     distributed.initialize(
@@ -104,7 +105,7 @@ def run_experiment(out_dir: str, distributed: bool) -> float:
     import dataclasses
 
     from experiments.run import LAST_STATUS, run
-    from mjx_surrogate.config import (
+    from mjx_surrogate.runs.config import (
         Config,
         ExperimentConfig,
         ParallelConfig,
@@ -148,13 +149,14 @@ def workloads(backend: str, mesh, parts: list[str]) -> dict:
     import jax
     import jax.numpy as jnp
 
-    from mjx_surrogate import data, distributed
-    from mjx_surrogate.config import Config, SystemConfig, TaskConfig
-    from mjx_surrogate.d2c import solve_d2c, solve_multistart
-    from mjx_surrogate.ilqr import ILQRParams
-    from mjx_surrogate.resolution import resolve
+    from mjx_surrogate.control.d2c import solve_d2c, solve_multistart
+    from mjx_surrogate.control.ilqr import ILQRParams
+    from mjx_surrogate.identification import data
+    from mjx_surrogate.identification.sysid import SysIdParams
+    from mjx_surrogate.runs import distributed
+    from mjx_surrogate.runs.config import Config, SystemConfig, TaskConfig
+    from mjx_surrogate.runs.resolution import resolve
     from mjx_surrogate.sharding import size
-    from mjx_surrogate.sysid import SysIdParams
     from mjx_surrogate.systems import make_system
 
     params = ILQRParams(max_iter=15)
@@ -200,9 +202,9 @@ def mjx_blocks(mesh) -> dict:
     import jax
     import jax.numpy as jnp
 
-    from mjx_surrogate import data, sysid
-    from mjx_surrogate.d2c import sharded_trials
-    from mjx_surrogate.ilqr import closed_loop
+    from mjx_surrogate.control.d2c import sharded_trials
+    from mjx_surrogate.control.ilqr import closed_loop
+    from mjx_surrogate.identification import data, sysid
     from mjx_surrogate.systems import make_system
 
     T, n_alphas = 30, 8

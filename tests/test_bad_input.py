@@ -160,8 +160,8 @@ def test_out_is_read_only(tmp_path, capsys):
     "body",
     [
         "raise RuntimeError('boom')\n",
-        "from mjx_surrogate.config import *\nCONFIG = Config(task=TaskConfig(T=10.5))\n",
-        "from mjx_surrogate.config import *\nCONFIG = Config(task=TaskConfig(T='10'))\n",
+        "from mjx_surrogate.runs.config import *\nCONFIG = Config(task=TaskConfig(T=10.5))\n",
+        "from mjx_surrogate.runs.config import *\nCONFIG = Config(task=TaskConfig(T='10'))\n",
         "CONFIG = 3\n",
     ],
     ids=["raises", "float-T", "string-T", "not-a-config"],
@@ -175,7 +175,7 @@ def test_python_config_that_raises_or_has_wrong_types(body, tmp_path, capsys):
 
 
 def test_config_json_from_an_older_schema_is_reported(tmp_path, capsys):
-    from mjx_surrogate.config import Config, to_dict
+    from mjx_surrogate.runs.config import Config, to_dict
 
     data = to_dict(Config())
     del data["task"]["goals"], data["surrogate"]

@@ -1,4 +1,4 @@
-"""Solves driven from the host in compiled chunks (mjx_surrogate.chunked): the iterates of
+"""Solves driven from the host in compiled chunks (mjx_surrogate.control.chunked): the iterates of
 the one-program solve, no host callback in the programs, stop requests between chunks,
 no recompilation."""
 
@@ -7,13 +7,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_surrogate import chunked, progress
-from mjx_surrogate.config import Config, SystemConfig, TaskConfig
-from mjx_surrogate.d2c import solve_d2c
-from mjx_surrogate.ilqr import ILQRParams, StopReason
-from mjx_surrogate.pipeline import initial_controls
-from mjx_surrogate.resolution import resolve
-from mjx_surrogate.sysid import SysIdParams
+from mjx_surrogate import progress
+from mjx_surrogate.control import chunked
+from mjx_surrogate.control.d2c import solve_d2c
+from mjx_surrogate.control.ilqr import ILQRParams, StopReason
+from mjx_surrogate.identification.sysid import SysIdParams
+from mjx_surrogate.runs.config import Config, SystemConfig, TaskConfig
+from mjx_surrogate.runs.pipeline import initial_controls
+from mjx_surrogate.runs.resolution import resolve
 
 P = ILQRParams(max_iter=40, rel_tol=1e-7, record_trajectories=True)
 SID = SysIdParams(n_samples=6)

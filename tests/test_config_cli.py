@@ -15,8 +15,8 @@ from helpers import assert_png
 
 from experiments import run as cli
 from experiments.summary import time_line
-from mjx_surrogate.config import Config, SolverConfig, from_dict, to_dict
 from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.runs.config import Config, SolverConfig, from_dict, to_dict
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -151,7 +151,7 @@ def test_config_built_in_python_has_its_choices_checked():
     """A notebook user's dataclass config gets the same one-line error as a config file."""
     import dataclasses
 
-    from mjx_surrogate.resolution import resolve
+    from mjx_surrogate.runs.resolution import resolve
 
     cfg = cli.load_config("smoke_d2c")
     bad = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, sysid="bogus"))
@@ -208,7 +208,7 @@ def test_run_folder_schema_and_native_replay(tmp_path):
 
 
 def test_runs_never_overwrite(tmp_path):
-    from mjx_surrogate.results import RunFolder
+    from mjx_surrogate.runs.results import RunFolder
 
     a, b = RunFolder(str(tmp_path), "same"), RunFolder(str(tmp_path), "same")
     assert a.path != b.path
@@ -224,8 +224,8 @@ def test_runs_never_overwrite(tmp_path):
 
 
 def test_every_solver_field_named_like_an_ilqr_parameter_reaches_it():
-    from mjx_surrogate.ilqr import ILQRParams
-    from mjx_surrogate.resolution import solver_params
+    from mjx_surrogate.control.ilqr import ILQRParams
+    from mjx_surrogate.runs.resolution import solver_params
 
     names = {f.name for f in dataclasses.fields(SolverConfig)} & {
         f.name for f in dataclasses.fields(ILQRParams)
@@ -249,7 +249,7 @@ def test_a_derived_preset_changes_only_what_it_states():
     import dataclasses
 
     import configs
-    from mjx_surrogate.config import to_dict
+    from mjx_surrogate.runs.config import to_dict
 
     parent = configs.load("cartpole_predict")
     child = configs.derive("cartpole_predict", solver={"max_iter": 7}, surrogate={"mlp.epochs": 3})

@@ -11,14 +11,14 @@ import pytest
 from helpers import assert_png
 
 from experiments import run as cli
-from mjx_surrogate.config import Config, SystemConfig, TaskConfig
-from mjx_surrogate.d2c import solve_d2c, solve_exact, solve_multistart
-from mjx_surrogate.evaluation import evaluate_feedback
-from mjx_surrogate.ilqr import ILQRParams
-from mjx_surrogate.pipeline import initial_controls
-from mjx_surrogate.resolution import resolve
-from mjx_surrogate.rollout import rollout
-from mjx_surrogate.sysid import SysIdParams
+from mjx_surrogate.analysis.evaluation import evaluate_feedback
+from mjx_surrogate.control.d2c import solve_d2c, solve_exact, solve_multistart
+from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.identification.rollout import rollout
+from mjx_surrogate.identification.sysid import SysIdParams
+from mjx_surrogate.runs.config import Config, SystemConfig, TaskConfig
+from mjx_surrogate.runs.pipeline import initial_controls
+from mjx_surrogate.runs.resolution import resolve
 from mjx_surrogate.tasks import trajectory_cost
 
 

@@ -5,8 +5,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_surrogate import data
-from mjx_surrogate.rollout import rollout
+from mjx_surrogate.identification import data
+from mjx_surrogate.identification.rollout import rollout
 
 
 def test_u_max_and_perturbation_statistics(systems):

@@ -68,7 +68,7 @@ def test_nothing_is_written_with_the_compilation_cache_off(systems, monkeypatch)
 
 
 def test_exported_jacobians_are_jacfwd_through_the_plain_step_and_step_stays_differentiable(systems):
-    from mjx_surrogate import sysid
+    from mjx_surrogate.identification import sysid
 
     s = systems("pendulum", "mjx")
     x, u = _inputs(s, 4)

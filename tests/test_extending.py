@@ -12,8 +12,8 @@ import pytest
 
 import mjx_surrogate as ms
 from experiments import run as cli
-from mjx_surrogate import sysid
-from mjx_surrogate.results import load_run
+from mjx_surrogate.identification import sysid
+from mjx_surrogate.runs.results import load_run
 
 
 def coordinate_differences(step, X, U, key, p):

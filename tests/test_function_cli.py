@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from experiments import run as cli
-from mjx_surrogate.config import Config, SystemConfig, TaskConfig
-from mjx_surrogate.resolution import resolve
+from mjx_surrogate.runs.config import Config, SystemConfig, TaskConfig
+from mjx_surrogate.runs.resolution import resolve
 from mjx_surrogate.systems import lorenz
 from mjx_surrogate.systems.registry import default_config
 

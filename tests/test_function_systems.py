@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from mjx_surrogate import chunked, pipeline
-from mjx_surrogate.ilqr import ILQRParams
-from mjx_surrogate.sysid import SysIdParams
+from mjx_surrogate.control import chunked
+from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.identification.sysid import SysIdParams
+from mjx_surrogate.runs import pipeline
 from mjx_surrogate.systems import f8, lorenz
 from mjx_surrogate.systems.function import from_jax, from_numpy
 

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 import mjx_surrogate as ms
-from mjx_surrogate import chunked, pipeline
+from mjx_surrogate.control import chunked
+from mjx_surrogate.runs import pipeline
 from mjx_surrogate.systems.function import from_numpy
 
 gymnasium = pytest.importorskip("gymnasium")

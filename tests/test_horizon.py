@@ -1,10 +1,10 @@
-"""Identification error against the horizon (mjx_surrogate/horizon.py): exact on a linear
+"""Identification error against the horizon (mjx_surrogate/analysis/horizon.py): exact on a linear
 system in both modes; the gains keep an unstable system's rollouts close."""
 
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import horizon
+from mjx_surrogate.analysis import horizon
 from mjx_surrogate.trajectory import simulate
 
 A_UNSTABLE = jnp.asarray([[1.2, 0.1], [0.0, 1.1]])

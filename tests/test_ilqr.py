@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from mjx_surrogate.ilqr import Cost, ILQRParams, StopReason, ilqr
+from mjx_surrogate.control.ilqr import Cost, ILQRParams, StopReason, ilqr
 
 A = np.array([[1.0, 0.1], [0.0, 1.0]])
 B = np.array([[0.005], [0.1]])
@@ -122,7 +122,7 @@ def test_returned_gains_are_the_unregularised_lqr_gains_after_a_regularised_last
 def test_tvlqr_gains_equal_the_backward_pass_at_a_box_constrained_optimum():
     """At an optimum with active limits, :func:`riccati.tvlqr_gains` (k taken as 0, the
     clamped set read off U and Q_u) gives the backward pass's K, zero rows included."""
-    from mjx_surrogate.riccati import backward_pass, cost_derivatives, tvlqr_gains
+    from mjx_surrogate.control.riccati import backward_pass, cost_derivatives, tvlqr_gains
 
     lo, hi = jnp.full(1, -0.5), jnp.full(1, 0.5)
     res = solve(jnp.zeros((T, 1)), -0.5, 0.5, rel_tol=1e-12, max_iter=200)
@@ -143,8 +143,8 @@ def test_regularised_step_keeps_an_exact_value_model(mu):
     policy changes J by exactly dV1 + dV2 for every mu, and Q~_uu stays positive definite:
     V and dV are the plain (unregularised) value of that policy. A small B (as on swimmer6)
     made the regularised value update go indefinite at large mu."""
-    from mjx_surrogate.ilqr import closed_loop, trajectory_cost
-    from mjx_surrogate.riccati import backward_pass, cost_derivatives
+    from mjx_surrogate.control.ilqr import closed_loop, trajectory_cost
+    from mjx_surrogate.control.riccati import backward_pass, cost_derivatives
 
     Bs = 1e-2 * B
     step, lin, cost = linear_problem(B=Bs)
@@ -217,7 +217,7 @@ def test_native_one_call_line_search_equals_the_per_step_rollouts(threads):
     import jax
     import jax.numpy as jnp
 
-    from mjx_surrogate.ilqr import closed_loop
+    from mjx_surrogate.control.ilqr import closed_loop
     from mjx_surrogate.systems import make_system
 
     sys_ = make_system("cartpole", backend="native", native_threads=threads)
@@ -248,9 +248,9 @@ def test_native_initial_rollout_is_one_host_call_equal_to_the_per_step_scan():
     import jax
     import jax.numpy as jnp
 
-    from mjx_surrogate.d2c import problem
-    from mjx_surrogate.ilqr import ILQRParams, closed_loop, ilqr_init
-    from mjx_surrogate.sysid import SysIdParams
+    from mjx_surrogate.control.d2c import problem
+    from mjx_surrogate.control.ilqr import ILQRParams, closed_loop, ilqr_init
+    from mjx_surrogate.identification.sysid import SysIdParams
     from mjx_surrogate.systems import backend_native, make_system
     from mjx_surrogate.tasks import make_task
 

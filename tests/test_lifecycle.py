@@ -17,7 +17,7 @@ from helpers import assert_png
 
 from experiments import run as cli
 from mjx_surrogate import progress
-from mjx_surrogate.results import Run, RunFolder, load_run
+from mjx_surrogate.runs.results import Run, RunFolder, load_run
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -91,7 +91,7 @@ def test_signal_mid_solve_ends_the_run_interrupted_and_keeps_its_results(tmp_pat
 
 
 def test_failed_figure_keeps_the_solve_and_is_reported(tmp_path, monkeypatch):
-    from mjx_surrogate import plots
+    from mjx_surrogate.runs import plots
 
     def broken(*args, **kwargs):
         raise RuntimeError("a plotting bug")
@@ -163,7 +163,7 @@ def test_resume_reuses_finished_stages_only(tmp_path):
 
 
 def test_a_stage_that_finishes_after_a_stop_request_is_done_and_the_next_never_starts(tmp_path):
-    from mjx_surrogate.results import Interrupted
+    from mjx_surrogate.runs.results import Interrupted
 
     record = Run(RunFolder(str(tmp_path), "s"))
     progress.clear_stop()
@@ -180,7 +180,7 @@ def test_a_stage_that_finishes_after_a_stop_request_is_done_and_the_next_never_s
 
 
 def test_a_stage_whose_solve_was_cut_short_is_interrupted(tmp_path):
-    from mjx_surrogate.results import Interrupted
+    from mjx_surrogate.runs.results import Interrupted
 
     record = Run(RunFolder(str(tmp_path), "s"))
     with pytest.raises(Interrupted):
@@ -198,7 +198,7 @@ from experiments import run as cli
 
 def kind(res, record, key):
     record.stage("first", lambda: ({"x": 1.0}, {"a": np.arange(3.0)}))
-    record.figure("first.png", lambda: __import__("mjx_surrogate.plots", fromlist=["x"]).cost_history(
+    record.figure("first.png", lambda: __import__("mjx_surrogate.runs.plots", fromlist=["x"]).cost_history(
         {"a": np.array([3.0, 2.0, 1.0])}, "first"))
     print("READY", flush=True)
     record.stage("stuck", lambda: (time.sleep(600), ({}, {}))[1])
@@ -249,7 +249,7 @@ def test_a_stage_that_polls_for_no_stop_still_ends_within_5_s(tmp_path, sig, rea
 
 
 def test_a_stop_between_the_steps_of_a_stage_ends_it_interrupted(tmp_path):
-    from mjx_surrogate.results import Interrupted
+    from mjx_surrogate.runs.results import Interrupted
 
     record = Run(RunFolder(str(tmp_path), "s"))
     ran = []

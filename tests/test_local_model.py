@@ -1,4 +1,4 @@
-"""The local model's strategies (``mjx_surrogate.local_model``): when the loop's model is
+"""The local model's strategies (``mjx_surrogate.control.local_model``): when the loop's model is
 identified, carried over by a secant update or kept; coarse models hand over to fine ones;
 minima are declared on trusted models only. The solver's state holds none of this."""
 
@@ -6,9 +6,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import local_model as lm
+from mjx_surrogate.control import local_model as lm
+from mjx_surrogate.control.ilqr import ILQRParams, ILQRState, Problem
 from mjx_surrogate.cost import Cost
-from mjx_surrogate.ilqr import ILQRParams, ILQRState, Problem
 
 T, nx, nu = 4, 2, 1
 A_TRUE = jnp.broadcast_to(jnp.array([[1.0, 0.1], [0.0, 1.0]]), (T, nx, nx))

@@ -3,7 +3,7 @@
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import locality
+from mjx_surrogate.analysis import locality
 
 
 def test_relative_spread_is_the_median_largest_deviation_over_the_excursion():

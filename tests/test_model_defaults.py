@@ -9,9 +9,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjx_surrogate import model_defaults, pipeline
-from mjx_surrogate.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
-from mjx_surrogate.resolution import resolve
+from mjx_surrogate.runs import model_defaults, pipeline
+from mjx_surrogate.runs.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.resolution import resolve
 
 ARM = """
 <mujoco>
@@ -116,7 +116,7 @@ def test_the_hold_task_starts_at_rest_and_multi_starts_are_distinct(tmp_path):
 @pytest.mark.slow
 def test_the_command_line_and_the_api_give_the_same_solve(tmp_path):
     from experiments import run as cli
-    from mjx_surrogate.results import load_run
+    from mjx_surrogate.runs.results import load_run
 
     path = str(tmp_path / "arm.xml")
     open(path, "w").write(ARM.format(actuators=MOTORS))
@@ -161,8 +161,8 @@ def test_a_saturated_actuator_identifies_as_exactly_zero_with_the_noise_floor(tm
     """A position servo held at its force limit moves nothing: its B column is exactly 0.
     Least squares leaves round-off there, which the user-model default noise floor zeroes
     (and nothing else: the other entries are as identified)."""
-    from mjx_surrogate import sysid
-    from mjx_surrogate.resolution import solver_params
+    from mjx_surrogate.identification import sysid
+    from mjx_surrogate.runs.resolution import solver_params
 
     path = str(tmp_path / "arm.xml")
     open(path, "w").write(ARM.format(actuators=SERVOS.replace('forcerange="-50 50"', 'forcerange="-1 1"')))

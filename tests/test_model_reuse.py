@@ -9,9 +9,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_surrogate import sysid
-from mjx_surrogate.ilqr import Cost, ILQRParams, StopReason, ilqr
-from mjx_surrogate.local_model import secant_update
+from mjx_surrogate.control.ilqr import Cost, ILQRParams, StopReason, ilqr
+from mjx_surrogate.control.local_model import secant_update
+from mjx_surrogate.identification import sysid
 
 rng = np.random.default_rng(4)
 

@@ -1,4 +1,4 @@
-"""Receding-horizon control (mjx_surrogate/mpc.py) against closed forms and counted calls."""
+"""Receding-horizon control (mjx_surrogate/control/mpc.py) against closed forms and counted calls."""
 
 import os
 import re
@@ -9,9 +9,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_surrogate import mpc, mpc_sampling
-from mjx_surrogate.ilqr import ILQRParams
-from mjx_surrogate.sysid import SysIdParams
+from mjx_surrogate.control import mpc, mpc_sampling
+from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.identification.sysid import SysIdParams
 from mjx_surrogate.systems.function import from_jax, from_numpy
 from mjx_surrogate.tasks import make_task
 
@@ -294,7 +294,7 @@ def _numpy_policy(x0, X, U, K):
 def test_a_replan_starts_from_the_cheaper_of_the_previous_policy_and_its_controls():
     """A replan's first nominal: the previous plan's policy rolled out from the measured
     state where that is cheaper than its controls alone, else those."""
-    from mjx_surrogate.d2c import problem
+    from mjx_surrogate.control.d2c import problem
 
     U = 0.1 * np.sin(np.arange(H))[:, None]
     X = np.zeros((H + 1, 2))

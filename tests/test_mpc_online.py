@@ -1,14 +1,14 @@
-"""mjx_surrogate/mpc_online.py: the online refit is weighted least squares (float64 NumPy),
+"""mjx_surrogate/control/mpc_online.py: the online refit is weighted least squares (float64 NumPy),
 keeps the first fit's support, and with no weight is the plain SINDy-MPC."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import mpc
-from mjx_surrogate.data import Transitions
-from mjx_surrogate.ilqr import ILQRParams
-from mjx_surrogate.mpc_online import refit, refitted_sindy_mpc
+from mjx_surrogate.control import mpc
+from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.control.mpc_online import refit, refitted_sindy_mpc
+from mjx_surrogate.identification.data import Transitions
 from mjx_surrogate.surrogates import sindy
 from mjx_surrogate.surrogates.library import parse
 from mjx_surrogate.systems.function import from_jax
@@ -77,7 +77,7 @@ def _mlp(off, epochs=200):
 def test_the_mlp_refit_loss_counts_each_episode_row_weight_times():
     """The weighted loss with weight 3 is the plain mean squared standardised residual
     (float64 NumPy) over the offline rows and the n filled episode rows repeated 3 times."""
-    from mjx_surrogate.mpc_online import weighted_loss
+    from mjx_surrogate.control.mpc_online import weighted_loss
     from mjx_surrogate.surrogates import mlp
 
     off, on = _data(A, B, 200, 0), _data(A, 3 * B, 30, 1)
@@ -98,7 +98,7 @@ def test_the_mlp_refit_loss_counts_each_episode_row_weight_times():
 def test_with_no_updates_it_is_mlp_mpc_and_with_updates_it_learns_the_plant():
     """updates = 0 replays the plain MLP-MPC; with updates on a plant with three times the
     control authority the refitted network plans a cheaper closed loop."""
-    from mjx_surrogate.mpc_online import refitted_mlp_mpc
+    from mjx_surrogate.control.mpc_online import refitted_mlp_mpc
 
     off = _data(A, B, 200, 0)
     spec, model = _mlp(off)

@@ -174,7 +174,7 @@ def test_the_videos_show_the_stored_trajectories(smoke_mpc):
     (sin q, -cos q) (correlations beyond 0.98). mpc_episodes.mp4: the controllers side by side."""
     import imageio.v2 as imageio
 
-    from mjx_surrogate import video
+    from mjx_surrogate.runs import video
 
     path, m, arrays = smoke_mpc
     assert m["videos"]["optimum.mp4"]["status"] == "written"
@@ -215,7 +215,7 @@ def test_the_gymnasium_preset_finds_the_installed_model_or_says_how_to_get_it(mo
 
     import configs.gym_inverted_pendulum_mpc as preset
     from mjx_surrogate.errors import ConfigError
-    from mjx_surrogate.resolution import resolve
+    from mjx_surrogate.runs.resolution import resolve
 
     cfg = cli.load_config("gym_inverted_pendulum_mpc")
     assert os.path.isfile(cfg.system.mjcf_path) and "gymnasium" in cfg.system.mjcf_path
@@ -236,7 +236,7 @@ def test_d2c_mpc_identifies_with_the_fewest_samples_unless_told():
     import dataclasses
 
     from configs.smoke_mpc import CONFIG
-    from mjx_surrogate.resolution import mpc_params, resolve, solver_params
+    from mjx_surrogate.runs.resolution import mpc_params, resolve, solver_params
 
     cfg = resolve(CONFIG).config
     _, offline = solver_params(cfg)

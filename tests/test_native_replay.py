@@ -1,10 +1,10 @@
-"""Native float64 replay (mjx_surrogate.native_replay) against mujoco.rollout."""
+"""Native float64 replay (mjx_surrogate.runs.native_replay) against mujoco.rollout."""
 
 import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
-from mjx_surrogate import native_replay
+from mjx_surrogate.runs import native_replay
 
 
 def _rollout_states(model, substeps, x0, U):

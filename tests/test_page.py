@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from experiments import page
-from mjx_surrogate import video
+from mjx_surrogate.runs import video
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 

@@ -1,6 +1,6 @@
 """PDE black boxes (:mod:`mjx_surrogate.systems.burgers`, :mod:`.allen_cahn`) against
 independent NumPy discretisations, and reduced-order identification
-(:mod:`mjx_surrogate.sysid_reduced`): exact on a linear PDE, the same optimum as the
+(:mod:`mjx_surrogate.identification.sysid_reduced`): exact on a linear PDE, the same optimum as the
 full-order scheme on Burgers, and the solver's reduced backward pass against the full one."""
 
 import json
@@ -12,10 +12,12 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from experiments import run as cli
-from mjx_surrogate import d2c, pipeline, sysid_reduced
+from mjx_surrogate.control import d2c
+from mjx_surrogate.control.ilqr import ILQRParams, ilqr
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.ilqr import ILQRParams, ilqr
-from mjx_surrogate.sysid import SysIdParams, exact_jacobians
+from mjx_surrogate.identification import sysid_reduced
+from mjx_surrogate.identification.sysid import SysIdParams, exact_jacobians
+from mjx_surrogate.runs import pipeline
 from mjx_surrogate.systems import allen_cahn, burgers, registry
 from mjx_surrogate.systems.pde import bumps_1d, bumps_2d, laplacian_matrix
 from mjx_surrogate.tasks import make_task, task_cost
@@ -135,7 +137,7 @@ def test_reduced_backward_pass_with_a_full_basis_equals_the_full_one():
     args = (heat.step, task_cost(task), task.x0, jnp.zeros((8, heat.nu)), task.u_min, task.u_max)
     p = ILQRParams(max_iter=5)
     full = ilqr(args[0], lin, *args[1:], p, jax.random.key(0))
-    from mjx_surrogate.ilqr import Problem, ilqr_advance, ilqr_init, ilqr_result
+    from mjx_surrogate.control.ilqr import Problem, ilqr_advance, ilqr_init, ilqr_result
 
     prob = Problem(heat.step, lin_r, task_cost(task), task.x0, task.u_min, task.u_max, model_rank=16)
     red = ilqr_result(ilqr_advance(prob, ilqr_init(prob, args[3], p, jax.random.key(0)), p))
@@ -192,8 +194,8 @@ from mjx_surrogate.runtime import configure_runtime
 configure_runtime(x64=True, compile_cache=False)
 import jax.numpy as jnp, numpy as np
 from mjx_surrogate import d2c, sharding
-from mjx_surrogate.ilqr import ILQRParams
-from mjx_surrogate.sysid import SysIdParams
+from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.identification.sysid import SysIdParams
 from mjx_surrogate.systems import burgers
 from mjx_surrogate.tasks import make_task
 one = burgers.make_system(32)

@@ -7,8 +7,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_surrogate import pipeline, sysid
-from mjx_surrogate.ilqr import Cost, ILQRParams, ilqr
+from mjx_surrogate.control.ilqr import Cost, ILQRParams, ilqr
+from mjx_surrogate.identification import sysid
+from mjx_surrogate.runs import pipeline
 
 A = np.array([[1.0, 0.1], [-0.3, 1.0]])
 B = np.array([[0.0], [0.1]])

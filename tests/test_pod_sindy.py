@@ -1,6 +1,6 @@
 """Models of black boxes with many states from data: SINDy on POD coefficients
 (:mod:`mjx_surrogate.surrogates.pod_sindy`) and the local LTV model in the data's own
-snapshot basis (:func:`mjx_surrogate.sysid_reduced.fit_in_snapshot_basis`), on a linear
+snapshot basis (:func:`mjx_surrogate.identification.sysid_reduced.fit_in_snapshot_basis`), on a linear
 system whose states stay in a 3-dimensional subspace of R^12: both exact at the subspace's
 rank, the POD model with an error floor below it."""
 
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from experiments import run as cli
-from mjx_surrogate import step_models, sysid
-from mjx_surrogate.data import Dataset
+from mjx_surrogate.identification import step_models, sysid
+from mjx_surrogate.identification.data import Dataset
 from mjx_surrogate.surrogates import library, pod_sindy
 
 rng = np.random.default_rng(11)

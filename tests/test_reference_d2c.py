@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 import reference_d2c_numpy as d2c_numpy
 
-from mjx_surrogate.config import Config, SystemConfig, TaskConfig
-from mjx_surrogate.d2c import solve_d2c
-from mjx_surrogate.ilqr import ILQRParams
-from mjx_surrogate.resolution import resolve
-from mjx_surrogate.sysid import SysIdParams
+from mjx_surrogate.control.d2c import solve_d2c
+from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.identification.sysid import SysIdParams
+from mjx_surrogate.runs.config import Config, SystemConfig, TaskConfig
+from mjx_surrogate.runs.resolution import resolve
 
 
 def test_jax_d2c_matches_numpy_reference_on_pendulum():

@@ -14,9 +14,9 @@ from helpers import assert_png
 
 from experiments import reproduce
 from experiments.run import load_config
-from mjx_surrogate.config import Config, from_dict
-from mjx_surrogate.resolution import resolve
-from mjx_surrogate.results import load_run
+from mjx_surrogate.runs.config import Config, from_dict
+from mjx_surrogate.runs.resolution import resolve
+from mjx_surrogate.runs.results import load_run
 from mjx_surrogate.systems.plant import parse_plant, plant_label, plant_slug
 from mjx_surrogate.systems.registry import is_function_system
 from mjx_surrogate.tasks import trajectory_cost

@@ -4,7 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate.rollout import perturbed_rollouts, rollout
+from mjx_surrogate.identification.rollout import perturbed_rollouts, rollout
 
 
 def test_rollout_backends_agree_and_shapes(systems):

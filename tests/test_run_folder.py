@@ -16,8 +16,8 @@ import uuid
 import pytest
 
 from experiments import run as cli
-from mjx_surrogate import results
-from mjx_surrogate.results import Run, RunFolder, load_run, recover_stale
+from mjx_surrogate.runs import results
+from mjx_surrogate.runs.results import Run, RunFolder, load_run, recover_stale
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SMOKE = ["smoke_d2c", "--experiment.exact-oracle", "False", "--experiment.no-progress"]
@@ -147,7 +147,7 @@ def test_out_dir_made_immutable_mid_run_fails_and_keeps_its_cause(tmp_path, monk
 
 STORM = """
 import sys
-from mjx_surrogate.results import Run, RunFolder
+from mjx_surrogate.runs.results import Run, RunFolder
 out, tag, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
 for i in range(n):
     record = Run(RunFolder(out, tag))

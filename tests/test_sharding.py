@@ -32,8 +32,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_surrogate import sharding, sysid
+from mjx_surrogate import sharding
 from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.identification import sysid
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)

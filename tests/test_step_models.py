@@ -5,9 +5,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_surrogate import data, step_models
-from mjx_surrogate.evaluation import prediction_errors
-from mjx_surrogate.rollout import rollout
+from mjx_surrogate.analysis.evaluation import prediction_errors
+from mjx_surrogate.identification import data, step_models
+from mjx_surrogate.identification.rollout import rollout
 from mjx_surrogate.surrogates import sindy
 from mjx_surrogate.surrogates.library import LibrarySpec
 

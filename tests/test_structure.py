@@ -35,6 +35,48 @@ def test_the_library_never_imports_experiments_or_matplotlib_in_its_core():
             assert not any(m.startswith("matplotlib") for m in mods), path
 
 
+# The library's layers, lowest first: a module imports only from its own layer and lower
+# ones. "" is the foundation: the modules at the top of the package.
+LAYERS = ("", "systems", ("identification", "surrogates"), "control", "analysis", "runs")
+
+
+def _rank(package: str) -> int:
+    for i, layer in enumerate(LAYERS):
+        if package == layer or (isinstance(layer, tuple) and package in layer):
+            return i
+    raise AssertionError(f"mjx_surrogate/{package}/ is in no layer of LAYERS")
+
+
+def _layer_of_module(dotted: str) -> str | None:
+    """"control" for mjx_surrogate.control.ilqr, "" for mjx_surrogate.cost, None elsewhere."""
+    parts = dotted.split(".")
+    if parts[0] != "mjx_surrogate" or len(parts) == 1:
+        return None
+    return parts[1] if os.path.isdir(os.path.join(ROOT, "mjx_surrogate", parts[1])) else ""
+
+
+def test_the_library_imports_only_downward():
+    upward = []
+    for path in glob.glob(os.path.join(ROOT, "mjx_surrogate", "**", "*.py"), recursive=True):
+        rel = os.path.relpath(path, os.path.join(ROOT, "mjx_surrogate")).split(os.sep)
+        if rel == ["__init__.py"]:
+            continue  # the public API gathers every layer
+        own = _rank(rel[0] if len(rel) > 1 else "")
+        for mod in _imports(path):
+            layer = _layer_of_module(mod)
+            if layer is not None and _rank(layer) > own:
+                upward.append(f"{'/'.join(rel)} imports {mod}")
+            elif layer is not None and _rank(layer) == own and layer != (rel[0] if len(rel) > 1 else ""):
+                upward.append(f"{'/'.join(rel)} imports {mod} (a sibling layer)")
+    assert not upward, upward
+
+
+def test_every_subpackage_is_a_layer():
+    for entry in os.scandir(os.path.join(ROOT, "mjx_surrogate")):
+        if entry.is_dir() and os.path.exists(os.path.join(entry.path, "__init__.py")):
+            _rank(entry.name)
+
+
 def test_experiment_kinds_never_import_each_other():
     for path in glob.glob(os.path.join(ROOT, "experiments", "*_study.py")):
         mods = _imports(path)
@@ -47,7 +89,8 @@ import os, json, mujoco
 env, cwd = dict(os.environ), os.getcwd()
 import jax
 async_before = jax.config.read("jax_cpu_enable_async_dispatch")
-import mjx_surrogate, mjx_surrogate.pipeline, mjx_surrogate.evaluation, mjx_surrogate.results
+import mjx_surrogate, mjx_surrogate.runs.pipeline, mjx_surrogate.runs.results
+import mjx_surrogate.analysis.evaluation
 import mjx_surrogate.systems.backend_native, mjx_surrogate.systems.backend_mjx
 from jax._src import xla_bridge
 print(json.dumps({"env": dict(os.environ) == env, "cwd": os.getcwd() == cwd,
@@ -101,11 +144,11 @@ def test_default_precision_float32_run_end_to_end(tmp_path):
 @pytest.mark.slow
 def test_switching_the_progress_meter_does_not_recompile(systems):
     from mjx_surrogate import progress
-    from mjx_surrogate.config import Config, SystemConfig, TaskConfig
-    from mjx_surrogate.d2c import solve_d2c
-    from mjx_surrogate.ilqr import ILQRParams
-    from mjx_surrogate.resolution import resolve
-    from mjx_surrogate.sysid import SysIdParams
+    from mjx_surrogate.control.d2c import solve_d2c
+    from mjx_surrogate.control.ilqr import ILQRParams
+    from mjx_surrogate.identification.sysid import SysIdParams
+    from mjx_surrogate.runs.config import Config, SystemConfig, TaskConfig
+    from mjx_surrogate.runs.resolution import resolve
 
     _, system, task = resolve(
         Config(system=SystemConfig(name="pendulum"), task=TaskConfig(preset="pendulum_d2c", T=8))

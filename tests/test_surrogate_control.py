@@ -5,8 +5,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate.ilqr import ILQRParams
-from mjx_surrogate.surrogate_control import solve_on_model
+from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.control.surrogate_control import solve_on_model
 from mjx_surrogate.surrogates.library import LibrarySpec
 from mjx_surrogate.surrogates.sindy import SindyModel
 from mjx_surrogate.tasks import Task

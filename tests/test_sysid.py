@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_surrogate import sysid
+from mjx_surrogate.identification import sysid
 from mjx_surrogate.trajectory import simulate
 
 rng = np.random.default_rng(0)
@@ -157,9 +157,9 @@ def test_finite_difference_jacobians_match_jacfwd_on_mujoco():
     import jax.numpy as jnp
     import numpy as np
 
-    from mjx_surrogate.config import Config, SystemConfig, TaskConfig
-    from mjx_surrogate.resolution import resolve
-    from mjx_surrogate.sysid import exact_jacobians, finite_difference_jacobians
+    from mjx_surrogate.identification.sysid import exact_jacobians, finite_difference_jacobians
+    from mjx_surrogate.runs.config import Config, SystemConfig, TaskConfig
+    from mjx_surrogate.runs.resolution import resolve
 
     res = resolve(
         Config(system=SystemConfig(name="pendulum", backend="mjx"), task=TaskConfig(preset="pendulum_d2c"))

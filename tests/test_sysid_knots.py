@@ -8,8 +8,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_surrogate import sysid
-from mjx_surrogate.sysid_knots import interpolate, knot_times
+from mjx_surrogate.identification import sysid
+from mjx_surrogate.identification.sysid_knots import interpolate, knot_times
 
 B_QUAD = jnp.asarray([[1.0], [0.5]])
 
@@ -54,8 +54,8 @@ def test_knotted_central_differences_recover_jacobians_linear_in_t():
 
 
 def test_a_rollout_scheme_cannot_skip_steps():
-    from mjx_surrogate.config import Config, SolverConfig, validate_static
     from mjx_surrogate.errors import ConfigError
+    from mjx_surrogate.runs.config import Config, SolverConfig, validate_static
 
     with pytest.raises(ConfigError, match="solver.sysid_every"):
         validate_static(Config(solver=SolverConfig(sysid="rollout", sysid_every=2)))
@@ -80,8 +80,8 @@ def pendulum(x, u):
 def test_coarse_then_fine_ends_on_every_step_models_at_the_full_schemes_optimum(refine_tol):
     """A solve with every=4 hands over to every-step identification before it stops: the
     same optimum as every=1, and no minimum declared on an interpolated model."""
-    from mjx_surrogate.d2c import solve_d2c
-    from mjx_surrogate.ilqr import ILQRParams
+    from mjx_surrogate.control.d2c import solve_d2c
+    from mjx_surrogate.control.ilqr import ILQRParams
     from mjx_surrogate.tasks import Task
 
     T = 40

@@ -7,8 +7,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mjx_surrogate import sysid
-from mjx_surrogate.sysid_significance import drop_insignificant, sum_of_squares
+from mjx_surrogate.identification import sysid
+from mjx_surrogate.identification.sysid_significance import drop_insignificant, sum_of_squares
 
 rng = np.random.default_rng(5)
 A_TRUE = np.array([[1.0, 0.1, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])

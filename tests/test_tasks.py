@@ -7,8 +7,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjx_surrogate.config import Config, PointGoal, SystemConfig, TaskConfig
-from mjx_surrogate.resolution import resolve
+from mjx_surrogate.runs.config import Config, PointGoal, SystemConfig, TaskConfig
+from mjx_surrogate.runs.resolution import resolve
 from mjx_surrogate.tasks import quat_error, running_cost, state_error, terminal_cost
 
 

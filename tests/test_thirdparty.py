@@ -19,12 +19,12 @@ import pytest
 from mujoco import rollout as mj_rollout
 from thirdparty import SUITE_MODELS, model_dir, model_path
 
-from mjx_surrogate import pipeline
-from mjx_surrogate.config import Config, SolverConfig, SystemConfig, TaskConfig, from_dict
-from mjx_surrogate.d2c import solve_d2c, solve_exact
-from mjx_surrogate.ilqr import verdict
-from mjx_surrogate.pipeline import summary
-from mjx_surrogate.resolution import resolve, solver_params
+from mjx_surrogate.control.d2c import solve_d2c, solve_exact
+from mjx_surrogate.control.ilqr import verdict
+from mjx_surrogate.runs import pipeline
+from mjx_surrogate.runs.config import Config, SolverConfig, SystemConfig, TaskConfig, from_dict
+from mjx_surrogate.runs.pipeline import summary
+from mjx_surrogate.runs.resolution import resolve, solver_params
 from mjx_surrogate.tasks import goal_cost as _goal_cost
 from mjx_surrogate.tasks import has_terminal
 from mjx_surrogate.tasks import trajectory_cost as _trajectory_cost
@@ -366,7 +366,7 @@ def test_the_readme_user_model_command_runs_the_dm_control_humanoid(tmp_path):
     import shlex
 
     from experiments import run as cli
-    from mjx_surrogate.results import load_run
+    from mjx_surrogate.runs.results import load_run
 
     path = model_path("dm_control", "humanoid.xml")
     if path is None:

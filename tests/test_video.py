@@ -1,10 +1,10 @@
-"""mjx_surrogate/video.py: frame rates, tiling, and a renderer without a GL context."""
+"""mjx_surrogate/runs/video.py: frame rates, tiling, and a renderer without a GL context."""
 
 import mujoco
 import numpy as np
 import pytest
 
-from mjx_surrogate import video
+from mjx_surrogate.runs import video
 from mjx_surrogate.systems import make_system
 
 

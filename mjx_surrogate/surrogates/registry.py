@@ -33,7 +33,7 @@ class Fitted(NamedTuple):
 class FitContext(NamedTuple):
     """What a kind may read while fitting: the resolved config and the system."""
 
-    config: Any  # mjx_surrogate.config.Config
+    config: Any  # mjx_surrogate.runs.config.Config
     system: Any  # mjx_surrogate.systems.System
 
 

@@ -24,7 +24,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from mjx_surrogate.rollout import rollout
+from mjx_surrogate.identification.rollout import rollout
 from mjx_surrogate.systems.system import System
 
 

@@ -23,7 +23,7 @@ import mujoco
 import numpy as np
 from scipy.optimize import lsq_linear
 
-from mjx_surrogate.sysid import SysIdParams
+from mjx_surrogate.identification.sysid import SysIdParams
 
 HOLD_T = 50  # control steps of the hold task
 USER_SYSTEMS = ("mjcf", "python")  # a user's MJCF model, a user's function black box

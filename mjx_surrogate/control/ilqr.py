@@ -6,12 +6,12 @@ The solver sees only functions:
 * ``linearize(X[T+1, nx], U[T, nu], K[T, nu, nx], key) -> (A[T, nx, nx], B[T, nx, nu])``:
   the local LTV model of the nominal (exact Jacobians, LTV least squares, a surrogate...);
   or, with ``Problem.model_rank`` r, a reduced model (A[T, r, r], B[T, r, nu], V[T+1, nx,
-  r]) in the coordinates alpha_t = V_t' (x_t - x_bar_t) (:mod:`mjx_surrogate.sysid_reduced`):
+  r]) in the coordinates alpha_t = V_t' (x_t - x_bar_t) (:mod:`mjx_surrogate.identification.sysid_reduced`):
   the backward pass then runs on the cost's derivatives projected on V_t, and the gains
   K_t V_t' act on the full state;
 * ``cost``: :class:`Cost`, running ``l(x, u)`` and terminal ``l_f(x)``.
 
-Backward pass: :func:`mjx_surrogate.riccati.backward_pass` (the Riccati sweep on the LTV
+Backward pass: :func:`mjx_surrogate.control.riccati.backward_pass` (the Riccati sweep on the LTV
 model, box-constrained k, regularisation mu).
 
 Forward pass: u_t = clip(u_bar_t + alpha k_t + K_t (x_t - x_bar_t)), for ``n_alphas`` step
@@ -21,7 +21,7 @@ the best accepted trial wins.
 
 When the model is identified, and when it is carried over instead (model reuse with
 secant updates; coarse then fine identification), is decided by
-:mod:`mjx_surrogate.local_model`, which owns that state (``ILQRState.model``). One
+:mod:`mjx_surrogate.control.local_model`, which owns that state (``ILQRState.model``). One
 iteration reads: the model of the nominal -> backward pass -> line search ->
 regularisation schedule -> stopping rules, each a small function below.
 
@@ -45,7 +45,7 @@ One solve, one trace: :func:`ilqr`. The same loop in pieces, for a host that dri
 iteration count, or mark the solve interrupted) and :func:`ilqr_result`; the functions and
 fixed data of the problem travel together as a :class:`Problem`. A loop driven from the
 host needs no host callback for its progress and stop requests, so its programs can be
-kept in JAX's persistent compilation cache (:mod:`mjx_surrogate.chunked`).
+kept in JAX's persistent compilation cache (:mod:`mjx_surrogate.control.chunked`).
 """
 
 from __future__ import annotations
@@ -57,11 +57,11 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from mjx_surrogate import local_model
 from mjx_surrogate import progress as progress_lib
+from mjx_surrogate.control import local_model
+from mjx_surrogate.control.local_model import ModelState, full_gains, reduced_expansion, secant_update  # noqa: F401
+from mjx_surrogate.control.riccati import backward_pass, cost_derivatives, tvlqr_gains
 from mjx_surrogate.cost import Cost, trajectory_cost
-from mjx_surrogate.local_model import ModelState, full_gains, reduced_expansion, secant_update  # noqa: F401
-from mjx_surrogate.riccati import backward_pass, cost_derivatives, tvlqr_gains
 from mjx_surrogate.trajectory import feedback_rollout, feedback_rollouts
 
 StepFn = Callable[[jax.Array, jax.Array], jax.Array]
@@ -218,7 +218,7 @@ class Problem(NamedTuple):
 class ILQRState(NamedTuple):
     """The loop's carry: nominal X [T+1, nx], U [T, nu], gains K [T, nu, nx], k [T, nu],
     cost J, regularisation mu, iteration count and stop reason, the history, and the local
-    model with its strategies' state (:class:`~mjx_surrogate.local_model.ModelState`)."""
+    model with its strategies' state (:class:`~mjx_surrogate.control.local_model.ModelState`)."""
 
     X: jax.Array
     U: jax.Array
@@ -362,7 +362,7 @@ def _minimum_tests(p: ILQRParams, s: ILQRState, ls: LineSearch, k, dV, ok, reg) 
 
 def _stop_reason(p: ILQRParams, it, mu, model: ModelState, minimum: tuple, stop) -> jax.Array:
     """The first rule that holds (:class:`StopReason`; RUNNING if none): minima only on a
-    trusted model, a stall only on a fine one (:mod:`mjx_surrogate.local_model`)."""
+    trusted model, a stall only on a fine one (:mod:`mjx_surrogate.control.local_model`)."""
     small_dJ, small_k, floor = minimum
     trusted = local_model.trusted(model)
     return jnp.select(

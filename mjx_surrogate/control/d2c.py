@@ -1,14 +1,14 @@
 """Data-driven iLQR (D2C) on a black-box system, and the exact-Jacobian oracle.
 
 ``solve_d2c``: every iteration identifies an LTV model of the black box around the
-current nominal (a scheme of :mod:`mjx_surrogate.sysid`), runs the backward pass on it
+current nominal (a scheme of :mod:`mjx_surrogate.identification.sysid`), runs the backward pass on it
 and the line-searched forward pass on the black box, all inside one jitted ``while_loop``.
 ``solve_exact``: the same iLQR with exact Jacobians: ``jax.jacfwd`` through the MJX step
 (``jacobians="jacfwd"``), or central differences of the black-box step along every
 coordinate (``"finite_difference"``: a cheaper reference, no autodiff to compile).
 Every solve takes a :class:`~mjx_surrogate.progress.ProgressMeter` (traced: switching it
 never recompiles). The same solves driven from the host in chunks, with no callback and so
-kept in the persistent compilation cache: :mod:`mjx_surrogate.chunked`.
+kept in the persistent compilation cache: :mod:`mjx_surrogate.control.chunked`.
 """
 
 from __future__ import annotations
@@ -19,12 +19,8 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from mjx_surrogate import (
-    sharding,
-    sysid_reduced,  # noqa: F401  (registers the "reduced" scheme)
-)
-from mjx_surrogate import sysid as sid
-from mjx_surrogate.ilqr import (
+from mjx_surrogate import sharding
+from mjx_surrogate.control.ilqr import (
     ClosedLoopFn,
     ILQRParams,
     ILQRResult,
@@ -33,7 +29,8 @@ from mjx_surrogate.ilqr import (
     ilqr_init,
     ilqr_result,
 )
-from mjx_surrogate.ilqr import closed_loop as ilqr_closed_loop
+from mjx_surrogate.control.ilqr import closed_loop as ilqr_closed_loop
+from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.systems import System
 from mjx_surrogate.tasks import Task, task_cost

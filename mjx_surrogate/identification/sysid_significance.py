@@ -1,7 +1,7 @@
 """Which identified coefficients the data can tell from zero: a t-test on the LTV regression.
 
 For each t and output row i the least-squares estimate w_ij of [A_t B_t] has the standard
-error (ordinary least squares, notation of :mod:`mjx_surrogate.sysid`)
+error (ordinary least squares, notation of :mod:`mjx_surrogate.identification.sysid`)
 
     se_ij = sqrt( RSS_i / (n - m) * (G^-1)_jj ),    RSS_i = sum_k y_ki^2 - w_i' F_i,
 

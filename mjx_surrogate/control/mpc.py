@@ -28,10 +28,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import sysid as sid
-from mjx_surrogate.d2c import oracle_method, problem
-from mjx_surrogate.ilqr import ILQRParams, Problem, ilqr_advance, ilqr_init, ilqr_result
-from mjx_surrogate.pipeline import simulation_curve, steps_per_identification
+from mjx_surrogate.control.d2c import oracle_method, problem
+from mjx_surrogate.control.effort import simulation_curve, steps_per_identification
+from mjx_surrogate.control.ilqr import ILQRParams, Problem, ilqr_advance, ilqr_init, ilqr_result
+from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.systems.system import System
 from mjx_surrogate.tasks import Task, task_cost, trajectory_cost
 
@@ -42,7 +42,7 @@ class MPCResult(NamedTuple):
     """X [N+1, nx], U [N, nu]: the closed loop on the plant; cost: the task's cost of (X, U)
     over the N steps (terminal term at x_N); plan_cost [N]: each replan's predicted horizon
     cost; iterations [N] and identified [N, max_iter]: each replan's iLQR iterations and
-    identifications (as :class:`~mjx_surrogate.ilqr.ILQRResult`)."""
+    identifications (as :class:`~mjx_surrogate.control.ilqr.ILQRResult`)."""
 
     X: jax.Array
     U: jax.Array

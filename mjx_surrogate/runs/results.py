@@ -478,10 +478,10 @@ class Run:
 
     def video(self, name: str, keys: list[str], dt: float, labels: list[str] | None = None) -> bool:
         """Render the trajectories ``keys`` of the run's arrays on its ``model.mjb`` into the
-        MP4 ``name`` (:mod:`mjx_surrogate.video`, side by side, each named by ``labels``
+        MP4 ``name`` (:mod:`mjx_surrogate.runs.video`, side by side, each named by ``labels``
         if given); a failure is recorded and
         said in one line on stderr, never raised."""
-        from mjx_surrogate.video import still_path, write_video
+        from mjx_surrogate.runs.video import still_path, write_video
 
         self._flush()
         folder = self.folder.path

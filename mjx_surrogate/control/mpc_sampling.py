@@ -1,6 +1,6 @@
 """Derivative-free receding-horizon control on the black box: predictive sampling and MPPI.
 
-The same episode as :func:`mjx_surrogate.mpc.receding_horizon` (notation there), with a
+The same episode as :func:`mjx_surrogate.control.mpc.receding_horizon` (notation there), with a
 sampling planner instead of iLQR. At control step n, from the measured x_n and the
 shifted previous plan U (H steps):
 
@@ -26,7 +26,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate.mpc import MPCResult, episode
+from mjx_surrogate.control.mpc import MPCResult, episode
 from mjx_surrogate.systems.system import System
 from mjx_surrogate.tasks import Task, trajectory_cost
 from mjx_surrogate.trajectory import open_loop

@@ -1,6 +1,6 @@
 """Videos of state trajectories on MuJoCo models, rendered headless.
 
-Rendering runs in a child process (``python -m mjx_surrogate.video``) whose environment
+Rendering runs in a child process (``python -m mjx_surrogate.runs.video``) whose environment
 sets ``MUJOCO_GL=egl`` (unless the caller chose a backend): MuJoCo picks its GL backend when
 it is imported, and a GL failure or crash there cannot take the run with it. Frames:
 x = [qpos, qvel, act] -> qpos set, ``mj_forward``, one frame per control step, from a free
@@ -107,7 +107,7 @@ def write_video(
     are written on the clips. None when written, else one line saying why not."""
     env = dict(os.environ)
     env.setdefault("MUJOCO_GL", "egl")
-    cmd = [sys.executable, "-m", "mjx_surrogate.video", model_path, arrays_path, out, str(dt), *keys]
+    cmd = [sys.executable, "-m", "mjx_surrogate.runs.video", model_path, arrays_path, out, str(dt), *keys]
     if labels is not None:
         cmd += ["--labels", json.dumps(list(labels))]
     try:

@@ -1,6 +1,6 @@
 """Solves driven from the host in compiled chunks of iterations, with no host callback.
 
-:func:`mjx_surrogate.d2c.solve_d2c` runs a whole solve as one program; its progress meter
+:func:`mjx_surrogate.control.d2c.solve_d2c` runs a whole solve as one program; its progress meter
 is a host callback inside the loop, and JAX keeps no program with a host callback in its
 persistent compilation cache. Here the same solve is two programs, ``start`` (the initial
 rollout) and ``advance`` (iterate up to a given iteration count), and the host loops over
@@ -12,9 +12,9 @@ callback, so a second run of the same problem loads both from the cache
 compiled afresh every time (quickly: docs/performance.md, "Compile times").
 
 The iterates are the ones of the one-program solve with the same inputs: the loop body is
-the same function. ``U0`` [T, nu] gives one solve (an :class:`~mjx_surrogate.ilqr.ILQRResult`),
-``U0`` [S, T, nu] a multi-start solve (a :class:`~mjx_surrogate.d2c.MultiStart`, starts
-spread over ``system.mesh`` as in :func:`~mjx_surrogate.d2c.solve_multistart`).
+the same function. ``U0`` [T, nu] gives one solve (an :class:`~mjx_surrogate.control.ilqr.ILQRResult`),
+``U0`` [S, T, nu] a multi-start solve (a :class:`~mjx_surrogate.control.d2c.MultiStart`, starts
+spread over ``system.mesh`` as in :func:`~mjx_surrogate.control.d2c.solve_multistart`).
 
 Over several processes (:mod:`jax.distributed`) :func:`solve` runs the one-program solve
 (its meter polled from inside, as before): a host loop there would need every process to
@@ -31,11 +31,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import d2c, sharding
 from mjx_surrogate import progress as progress_lib
-from mjx_surrogate import sysid as sid
-from mjx_surrogate.d2c import MultiStart, oracle_method, problem
-from mjx_surrogate.ilqr import ILQRParams, ILQRState, StopReason, ilqr_advance, ilqr_init, ilqr_result
+from mjx_surrogate import sharding
+from mjx_surrogate.control import d2c
+from mjx_surrogate.control.d2c import MultiStart, oracle_method, problem
+from mjx_surrogate.control.ilqr import ILQRParams, ILQRState, StopReason, ilqr_advance, ilqr_init, ilqr_result
+from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.systems import System
 from mjx_surrogate.tasks import Task
 from mjx_surrogate.timing import Timed, compile_then_run
@@ -125,7 +126,7 @@ def solve(
     progress: progress_lib.ProgressMeter = progress_lib.NO_PROGRESS,
     chunk_s: float = 0.5,
 ) -> Timed:
-    """One solve ("d2c", "exact" or "finite_difference", as :func:`mjx_surrogate.d2c.problem`)
+    """One solve ("d2c", "exact" or "finite_difference", as :func:`mjx_surrogate.control.d2c.problem`)
     from U0 [T, nu] or [S, T, nu], driven in chunks of about ``chunk_s`` seconds; returns
     :class:`~mjx_surrogate.timing.Timed`: the result, the compile time of both programs and
     the run time. ``progress`` is updated and polled for stop requests between chunks."""
@@ -159,7 +160,7 @@ def solve(
 
 
 def _one_program(system, task, U0, key, params, sysid, method, progress) -> Timed:
-    """The same solve as one program (:mod:`mjx_surrogate.d2c`), its meter polled inside."""
+    """The same solve as one program (:mod:`mjx_surrogate.control.d2c`), its meter polled inside."""
     kw = {"compiler_options": system.compiler_options}
     if U0.ndim == 3:
         kw["static_kwargs"], kw["dynamic_kwargs"] = {"method": method}, {"progress": progress}
@@ -181,6 +182,6 @@ def solve_exact(
     jacobians: str = "jacfwd",
     chunk_s: float = 0.5,
 ) -> Timed:
-    """:func:`solve` of the exact-Jacobian oracle (:func:`mjx_surrogate.d2c.solve_exact`)."""
+    """:func:`solve` of the exact-Jacobian oracle (:func:`mjx_surrogate.control.d2c.solve_exact`)."""
     method = oracle_method(jacobians)
     return solve(system, task, U0, jax.random.key(0), params, sid.SysIdParams(), method, progress, chunk_s)

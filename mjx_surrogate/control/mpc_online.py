@@ -1,7 +1,7 @@
 """Surrogate MPC refitted online: the SINDy-MPC paper's low-data setting (Kaiser, Kutz,
 Brunton 2018), in which the model keeps learning from the episode it controls.
 
-Notation as :mod:`mjx_surrogate.mpc`. At control step n the model's coefficients C [P, nx]
+Notation as :mod:`mjx_surrogate.control.mpc`. At control step n the model's coefficients C [P, nx]
 are refitted by least squares on the R offline transitions it was first fitted on and on
 the episode's own n transitions (x_m, u_m, x_{m+1}), m < n, each of which weighs
 ``weight`` offline ones:
@@ -34,10 +34,10 @@ import jax.numpy as jnp
 import optax
 from flax import nnx
 
-from mjx_surrogate.data import Transitions
-from mjx_surrogate.ilqr import ILQRParams
+from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.control.mpc import MPCResult, episode, first_plan, surrogate_replan
+from mjx_surrogate.identification.data import Transitions
 from mjx_surrogate.linalg import spd_solve
-from mjx_surrogate.mpc import MPCResult, episode, first_plan, surrogate_replan
 from mjx_surrogate.surrogates.mlp import MLPModel, MLPSpec, optimizer, targets
 from mjx_surrogate.surrogates.sindy import SindyModel, design
 from mjx_surrogate.systems.system import System

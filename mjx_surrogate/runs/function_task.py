@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from mjx_surrogate.config import TaskConfig, check_finite
+from mjx_surrogate.runs.config import TaskConfig, check_finite
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.model_defaults import control_weights
+from mjx_surrogate.runs.model_defaults import control_weights
 from mjx_surrogate.systems import task_presets
 from mjx_surrogate.systems.function import FunctionSystem
 from mjx_surrogate.systems.registry import preset_fits
-from mjx_surrogate.task_resolution import MAX_T, _limits, _matrix, _state, preset_fields, resolved_task_config
+from mjx_surrogate.runs.task_resolution import MAX_T, _limits, _matrix, _state, preset_fields, resolved_task_config
 from mjx_surrogate.tasks import Task, make_task
 
 

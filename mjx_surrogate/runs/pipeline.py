@@ -1,5 +1,6 @@
 """Steps that experiments compose: initial controls, the D2C optimum replayed on the
-black box, its summary in the status vocabulary, and the simulation count of a solve.
+black box and its summary in the status vocabulary (the simulation count of a solve is
+:mod:`mjx_surrogate.control.effort`'s, re-exported here).
 
 These sit between the solvers (which see only functions) and ``experiments/`` (which
 only compose library calls, write results and draw figures).
@@ -15,14 +16,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import chunked, data, native_replay, progress
-from mjx_surrogate import sysid as sid
-from mjx_surrogate.evaluation import finite_or_none
-from mjx_surrogate.ilqr import ILQRParams, ILQRResult, StopReason, verdict
-from mjx_surrogate.local_model import How
-from mjx_surrogate.model_defaults import half_ranges, hold_controls
+from mjx_surrogate import progress
+from mjx_surrogate.control import chunked
+from mjx_surrogate.identification import data
+from mjx_surrogate.runs import native_replay
+from mjx_surrogate.identification import sysid as sid
+from mjx_surrogate.control.effort import simulation_curve, simulation_metrics, steps_per_identification  # noqa: F401
+from mjx_surrogate.analysis.evaluation import finite_or_none
+from mjx_surrogate.control.ilqr import ILQRParams, ILQRResult, StopReason, verdict
+from mjx_surrogate.runs.model_defaults import half_ranges, hold_controls
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
-from mjx_surrogate.resolution import solver_params
+from mjx_surrogate.runs.resolution import solver_params
 from mjx_surrogate.systems import System
 from mjx_surrogate.tasks import Task, goal_cost, has_terminal, trajectory_cost
 from mjx_surrogate.trajectory import open_loop
@@ -107,53 +111,6 @@ def gains_verdict(levels, closed_median, open_median) -> str:
     return f"do not use: the closed loop costs more than the open loop at noise level(s) {worse}"
 
 
-def simulation_curve(
-    identified: np.ndarray,
-    iterations: int,
-    T: int,
-    n_alphas: int,
-    per_identification: int,
-    per_fine_identification: int | None = None,
-) -> np.ndarray:
-    """Black-box control steps simulated up to each iteration, [iterations + 1]: the
-    initial rollout, then per iteration the line search (n_alphas T) and an identification
-    where the solver made one (``ILQRResult.identified`` [max_iter]: 1 ``linearize``,
-    ``per_identification`` steps; 2 ``linearize_fine``, ``per_fine_identification``)."""
-    it = int(iterations)
-    ident = np.asarray(identified)[:it]
-    fine = per_identification if per_fine_identification is None else per_fine_identification
-    coarse = np.where(ident == How.IDENTIFIED, per_identification, 0)
-    per = np.where(ident == How.IDENTIFIED_FINE, fine, coarse)
-    return T + np.concatenate([[0], np.cumsum(n_alphas * T + per)])
-
-
-def steps_per_identification(sysid: sid.SysIdParams, T: int, nu: int = 0) -> tuple[int, int]:
-    """Control steps of one identification of the D2C solve's coarse and fine models
-    (equal unless ``sysid.every`` > 1: then every k-th step first, every step near the end);
-    nu: the controls (a reduced scheme's one-step samples count them)."""
-    fine = sid.fine_params(sysid) or sysid
-    return sid.steps_per_identification(sysid, T, nu), sid.steps_per_identification(fine, T, nu)
-
-
-def simulation_metrics(result: ILQRResult, T: int, n_alphas: int, sysid: sid.SysIdParams) -> dict:
-    """``simulated_steps`` of a D2C solve and ``simulations_to_optimum``: the control steps
-    simulated until the cost first came within 1 % and 0.1 % of the solve's final cost
-    (machine-independent effort; None if the final cost is not finite)."""
-    curve = simulation_curve(
-        result.identified,
-        result.iterations,
-        T,
-        n_alphas,
-        *steps_per_identification(sysid, T, result.U.shape[-1]),
-    )
-    J = np.asarray(result.cost_history)[: curve.size]
-    to = {}
-    for label, rel in (("1%", 1e-2), ("0.1%", 1e-3)):
-        hit = np.nonzero(J <= J[-1] + rel * abs(J[-1]))[0] if np.isfinite(J[-1]) else []
-        to[label] = int(curve[hit[0]]) if len(hit) else None
-    return {"simulated_steps": int(curve[-1]), "simulations_to_optimum": to}
-
-
 @functools.partial(jax.jit, static_argnames=("system",))
 def _replay_cost(system: System, task: Task, U: jax.Array) -> tuple[jax.Array, jax.Array]:
     X, Ua = open_loop(system.step, task.x0, U, task.u_min, task.u_max)
@@ -213,7 +170,7 @@ def summary(
     separate from the status: a solve can converge to a point that misses the goal;
     ``native_float64`` the costs of the controls replayed on native MuJoCo in float64, open
     loop and closed loop around the replayed X with the solve's gains
-    (:mod:`mjx_surrogate.native_replay`; ``names``: the run's array names of U, X, K; None
+    (:mod:`mjx_surrogate.runs.native_replay`; ``names``: the run's array names of U, X, K; None
     for a black box that is not a MuJoCo model), and
     ``replay_gap`` the relative difference of the one it judges by from ``cost``.
     Returns (metrics, the replayed X [T+1, nx]).
@@ -273,7 +230,7 @@ def d2c_optimum(
     names: tuple[str, str, str] | None = None,
 ) -> Optimum:
     """Solve by D2C from U0 and summarise on the black box (``names``: :func:`summary`);
-    driven from the host (:mod:`mjx_surrogate.chunked`: cacheable programs)."""
+    driven from the host (:mod:`mjx_surrogate.control.chunked`: cacheable programs)."""
     result = chunked.solve(system, task, U0, key, params, sysid, "d2c", progress).out
     metrics, X = summary(result, system, task, goal_tolerance, names)
     return Optimum(result, X, metrics)

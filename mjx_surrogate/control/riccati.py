@@ -1,5 +1,5 @@
 """The backward pass of iLQR: the local quadratic model of the cost-to-go and the Riccati
-sweep over an LTV model (paper, Preliminaries; notation of :mod:`mjx_surrogate.ilqr`).
+sweep over an LTV model (paper, Preliminaries; notation of :mod:`mjx_surrogate.control.ilqr`).
 
 Tassa-style regularisation mu on V_xx; Q_uu positive definite at every t:
 

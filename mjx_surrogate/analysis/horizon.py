@@ -10,7 +10,7 @@ dependence of the identification error on the horizon. This module measures both
 
 Notation: nominal X [T+1, nx], U [T, nu], gains K [T, nu, nx]; n rollouts; dx0 [n, nx] the
 start offsets, dU [n, T, nu] the control noise; the reference Jacobians A_ref [T, nx, nx],
-B_ref [T, nx, nu] (exact or finite-difference, see :func:`mjx_surrogate.d2c.exact_linearize`).
+B_ref [T, nx, nu] (exact or finite-difference, see :func:`mjx_surrogate.control.d2c.exact_linearize`).
 """
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from mjx_surrogate import sharding, sysid
+from mjx_surrogate import sharding
+from mjx_surrogate.identification import sysid
 from mjx_surrogate.linalg import ltv_relative_error, relative_frobenius
 from mjx_surrogate.trajectory import feedback_rollout
 
@@ -52,7 +53,7 @@ def identification_errors(
     """n rollouts from X[0] + dx0 (dx0 ~ N(0, diag(sigma_x0^2)), sigma_x0 [nx]) under
     U + dU (dU ~ N(0, diag(sigma_u^2)), sigma_u [nu]), once open loop and once under K; the
     same draws for both. Each is regressed per t on the applied controls
-    (:func:`mjx_surrogate.sysid.fit_from_trajectories`); controls are clipped to the limits."""
+    (:func:`mjx_surrogate.identification.sysid.fit_from_trajectories`); controls are clipped to the limits."""
     kx, ku = jax.random.split(key)
     dx0 = sigma_x0 * jax.random.normal(kx, (n,) + X[0].shape, X.dtype)
     dU = sigma_u * jax.random.normal(ku, (n,) + U.shape, U.dtype)

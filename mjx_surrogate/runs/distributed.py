@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 from typing import Sequence, TypeVar
 
-from mjx_surrogate.config import ParallelConfig
+from mjx_surrogate.runs.config import ParallelConfig
 from mjx_surrogate.errors import ConfigError
 
 T = TypeVar("T")

@@ -14,8 +14,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate import step_models
-from mjx_surrogate.data import Dataset, u_max
+from mjx_surrogate.identification import step_models
+from mjx_surrogate.identification.data import Dataset, u_max
 from mjx_surrogate.systems import System
 from mjx_surrogate.tasks import Task, trajectory_cost
 from mjx_surrogate.trajectory import feedback_rollout
@@ -56,7 +56,7 @@ def evaluate_feedback(
 ):
     """Cost of u_t = U_t + K_t (x_t - X_t) + w_t (closed loop) and U_t + w_t (open loop).
 
-    w_t ~ N(0, (level * U_max)^2) per channel (U_max: :func:`mjx_surrogate.data.u_max`, the
+    w_t ~ N(0, (level * U_max)^2) per channel (U_max: :func:`mjx_surrogate.identification.data.u_max`, the
     actuator limit where finite), the same draws for both policies.
     X [T+1, nx], U [T, nu], K [T, nu, nx], noise_levels [L] -> two cost arrays [L, n_trials].
     """

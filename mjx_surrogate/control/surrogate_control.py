@@ -1,8 +1,8 @@
 """Optimal control on a surrogate model, judged on the black box (paper, Fig. "control").
 
-The iLQR of :mod:`mjx_surrogate.ilqr` runs on the surrogate's step with Jacobians by
+The iLQR of :mod:`mjx_surrogate.control.ilqr` runs on the surrogate's step with Jacobians by
 ``jax.jacfwd`` through it; its controls U and gains K are then executed on the black box
-(:func:`mjx_surrogate.evaluation.replay`) open and closed loop. What counts is the true
+(:func:`mjx_surrogate.analysis.evaluation.replay`) open and closed loop. What counts is the true
 cost on the black box.
 """
 
@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import jax
 
-from mjx_surrogate import sysid
-from mjx_surrogate.ilqr import ILQRParams, ILQRResult, ilqr
+from mjx_surrogate.control.ilqr import ILQRParams, ILQRResult, ilqr
+from mjx_surrogate.identification import sysid
 from mjx_surrogate.tasks import Task, task_cost
 
 

@@ -1,6 +1,6 @@
 """The iLQR loop's local model and the strategies that decide when it is identified.
 
-The loop (:mod:`mjx_surrogate.ilqr`) asks for a model of its nominal once per iteration
+The loop (:mod:`mjx_surrogate.control.ilqr`) asks for a model of its nominal once per iteration
 (:func:`model_for`) and reports the outcome of the step it took on it (:func:`after_step`);
 everything else about the model lives in :class:`ModelState`, which this module alone
 reads and writes. Each strategy has its own typed part of that state:
@@ -28,11 +28,11 @@ from typing import TYPE_CHECKING, NamedTuple
 import jax
 import jax.numpy as jnp
 
+from mjx_surrogate.control.riccati import cost_derivatives
 from mjx_surrogate.cost import Cost
-from mjx_surrogate.riccati import cost_derivatives
 
 if TYPE_CHECKING:
-    from mjx_surrogate.ilqr import Problem
+    from mjx_surrogate.control.ilqr import Problem
 
 
 class How(enum.IntEnum):
@@ -64,7 +64,7 @@ class RefineState(NamedTuple):
 
 class ModelState(NamedTuple):
     """The model (A, B, V), the nominal it belongs to (X [T+1, nx], U [T, nu]), the cost's
-    derivatives there (``expansion``, :func:`~mjx_surrogate.riccati.cost_derivatives`),
+    derivatives there (``expansion``, :func:`~mjx_surrogate.control.riccati.cost_derivatives`),
     and the strategies' own states."""
 
     A: jax.Array

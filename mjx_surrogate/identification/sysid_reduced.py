@@ -19,7 +19,7 @@ Chakravorty, ACC 2023, arXiv 2501.06635), with this module's notation:
 
 n T rollout steps plus 2 (n + nu) T one-step calls, against 2 n_full T with n_full >= nx +
 nu for the full-order central scheme. The solver runs its backward pass in these
-coordinates (:mod:`mjx_surrogate.ilqr`, ``Problem.model_rank``): the cost's derivatives
+coordinates (:mod:`mjx_surrogate.control.ilqr`, ``Problem.model_rank``): the cost's derivatives
 are projected on V_t and the gains K_t = K^alpha_t V_t' lifted back. On a linear black box
 the model is exact: A_t = V_{t+1}' A V_t, B_t = V_{t+1}' B.
 """
@@ -31,7 +31,7 @@ import jax.numpy as jnp
 from jax.sharding import Mesh
 
 from mjx_surrogate import sharding
-from mjx_surrogate import sysid as sid
+from mjx_surrogate.identification import sysid as sid
 
 
 def snapshot_basis(dX: jax.Array, rank_tol: float) -> jax.Array:

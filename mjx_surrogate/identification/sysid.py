@@ -12,7 +12,7 @@ diagonal) and the normal equations G W = F solved by elimination (:mod:`mjx_surr
 no batched LAPACK, which can deadlock jaxlib 0.10 on CPU). With random perturbations and
 n >= nx + nu the scaled Gram matrix is well conditioned. With ``significance`` > 0 the
 coefficients that a t-test on the regression's residuals cannot tell from zero are zero
-(:mod:`mjx_surrogate.sysid_significance`); with ``noise_floor`` > 0, those below the
+(:mod:`mjx_surrogate.identification.sysid_significance`); with ``noise_floor`` > 0, those below the
 difference quotients' resolution (:func:`below_resolution`).
 
 Schemes (``SysIdParams.scheme``), registered in :data:`SCHEMES` (a new scheme is one
@@ -36,8 +36,9 @@ import jax.numpy as jnp
 from flax import struct
 from jax.sharding import Mesh
 
-from mjx_surrogate import sharding, sysid_knots, sysid_significance
+from mjx_surrogate import sharding
 from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.identification import sysid_knots, sysid_significance
 from mjx_surrogate.linalg import spd_solve, unit_diagonal
 from mjx_surrogate.trajectory import feedback_rollout
 
@@ -101,7 +102,7 @@ def diagonal_gram(p: SysIdParams, m: int) -> bool:
 
 def _statistics(Z: jax.Array, Y: jax.Array, w: jax.Array | None, p: SysIdParams, diagonal: bool = False):
     """(G, F) of :func:`normal_equations`, and with ``p.significance`` > 0 the sum of
-    squares S [T, nx] its t-test needs (:mod:`mjx_surrogate.sysid_significance`)."""
+    squares S [T, nx] its t-test needs (:mod:`mjx_surrogate.identification.sysid_significance`)."""
     G, F = normal_equations(Z, Y, w, diagonal)
     if p.significance == 0:
         return G, F
@@ -290,11 +291,11 @@ class IdentificationScheme(NamedTuple):
     simulated_steps(T, n_samples) -> control steps simulated by one identification
       (a reduced scheme: simulated_steps(T, n_samples, nu)).
     one_step: identifies each t from one-step simulations alone (then ``every`` > 1 may
-      skip steps, :mod:`mjx_surrogate.sysid_knots`).
+      skip steps, :mod:`mjx_surrogate.identification.sysid_knots`).
     t_test: applies ``SysIdParams.significance`` (a least-squares scheme does through
       ``_statistics`` and ``_fit``).
     reduced: identifies in a basis of ``n_samples`` columns per step: linearize returns
-      (A [T, n, n], B [T, n, nu], V [T+1, nx, n]) (:mod:`mjx_surrogate.sysid_reduced`), and
+      (A [T, n, n], B [T, n, nu], V [T+1, nx, n]) (:mod:`mjx_surrogate.identification.sysid_reduced`), and
       n_samples is that largest rank, not a sample count >= nx + nu.
     """
 
@@ -359,7 +360,7 @@ def below_resolution(A: jax.Array, B: jax.Array, X: jax.Array, p: SysIdParams) -
 
 def fine_params(p: SysIdParams) -> SysIdParams | None:
     """The every-step identification a knotted one (``p.every`` > 1) hands over to near the
-    optimum (:func:`mjx_surrogate.ilqr.ilqr`'s ``linearize_fine``); None when p.every = 1."""
+    optimum (:func:`mjx_surrogate.control.ilqr.ilqr`'s ``linearize_fine``); None when p.every = 1."""
     return p.replace(every=1) if p.every > 1 else None
 
 

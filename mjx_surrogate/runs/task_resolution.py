@@ -11,9 +11,9 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from mjx_surrogate.config import TaskConfig, check_finite
+from mjx_surrogate.runs.config import TaskConfig, check_finite
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.model_defaults import HOLD_T, control_weights, hold_controls, hold_task
+from mjx_surrogate.runs.model_defaults import HOLD_T, control_weights, hold_controls, hold_task
 from mjx_surrogate.systems import System, task_presets
 from mjx_surrogate.systems.kinematics import make_points_fn, native_points_fn, point_ids
 from mjx_surrogate.systems.registry import preset_fits
@@ -179,9 +179,9 @@ def _tolist(v):
 def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
     """Fill every task field (preset, keyframes, model) with shape and sign checks; returns
     the resolved TaskConfig (what config.json holds) and the Task. A function black box's
-    task: :func:`mjx_surrogate.function_task.resolve_function_task`."""
+    task: :func:`mjx_surrogate.runs.function_task.resolve_function_task`."""
     if system.mj_model is None:
-        from mjx_surrogate.function_task import resolve_function_task
+        from mjx_surrogate.runs.function_task import resolve_function_task
 
         return resolve_function_task(tc, system)
     m = system.mj_model

@@ -1,6 +1,6 @@
 """Frozen dataclass configs: system, task, solver and experiment sections.
 
-A config is plain data. ``resolve`` (in :mod:`mjx_surrogate.resolution`) turns it into a
+A config is plain data. ``resolve`` (in :mod:`mjx_surrogate.runs.resolution`) turns it into a
 system, a task and a fully resolved config; every check there raises
 :class:`~mjx_surrogate.errors.ConfigError` naming the field, before any XLA compile.
 """
@@ -15,8 +15,8 @@ import typing
 from typing import Any, Literal, Optional, Tuple
 
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.ilqr import ILQRParams
-from mjx_surrogate.sysid import SysIdParams
+from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.identification.sysid import SysIdParams
 
 _ILQR, _SYSID = ILQRParams(), SysIdParams()
 
@@ -126,12 +126,12 @@ class SolverConfig:
     accurate), "rollout" (the paper's open-loop perturbed rollouts), "closed_loop"
     (perturbed rollouts under the current feedback gains), "reduced" (RO-D2C for
     black boxes with many states, e.g. PDEs: a snapshot basis of n_samples rollouts and
-    central differences in it, ``mjx_surrogate.sysid_reduced``), or one registered with
-    ``mjx_surrogate.sysid.register_scheme``.
+    central differences in it, ``mjx_surrogate.identification.sysid_reduced``), or one registered with
+    ``mjx_surrogate.identification.sysid.register_scheme``.
     sysid_rank_tol: with sysid="reduced", the fraction of the snapshots' energy the basis
     may leave out (its rank is at most n_samples).
     sysid_every: with a one-step scheme, identify only every k-th time step (and the
-    last) and interpolate linearly between (``mjx_surrogate.sysid_knots``).
+    last) and interpolate linearly between (``mjx_surrogate.identification.sysid_knots``).
     sysid_design: a one-step scheme's perturbations: "gaussian" (D2C 2.0: i.i.d.
     N(0, sigma^2)) or "orthogonal" (blocks of nx + nu orthogonal rows: with n_samples =
     nx + nu the fewest samples, perfectly conditioned).
@@ -139,10 +139,10 @@ class SolverConfig:
     step that gains at most this fraction of the cost, or where the solver would have
     stopped (0: only there); minima are declared on every-step models only.
     mu_raise_alpha: a step accepted only at a size below this raises mu (up to mu_max)
-    instead of lowering it: a trust region on the step (``mjx_surrogate.ilqr``); 0: off.
+    instead of lowering it: a trust region on the step (``mjx_surrogate.control.ilqr``); 0: off.
     reuse_tol, reuse_max: after an accepted step whose actual decrease was within reuse_tol
     of the model's promise, carry the model over (secant update) instead of identifying,
-    at most reuse_max iterations in a row (``mjx_surrogate.local_model``); 0: always identify.
+    at most reuse_max iterations in a row (``mjx_surrogate.control.local_model``); 0: always identify.
     """
 
     # (defaults: the solver's own ILQRParams, one source of truth)
@@ -157,7 +157,7 @@ class SolverConfig:
     accept_ratio: float = _ILQR.accept_ratio  # accept a step when actual / promised decrease > this
     alpha_factor: float = _ILQR.alpha_factor  # step sizes alpha_factor ** (0 .. n_alphas - 1)
     mu_raise_alpha: float = _ILQR.mu_raise_alpha  # accepted step sizes below this raise mu
-    sysid: str = "central_difference"  # a registered scheme (mjx_surrogate.sysid.SCHEMES)
+    sysid: str = "central_difference"  # a registered scheme (mjx_surrogate.identification.sysid.SCHEMES)
     sysid_every: int = 1  # one-step schemes: identify every k-th step, interpolate between
     sysid_design: Literal["gaussian", "orthogonal"] = "gaussian"  # one-step perturbations
     sysid_refine_tol: float = _ILQR.refine_tol  # sysid_every > 1: every step once a step gains <= this
@@ -177,7 +177,7 @@ class SolverConfig:
 
 @dataclasses.dataclass(frozen=True)
 class DataConfig:
-    """Data sets sampled around the task's optimum (mjx_surrogate.data).
+    """Data sets sampled around the task's optimum (mjx_surrogate.identification.data).
 
     levels: control perturbation std as fractions of U_max (largest |u*| per channel).
     n_traj trajectories of the task's horizon per level; split train : test by
@@ -432,7 +432,7 @@ class Config:
 
 def to_dict(cfg: Any) -> dict:
     """Config -> nested dict (tuples become lists); written with
-    :func:`mjx_surrogate.results.jsonable`, which keeps non-finite numbers loadable."""
+    :func:`mjx_surrogate.runs.results.jsonable`, which keeps non-finite numbers loadable."""
     return dataclasses.asdict(cfg)
 
 
@@ -523,7 +523,7 @@ def _check_types(cfg: Config) -> None:
     """Every field holds a value of its declared type (choices included), also when the
     config was built in Python (a notebook, a .py config) rather than parsed from a file."""
     if not isinstance(cfg, Config):
-        raise ConfigError("CONFIG", f"expected a mjx_surrogate.config.Config, got {type(cfg).__name__}")
+        raise ConfigError("CONFIG", f"expected a mjx_surrogate.runs.config.Config, got {type(cfg).__name__}")
     hints = typing.get_type_hints(Config)
     for f in dataclasses.fields(cfg):
         section = getattr(cfg, f.name)
@@ -802,7 +802,7 @@ def _check_analysis(a: AnalysisConfig) -> None:
 def _check_registered(cfg: Config) -> None:
     """Names that select a registered extension: identification scheme, surrogate kinds."""
     from mjx_surrogate.surrogates.registry import get_surrogate
-    from mjx_surrogate.sysid import SCHEMES, get_scheme
+    from mjx_surrogate.identification.sysid import SCHEMES, get_scheme
 
     scheme = get_scheme(cfg.solver.sysid, "solver.sysid")
     if cfg.solver.sysid_every < 1:

@@ -15,8 +15,8 @@ from typing import Callable, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from mjx_surrogate import sysid
-from mjx_surrogate.data import Dataset
+from mjx_surrogate.identification import sysid
+from mjx_surrogate.identification.data import Dataset
 from mjx_surrogate.systems.system import System
 from mjx_surrogate.trajectory import simulate_t
 
@@ -47,8 +47,8 @@ def fit_ltv(data: Dataset, X_nom: jax.Array, U_nom: jax.Array) -> LTVModel:
 
 def fit_reduced_ltv(data: Dataset, X_nom: jax.Array, U_nom: jax.Array, rank_tol: float) -> LTVModel:
     """The local model of :func:`fit_ltv` identified in the data's own snapshot basis per t
-    (:func:`mjx_surrogate.sysid_reduced.fit_in_snapshot_basis`), returned in full order."""
-    from mjx_surrogate import sysid_reduced
+    (:func:`mjx_surrogate.identification.sysid_reduced.fit_in_snapshot_basis`), returned in full order."""
+    from mjx_surrogate.identification import sysid_reduced
 
     ok = jnp.isfinite(data.X).all((1, 2))
     A, B, V = sysid_reduced.fit_in_snapshot_basis((data.X - X_nom)[ok], (data.U - U_nom)[ok], rank_tol)

@@ -12,11 +12,11 @@ import numpy as np
 from jax.sharding import Mesh
 
 from mjx_surrogate import sharding
-from mjx_surrogate.config import Config, SystemConfig, validate_static
+from mjx_surrogate.runs.config import Config, SystemConfig, validate_static
 from mjx_surrogate.cost import BLOWUP
 from mjx_surrogate.errors import ConfigError, describe
-from mjx_surrogate.ilqr import ILQRParams
-from mjx_surrogate.model_defaults import (
+from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.runs.model_defaults import (
     USER_SYSTEMS,
     default_init,
     default_n_samples,
@@ -25,7 +25,7 @@ from mjx_surrogate.model_defaults import (
     default_sigma,
 )
 from mjx_surrogate.surrogates.registry import get_surrogate, library_specs
-from mjx_surrogate.sysid import SysIdParams, get_scheme
+from mjx_surrogate.identification.sysid import SysIdParams, get_scheme
 from mjx_surrogate.systems import FunctionSystem, System, from_mjcf, make_system
 from mjx_surrogate.systems.entry import entry_builder, entry_source, load_entry, source_digest
 from mjx_surrogate.systems.plant import check_plant
@@ -37,7 +37,7 @@ from mjx_surrogate.systems.registry import (
     make_function_system,
 )
 from mjx_surrogate.systems.system import compile_mjcf
-from mjx_surrogate.task_resolution import resolve_task
+from mjx_surrogate.runs.task_resolution import resolve_task
 from mjx_surrogate.tasks import Task
 
 
