@@ -193,7 +193,8 @@ jax.config.update("jax_num_cpu_devices", 2)
 from mjx_surrogate.runtime import configure_runtime
 configure_runtime(x64=True, compile_cache=False)
 import jax.numpy as jnp, numpy as np
-from mjx_surrogate import d2c, sharding
+from mjx_surrogate import sharding
+from mjx_surrogate.control import d2c
 from mjx_surrogate.control.ilqr import ILQRParams
 from mjx_surrogate.identification.sysid import SysIdParams
 from mjx_surrogate.systems import burgers

@@ -48,7 +48,7 @@ def _rank(package: str) -> int:
 
 
 def _layer_of_module(dotted: str) -> str | None:
-    """"control" for mjx_surrogate.control.ilqr, "" for mjx_surrogate.cost, None elsewhere."""
+    """ "control" for mjx_surrogate.control.ilqr, "" for mjx_surrogate.cost, None elsewhere."""
     parts = dotted.split(".")
     if parts[0] != "mjx_surrogate" or len(parts) == 1:
         return None

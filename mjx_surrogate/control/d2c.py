@@ -31,6 +31,7 @@ from mjx_surrogate.control.ilqr import (
 )
 from mjx_surrogate.control.ilqr import closed_loop as ilqr_closed_loop
 from mjx_surrogate.identification import sysid as sid
+from mjx_surrogate.identification import sysid_reduced  # noqa: F401  (registers the "reduced" scheme)
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.systems import System
 from mjx_surrogate.tasks import Task, task_cost
