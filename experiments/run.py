@@ -89,11 +89,12 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
 
     argv, out = _take_out(list(argv))
     argv, goals = _take_goals(argv)
+    argv, extension_args = _take_extension_args(argv)
     spec = DEFAULT_PRESET
     if argv and not argv[0].startswith("-"):
         spec = argv.pop(0)
     base = load_config(spec)
-    description = (__doc__ or "") + "\nPresets: " + ", ".join(preset_names()) + GOALS_HELP
+    description = f"{__doc__ or ''}\nPresets: {', '.join(preset_names())}{GOALS_HELP}{_extensions_help()}"
     if any(a in ("-h", "--help") for a in argv):
         tyro.cli(
             Config,
@@ -118,7 +119,65 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
         cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(cfg.experiment, out_dir=out))
     if goals is not None:
         cfg = dataclasses.replace(cfg, task=dataclasses.replace(cfg.task, goals=goals))
+    if extension_args:
+        cfg = dataclasses.replace(cfg, extensions=_parsed_extensions(cfg, extension_args))
     return cfg, run_name(spec)
+
+
+def _extensions_help() -> str:
+    """The registered extensions' settings, for --help (docs/extending.md)."""
+    from mjx_surrogate.runs.extension_settings import declared
+
+    found = declared()
+    if not found:
+        return ""
+    listed = "; ".join(
+        f"--{key}.{{{','.join(f.name for f in dataclasses.fields(d))}}}" for key, d in found.items()
+    )
+    return f"\n\nSettings of registered extensions (docs/extending.md): {listed}"
+
+
+def _take_extension_args(argv: list[str]) -> tuple[list[str], dict[str, list[str]]]:
+    """Remove the settings of registered extensions (``--solver.<scheme>.<field> V ...``,
+    likewise ``surrogate.<kind>``, ``experiment.<kind>``) from argv: key -> their tokens,
+    the field names without the key."""
+    from mjx_surrogate.runs.extension_settings import declared
+
+    keys = sorted(declared(), key=len, reverse=True)
+    rest, taken, i = [], {}, 0
+    while i < len(argv):
+        a = argv[i]
+        key = next((k for k in keys if a.startswith(f"--{k}.")), None)
+        if key is None:
+            rest.append(a)
+            i += 1
+            continue
+        taken.setdefault(key, []).append("--" + a[len(key) + 3 :])
+        i += 1
+        while "=" not in a and i < len(argv) and not argv[i].startswith("--"):
+            taken[key].append(argv[i])
+            i += 1
+    return rest, taken
+
+
+def _parsed_extensions(cfg: Config, extension_args: dict[str, list[str]]) -> dict:
+    """``cfg.extensions`` with the command line's settings over the config's own."""
+    import tyro
+
+    from mjx_surrogate.runs.extension_settings import declared, settings_from
+
+    out = dict(cfg.extensions)
+    for key, args in extension_args.items():
+        defaults = declared()[key]
+        current = settings_from(defaults, out.get(key, defaults), key)
+        err = io.StringIO()
+        try:
+            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(err):
+                out[key] = tyro.cli(type(defaults), default=current, args=args, prog=key)
+        except SystemExit:
+            e = _one_line_tyro_error(err.getvalue(), args)
+            raise ConfigError(f"--{key}.{e.field.lstrip('-')}", str(e).removeprefix(f"{e.field}: ")) from None
+    return out
 
 
 def run_name(spec: str) -> str:
@@ -304,30 +363,6 @@ def _unrecognized(joined: str, argv: list[str]) -> ConfigError:
     return ConfigError("overrides", f"unexpected value {stray!r} (options are --field value)")
 
 
-def kinds():
-    from experiments import (
-        analysis_study,
-        control_study,
-        d2c_study,
-        horizon_study,
-        mpc_study,
-        predict_study,
-        rollout_study,
-        theory_study,
-    )
-
-    return {
-        "rollout": rollout_study.run,
-        "d2c": d2c_study.run,
-        "predict": predict_study.run,
-        "analysis": analysis_study.run,
-        "theory": theory_study.run,
-        "control": control_study.run,
-        "horizon": horizon_study.run,
-        "mpc": mpc_study.run,
-    }
-
-
 class RunWriteFailed(Exception):
     """The run folder could not be made or written; the message is one line."""
 
@@ -357,6 +392,7 @@ def run(
 
     from mjx_surrogate import progress
     from mjx_surrogate.runs import distributed
+    from mjx_surrogate.runs.experiment_kinds import runner
     from mjx_surrogate.runs.results import Interrupted, Run, WriteError
 
     res, parallel = _resolved(cfg, local)
@@ -377,7 +413,7 @@ def run(
             _write_inputs(folder, res, parallel)
             if not local:  # the processes enter the experiment's first collective together
                 distributed.barrier(f"run {ex.name or name}: inputs resolved")
-            status = kinds()[ex.kind](res, record, key)
+            status = runner(ex.kind)(res, record, key)
             optimum = next((k for k in ("X_star", "d2c_X") if k in record.arrays), None)  # d2c's: d2c_X
             if ex.video and writer and res.system.mj_model is not None and optimum is not None:
                 record.video("optimum.mp4", [optimum], float(res.system.dt))

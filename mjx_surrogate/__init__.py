@@ -32,6 +32,8 @@ from mjx_surrogate.runs.config import (
     SystemConfig,
     TaskConfig,
 )
+from mjx_surrogate.runs.experiment_kinds import ExperimentKind, register_experiment
+from mjx_surrogate.runs.extension_settings import settings_of
 from mjx_surrogate.runs.pipeline import solve_config, start_controls
 from mjx_surrogate.runs.resolution import mpc_params, resolve, solver_params
 from mjx_surrogate.runtime import configure_runtime
@@ -49,6 +51,7 @@ __all__ = [
     "Cost",
     "DataConfig",
     "ExperimentConfig",
+    "ExperimentKind",
     "FitContext",
     "Fitted",
     "ILQRParams",
@@ -76,10 +79,12 @@ __all__ = [
     "mpc",
     "progress",
     "receding_horizon",
+    "register_experiment",
     "register_scheme",
     "register_surrogate",
     "register_system",
     "resolve",
+    "settings_of",
     "solve_d2c",
     "solve_exact",
     "solve_multistart",

@@ -223,18 +223,21 @@ def test_runs_never_overwrite(tmp_path):
     assert json.load(open(os.path.join(pa, "metrics.json"))) == {"a": 1}
 
 
-def test_every_solver_field_named_like_an_ilqr_parameter_reaches_it():
+def test_every_ilqr_parameter_is_a_solver_field_with_its_default_and_reaches_it():
+    """One definition: each ILQRParams field is a SolverConfig field (renamed only as
+    SOLVER_FIELD says) with the same default, and a changed value reaches the solver."""
     from mjx_surrogate.control.ilqr import ILQRParams
-    from mjx_surrogate.runs.resolution import solver_params
+    from mjx_surrogate.runs.resolution import SOLVER_FIELD, solver_params
 
-    names = {f.name for f in dataclasses.fields(SolverConfig)} & {
-        f.name for f in dataclasses.fields(ILQRParams)
+    names = [f.name for f in dataclasses.fields(ILQRParams) if f.name != "record_trajectories"]
+    fields = {n: SOLVER_FIELD.get(n, n) for n in names}
+    default, own = SolverConfig(), ILQRParams()
+    assert {n: getattr(default, f) for n, f in fields.items()} == {n: getattr(own, n) for n in names}
+    changed = {
+        f: getattr(default, f) + 1 if isinstance(getattr(default, f), int) else 0.375 for f in fields.values()
     }
-    assert {"mu_raise_alpha", "alpha_factor", "reuse_tol", "max_iter"} <= names
-    default = SolverConfig()
-    changed = {n: getattr(default, n) + 1 if isinstance(getattr(default, n), int) else 0.375 for n in names}
     params, _ = solver_params(Config(solver=SolverConfig(**changed)))
-    assert {n: getattr(params, n) for n in names} == changed
+    assert {n: getattr(params, n) for n in names} == {n: changed[f] for n, f in fields.items()}
 
 
 def test_the_summary_accounts_for_the_wall_time():

@@ -1,9 +1,16 @@
 """Extension points, used from outside the package as docs/extending.md shows: a new
-identification scheme and a new surrogate kind are one function each plus one registry
-entry, and then run end to end from a config."""
+identification scheme, surrogate kind, system and experiment kind are one function or
+module each plus one registry entry, the first three kinds bringing settings of their own;
+each then runs end to end from the command line."""
 
 import dataclasses
 import glob
+import importlib.util
+import json
+import pathlib
+import re
+import sys
+import types
 
 import jax
 import jax.numpy as jnp
@@ -13,61 +20,52 @@ import pytest
 import mjx_surrogate as ms
 from experiments import run as cli
 from mjx_surrogate.identification import sysid
+from mjx_surrogate.runs import experiment_kinds
 from mjx_surrogate.runs.results import load_run
+from mjx_surrogate.systems import registry
+from mjx_surrogate.tasks import trajectory_cost
+
+DOC = pathlib.Path(__file__).resolve().parents[1] / "docs" / "extending.md"
 
 
-def coordinate_differences(step, X, U, key, p):
-    """Toy scheme: central differences along each coordinate of [x, u] (2 (nx + nu) T
-    one-step calls, no randomness), fitted by the shared least squares."""
-    T, nu = U.shape
-    nx = X.shape[-1]
-    E = p.sigma_x * jnp.eye(nx + nu, dtype=X.dtype)  # [n, nx+nu]
-    dz = jnp.broadcast_to(E, (T,) + E.shape)
-    xs = jnp.concatenate([X[:-1, None] + dz[..., :nx], X[:-1, None] - dz[..., :nx]], axis=1)
-    us = jnp.concatenate([U[:, None] + dz[..., nx:], U[:, None] - dz[..., nx:]], axis=1)
-    f = jax.vmap(step)(xs.reshape(-1, nx), us.reshape(-1, nu)).reshape(T, 2 * (nx + nu), nx)
-    return sysid.lstsq_ltv(dz, 0.5 * (f[:, : nx + nu] - f[:, nx + nu :]), nx)
-
-
-@jax.tree_util.register_dataclass
-@dataclasses.dataclass
-class AffineModel:
-    """x_{t+1} = [x, u, 1] W, a global affine surrogate."""
-
-    W: jax.Array  # [nx + nu + 1, nx]
-
-    def step(self, x, u):
-        return jnp.concatenate([x, u, jnp.ones(x.shape[:-1] + (1,), x.dtype)], -1) @ self.W
-
-
-def fit_affine(ctx, train, test, key):
-    Z = jnp.concatenate([train.x, train.u, jnp.ones((train.x.shape[0], 1), train.x.dtype)], -1)
-    W = jnp.linalg.lstsq(Z, train.x_next)[0]
-    return {"affine": ms.Fitted(AffineModel(W), {"n_params": int(W.size)})}
+def doc_module(folder: pathlib.Path) -> types.ModuleType:
+    """The page's Python blocks, in order, written to one file in ``folder`` and imported
+    as a user's module (registering its extensions)."""
+    path = folder / "extending_doc.py"
+    path.write_text("\n".join(re.findall(r"```python\n(.*?)```", DOC.read_text(), re.S)))
+    spec = importlib.util.spec_from_file_location("extending_doc", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[module.__name__] = module  # dataclasses and tyro look their module up
+    spec.loader.exec_module(module)
+    return module
 
 
 @pytest.fixture(autouse=True)
-def registered():
-    ms.register_scheme(
-        "coordinate",
-        ms.IdentificationScheme(
-            lambda system, p: lambda X, U, K, key: coordinate_differences(system.step, X, U, key, p),
-            lambda T, n: 2 * T * 3,
-            "central differences along each coordinate",
-        ),
-    )
-    ms.register_surrogate("affine", ms.SurrogateKind(fit_affine, description="x' = [x, u, 1] W"))
-    yield
+def doc(tmp_path_factory):
+    module = doc_module(tmp_path_factory.mktemp("doc"))
+    yield module
     sysid.SCHEMES.pop("coordinate")
     ms.surrogates.SURROGATES.pop("affine")
+    experiment_kinds.EXPERIMENTS.pop("random_controls")
+    registry._SYSTEMS.pop("tilted_pendulum")
+    registry._TASKS.pop("tilted_up")
+    sys.modules.pop(module.__name__)
+
+
+def test_the_page_registers_each_kind_of_extension(doc):
+    declared = ms.runs.extension_settings.declared()
+    assert {"solver.coordinate", "surrogate.affine", "experiment.random_controls"} <= set(declared)
+    assert declared["solver.coordinate"] == doc.CoordinateSettings(step=1e-4)
+    assert "tilted_pendulum" in registry._SYSTEMS and "tilted_up" in registry._TASKS
 
 
 @pytest.mark.slow
-def test_a_registered_scheme_drives_d2c_to_the_exact_optimum():
+def test_a_registered_scheme_drives_d2c_to_the_exact_optimum(doc):
     cfg = ms.Config(
         system=ms.SystemConfig(name="pendulum", backend="native"),
         task=ms.TaskConfig(preset="pendulum_d2c", T=20),
-        solver=ms.SolverConfig(sysid="coordinate", sigma_x=1e-4, n_samples=3),
+        solver=ms.SolverConfig(sysid="coordinate", n_samples=3),
+        extensions={"solver.coordinate": doc.CoordinateSettings(step=1e-4)},
     )
     cfg, system, task = ms.resolve(cfg)
     params, sid = ms.solver_params(cfg)
@@ -88,20 +86,26 @@ def test_a_registered_scheme_and_surrogate_run_from_the_cli(tmp_path):
             str(tmp_path),
             "--solver.sysid",
             "coordinate",
-            "--solver.sigma_x",
+            "--solver.coordinate.step",
             "1e-4",
             "--surrogate.kinds",
             "sindy",
             "affine",
+            "--surrogate.affine.ridge",
+            "0.001",
         ]
     )
     (path,) = glob.glob(str(tmp_path / "*smoke_predict"))
     metrics, arrays = load_run(path)
     assert code == 0 and metrics["status"] == "converged"
+    with open(f"{path}/config.json") as f:
+        extensions = json.load(f)["extensions"]
+    assert extensions == {"solver.coordinate": {"step": 1e-4}, "surrogate.affine": {"ridge": 0.001}}
     for level in ("0.1", "0.6"):
         models = metrics["results"][level]
         assert list(models)[:4] == ["SINDy cubic_trig", "SINDy quartic", "affine", "LTV"]
         assert models["affine"]["n_params"] == 8 and models["affine"]["one_step_rmse"] > 0
+        assert models["affine"]["ridge"] == 0.001  # the setting reached the fit
         assert np.isfinite(arrays[f"level{0 if level == '0.1' else 1}_pred_affine"]).all()
 
 
@@ -116,3 +120,99 @@ def test_a_scheme_without_a_t_test_refuses_a_significance(tmp_path, capsys):
     assert cli.main(argv + ["--solver.sysid_significance", "3"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: solver.sysid_significance: needs a scheme with a t-test (central_diff")
+
+
+def test_a_scheme_setting_reaches_its_linearize_from_the_command_line(doc):
+    """``--solver.coordinate.step`` lands in the config and in the scheme's parameters;
+    the config's other extensions stay."""
+    cfg, _ = cli.parse_args(["smoke_d2c", "--solver.sysid", "coordinate", "--solver.coordinate.step", "0.25"])
+    assert cfg.extensions == {"solver.coordinate": doc.CoordinateSettings(step=0.25)}
+    assert ms.solver_params(cfg)[1].settings == doc.CoordinateSettings(step=0.25)
+    assert ms.solver_params(dataclasses.replace(cfg, extensions={}))[1].settings == doc.CoordinateSettings()
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--solver.coordinate.step", "-1"], "error: solver.coordinate.step: must be > 0, got -1.0"),
+        (["--solver.coordinate.step", "abc"], "error: --solver.coordinate.step: expects a number, got 'abc'"),
+        (["--solver.coordinate.stride", "2"], "error: --solver.coordinate.stride: unknown field"),
+        (["--solver.coordinate.step", "nan"], "error: solver.coordinate.step: must be a finite number"),
+        (
+            ["--surrogate.affine.ridge", "1"],
+            "error: surrogate.affine: settings of 'affine', which this config",
+        ),
+        (
+            ["--experiment.random_controls.n", "x"],
+            "error: --experiment.random_controls.n: expects an integer",
+        ),
+    ],
+)
+def test_bad_extension_settings_exit_2_naming_the_field(tmp_path, capsys, args, message):
+    argv = ["smoke_d2c", "--out", str(tmp_path), "--solver.sysid", "coordinate"]
+    assert cli.main(argv + args) == 2
+    assert capsys.readouterr().err.startswith(message)
+
+
+def test_an_experiment_kind_with_its_setting_runs_from_the_command_line(tmp_path):
+    argv = ["smoke_d2c", "--out", str(tmp_path), "--experiment.kind", "random_controls"]
+    assert cli.main(argv + ["--experiment.random_controls.n", "3", "--system.backend", "native"]) == 0
+    (path,) = glob.glob(str(tmp_path / "*smoke_d2c"))
+    metrics, arrays = load_run(path)
+    assert metrics["status"] == "completed" and metrics["random_controls"]["n"] == 3
+    assert arrays["U"].shape == (3, 10, 1)
+    # the costs are the task's on the black box's own rollouts of the stored controls
+    cfg, system, task = ms.resolve(cli.load_config(f"{path}/config.json"))
+    X = np.stack([np.asarray(system.rollout(task.x0, u)) for u in arrays["U"]])
+    np.testing.assert_allclose(X, arrays["X"], rtol=1e-6, atol=1e-9)
+    assert metrics["random_controls"]["costs"][0] == pytest.approx(
+        float(trajectory_cost(task, X[0], arrays["U"][0])), rel=1e-6
+    )
+
+
+@pytest.mark.slow
+def test_a_registered_system_solves_from_the_command_line(tmp_path):
+    """A system and its task preset registered from outside; D2C reaches the task's goal
+    under the tilted gravity (the registered MJCF, not the pendulum's, was built)."""
+    argv = ["smoke_d2c", "--out", str(tmp_path), "--system.name", "tilted_pendulum"]
+    argv += ["--task.preset", "tilted_up", "--task.T", "30", "--solver.max_iter", "200"]
+    assert cli.main(argv) == 0
+    (path,) = glob.glob(str(tmp_path / "*smoke_d2c"))
+    metrics, arrays = load_run(path)
+    with open(f"{path}/config.json") as f:
+        assert json.load(f)["system"]["name"] == "tilted_pendulum"
+    cfg, system, task = ms.resolve(cli.load_config(f"{path}/config.json"))
+    assert np.allclose(system.mj_model.opt.gravity, [4.905, 0, -8.496])
+    assert metrics["status"] == "converged"
+    assert abs(float(arrays["d2c_X"][-1, 0])) < 0.05  # upright at the end
+
+
+@pytest.mark.parametrize(
+    "extensions, message",
+    [
+        (
+            {"solver.nope": {}},
+            "extensions.solver.nope: no registered extension declares settings here; valid: ",
+        ),
+        ({"solver.coordinate": {"stride": 2}}, "solver.coordinate.stride: unknown field; valid: step"),
+        ({"solver.coordinate": {"step": "big"}}, "solver.coordinate.step: expected a number, got 'big'"),
+        (
+            "affine settings",
+            "solver.coordinate: expected CoordinateSettings or a mapping",
+        ),
+    ],
+)
+def test_a_python_config_s_extension_settings_are_checked(doc, extensions, message):
+    if extensions == "affine settings":  # another extension's settings class
+        extensions = {"solver.coordinate": doc.AffineSettings()}
+    cfg = ms.Config(solver=ms.SolverConfig(sysid="coordinate"), extensions=extensions)
+    with pytest.raises(ms.ConfigError) as e:
+        ms.resolve(cfg)
+    assert str(e.value).startswith(message)
+
+
+def test_help_lists_the_settings_of_registered_extensions(doc, capsys):
+    with pytest.raises(SystemExit):
+        cli.parse_args(["smoke_d2c", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "--solver.coordinate.{step}" in out and "--experiment.random_controls.{n,scale}" in out

@@ -59,6 +59,7 @@ class SysIdParams:
     perturb_x0: bool = struct.field(pytree_node=False, default=True)  # one-step schemes, t = 0
     significance: float = struct.field(pytree_node=False, default=0.0)  # t_min, sysid_significance
     rank_tol: float = 1e-8  # reduced scheme: energy left out of the snapshot basis (sysid_reduced)
+    settings: Any = struct.field(pytree_node=False, default=None)  # the scheme's own (a frozen dataclass)
 
 
 def normal_equations(
@@ -297,6 +298,9 @@ class IdentificationScheme(NamedTuple):
     reduced: identifies in a basis of ``n_samples`` columns per step: linearize returns
       (A [T, n, n], B [T, n, nu], V [T+1, nx, n]) (:mod:`mjx_surrogate.identification.sysid_reduced`), and
       n_samples is that largest rank, not a sample count >= nx + nu.
+    settings: the scheme's own settings' defaults (a frozen dataclass instance, set as
+      ``--solver.<name>.<field>``); ``make_linearize`` finds the run's values in
+      ``params.settings`` (:mod:`mjx_surrogate.runs.extension_settings`).
     """
 
     make_linearize: Callable[[Any, SysIdParams], LinearizeFn]
@@ -305,6 +309,7 @@ class IdentificationScheme(NamedTuple):
     one_step: bool = False
     t_test: bool = False
     reduced: bool = False
+    settings: Any = None
 
 
 SCHEMES: dict[str, IdentificationScheme] = {}

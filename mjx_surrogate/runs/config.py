@@ -12,7 +12,9 @@ import math
 import re
 import types
 import typing
-from typing import Any, Literal, Optional, Tuple
+from typing import Annotated, Any, Dict, Literal, Optional, Tuple
+
+import tyro
 
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.control.ilqr import ILQRParams
@@ -381,7 +383,7 @@ class ExperimentConfig:
       no GL context can be made the run says so in one line and goes on.
     """
 
-    kind: Literal["rollout", "d2c", "predict", "analysis", "theory", "control", "horizon", "mpc"] = "d2c"
+    kind: str = "d2c"  # a registered kind (mjx_surrogate.runs.experiment_kinds.EXPERIMENTS)
     seed: int = 0
     out_dir: str = "runs"
     name: Optional[str] = None
@@ -428,6 +430,10 @@ class Config:
     analysis: AnalysisConfig = AnalysisConfig()
     mpc: MPCConfig = MPCConfig()
     parallel: ParallelConfig = ParallelConfig()
+    # the settings of registered extensions, "<section>.<name>" -> values
+    # (mjx_surrogate.runs.extension_settings); the command line sets them as
+    # --solver.<scheme>.<field>, --surrogate.<kind>.<field>, --experiment.<kind>.<field>
+    extensions: Annotated[Dict[str, Any], tyro.conf.Suppress] = dataclasses.field(default_factory=dict)
 
 
 def to_dict(cfg: Any) -> dict:
@@ -497,7 +503,7 @@ def from_dict(cls: type, data: Any, prefix: str = "", complete: bool = False) ->
             kwargs[key] = from_dict(hint, value, field, complete)
         else:
             kwargs[key] = _convert(value, hint, field)
-    missing = [n for n in names if n not in data]
+    missing = [n for n in names if n not in data and n != "extensions"]  # older runs had none
     if complete and missing:
         raise ConfigError(
             prefix or "CONFIG",
@@ -525,7 +531,11 @@ def _check_types(cfg: Config) -> None:
     if not isinstance(cfg, Config):
         raise ConfigError("CONFIG", f"expected a mjx_surrogate.runs.config.Config, got {type(cfg).__name__}")
     hints = typing.get_type_hints(Config)
+    if not isinstance(cfg.extensions, dict):
+        raise ConfigError("extensions", f"expected a mapping, got {type(cfg.extensions).__name__}")
     for f in dataclasses.fields(cfg):
+        if f.name == "extensions":  # checked by extension_settings.check_extensions
+            continue
         section = getattr(cfg, f.name)
         if not isinstance(section, hints[f.name]):
             raise ConfigError(f.name, f"expected a {f.name} section, got {type(section).__name__}")
@@ -800,9 +810,14 @@ def _check_analysis(a: AnalysisConfig) -> None:
 
 
 def _check_registered(cfg: Config) -> None:
-    """Names that select a registered extension: identification scheme, surrogate kinds."""
-    from mjx_surrogate.surrogates.registry import get_surrogate
+    """Names that select a registered extension (identification scheme, surrogate kinds,
+    experiment kind) and the extensions' own settings."""
     from mjx_surrogate.identification.sysid import SCHEMES, get_scheme
+    from mjx_surrogate.runs.experiment_kinds import get_experiment
+    from mjx_surrogate.runs.extension_settings import check_extensions
+    from mjx_surrogate.surrogates.registry import get_surrogate
+
+    get_experiment(cfg.experiment.kind)
 
     scheme = get_scheme(cfg.solver.sysid, "solver.sysid")
     if cfg.solver.sysid_every < 1:
@@ -837,6 +852,7 @@ def _check_registered(cfg: Config) -> None:
         raise ConfigError("surrogate.kinds", "give one or more surrogate kinds")
     for i, name in enumerate(cfg.surrogate.kinds):
         get_surrogate(name, f"surrogate.kinds[{i}]")
+    check_extensions(cfg)
 
 
 def _check_function_system(sy: SystemConfig) -> None:

@@ -37,6 +37,14 @@ from mjx_surrogate.systems.registry import (
     make_function_system,
 )
 from mjx_surrogate.systems.system import compile_mjcf
+from mjx_surrogate.runs.experiment_kinds import (
+    IDENTIFICATION,
+    LTV_BASELINE,
+    SURROGATES,
+    get_experiment,
+    needs_of,
+)
+from mjx_surrogate.runs.extension_settings import settings_of
 from mjx_surrogate.runs.task_resolution import resolve_task
 from mjx_surrogate.tasks import Task
 
@@ -214,25 +222,21 @@ def check_memory(cfg: Config, system: System, T: int, n_samples: int) -> None:
         )
 
 
+# ILQRParams field -> its SolverConfig field, where the names differ
+SOLVER_FIELD = {"refine_tol": "sysid_refine_tol"}
+
+
 def solver_params(cfg: Config, record_trajectories: bool = False):
-    """SolverConfig -> (ILQRParams, SysIdParams)."""
+    """SolverConfig -> (ILQRParams, SysIdParams). Every ILQRParams field but
+    ``record_trajectories`` is a SolverConfig field (:data:`SOLVER_FIELD` where renamed)."""
     s = cfg.solver
     ilqr = ILQRParams(
-        rel_tol=s.rel_tol,
-        k_tol=s.k_tol,
-        mu_init=s.mu_init,
-        mu_min=s.mu_min,
-        mu_max=s.mu_max,
-        mu_factor=s.mu_factor,
-        accept_ratio=s.accept_ratio,
-        alpha_factor=s.alpha_factor,
-        mu_raise_alpha=s.mu_raise_alpha,
-        max_iter=s.max_iter,
-        n_alphas=s.n_alphas,
-        reuse_tol=s.reuse_tol,
-        reuse_max=s.reuse_max,
-        refine_tol=s.sysid_refine_tol,
         record_trajectories=record_trajectories,
+        **{
+            f.name: getattr(s, SOLVER_FIELD.get(f.name, f.name))
+            for f in dataclasses.fields(ILQRParams)
+            if f.name != "record_trajectories"
+        },
     )
     n = s.n_samples or SysIdParams().n_samples  # resolve() sets it from nx + nu
     sx = SysIdParams().sigma_x if s.sigma_x is None else s.sigma_x  # resolve() sets both
@@ -248,6 +252,7 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
         significance=s.sysid_significance or 0.0,
         rank_tol=s.sysid_rank_tol,
         perturb_x0=True if s.sysid_perturb_x0 is None else s.sysid_perturb_x0,
+        settings=settings_of(cfg, "solver", s.sysid) if get_scheme(s.sysid).settings is not None else None,
     )
     return ilqr, sysid
 
@@ -276,12 +281,13 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     mesh = sharding.device_mesh(cfg.parallel.devices, pool)
     system = build_system_from_config(cfg.system, mesh)
     tc, task = resolve_task(cfg.task, system)
-    kind = cfg.experiment.kind
-    n_samples = _check_samples(cfg, system, int(tc.T))
+    needs, kind = needs_of(cfg), get_experiment(cfg.experiment.kind)
+    n_samples = _check_samples(cfg, system, int(tc.T), IDENTIFICATION in needs)
     sigma_u = sigma if cfg.solver.sigma_u is None else cfg.solver.sigma_u
     check_start(system, task, sigma_x)
-    if kind in ("predict", "analysis", "control") or (kind == "mpc" and "surrogates" in cfg.mpc.controllers):
-        _check_surrogates(cfg, system, int(tc.T))
+    if SURROGATES in needs:
+        _check_surrogates(dataclasses.replace(cfg, task=tc), system, LTV_BASELINE in needs)
+    kind.validate(dataclasses.replace(cfg, task=tc), system)
     mpc = _resolve_mpc(cfg, system, int(tc.T), n_samples)
     if system.mj_model is None:
         sc = dataclasses.replace(cfg.system, source_sha256=source_digest(system.source))
@@ -323,19 +329,12 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     return Resolved(resolved, system, task)
 
 
-def _check_samples(cfg: Config, system: System, T: int) -> int:
+def _check_samples(cfg: Config, system: System, T: int, identifies: bool) -> int:
     """The identification's samples (the config's or the default), checked against what its
-    scheme needs, and the horizon study's rollouts against its least squares."""
-    kind = cfg.experiment.kind
+    scheme needs where the experiment identifies."""
     reduced = get_scheme(cfg.solver.sysid).reduced
     n_samples = cfg.solver.n_samples or default_n_samples(system.nx, system.nu, reduced)
-    if kind == "horizon" and cfg.data.n_traj < system.nx + system.nu:
-        raise ConfigError(
-            "data.n_traj",
-            f"must be >= nx + nu = {system.nx + system.nu} for the per-step least squares, "
-            f"got {cfg.data.n_traj}",
-        )
-    if kind in ("d2c", "control", "predict", "analysis", "horizon", "mpc"):
+    if identifies:
         if reduced and not 1 <= n_samples <= system.nx:
             raise ConfigError(
                 "solver.n_samples",
@@ -408,20 +407,24 @@ def plant_builder(cfg: Config, system: System):
     return function_builder(cfg.system.name)
 
 
-def _check_surrogates(cfg: Config, system: System, T: int) -> None:
+def training_transitions(cfg: Config) -> int:
+    """Transitions in the training split of section data (``cfg.task.T`` resolved)."""
+    d = cfg.data
+    return (d.n_traj - max(1, int(round(d.test_fraction * d.n_traj)))) * int(cfg.task.T)
+
+
+def _check_surrogates(cfg: Config, system: System, ltv_baseline: bool) -> None:
+    """Section surrogate and the data split (``cfg.task`` resolved); with
+    ``ltv_baseline``, enough trajectories for the per-step LTV fit too."""
     d = cfg.data
     n_test = max(1, int(round(d.test_fraction * d.n_traj)))
     n_train = d.n_traj - n_test
     if n_train < 1:
         raise ConfigError("data.test_fraction", f"leaves no training trajectory of {d.n_traj}")
-    # the LTV baseline is fitted by the prediction study alone (kind mpc: surrogates only)
-    if cfg.experiment.kind != "mpc" and n_train < system.nx + system.nu:
+    if ltv_baseline and n_train < system.nx + system.nu:
         raise ConfigError(
             "data.n_traj",
             f"the LTV fit needs >= nx + nu = {system.nx + system.nu} training trajectories, got {n_train}",
         )
     for name in cfg.surrogate.kinds:
-        get_surrogate(name).validate(cfg, system, n_train * T)
-    if cfg.experiment.kind == "analysis":  # the analyses fit SINDy and MLPs whatever kinds says
-        analysis_library_specs(cfg, system)
-        get_surrogate("mlp").validate(cfg, system, n_train * T)
+        get_surrogate(name).validate(cfg, system, training_transitions(cfg))

@@ -39,11 +39,15 @@ class FitContext(NamedTuple):
 
 class SurrogateKind(NamedTuple):
     """fit(ctx, train, test, key) -> {label: Fitted}; validate(config, system, n_train)
-    raises ConfigError before any compile (``n_train``: training transitions)."""
+    raises ConfigError before any compile (``n_train``: training transitions); settings:
+    the kind's own settings' defaults (a frozen dataclass instance, set as
+    ``--surrogate.<name>.<field>``; ``fit`` reads the run's values with
+    ``mjx_surrogate.settings_of(ctx.config, "surrogate", name)``)."""
 
     fit: Callable[..., dict[str, Fitted]]
     validate: Callable[[Any, Any, int], None] = lambda config, system, n_train: None
     description: str = ""
+    settings: Any = None
 
 
 SURROGATES: dict[str, SurrogateKind] = {}

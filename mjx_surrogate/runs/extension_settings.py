@@ -1,0 +1,92 @@
+"""Settings an extension brings with it (docs/extending.md).
+
+An identification scheme, a surrogate kind or an experiment kind may declare ``settings``:
+a frozen dataclass instance holding its defaults. A config keeps the values given in
+``Config.extensions`` under ``"<section>.<name>"``: ``solver.<scheme>``,
+``surrogate.<kind>`` or ``experiment.<kind>``, each a dataclass instance or a mapping of
+some of its fields (as a run's ``config.json`` writes it). The command line sets a field
+as ``--solver.<scheme>.<field> VALUE``. Before any compile every field is checked against
+its declared type, numbers must be finite, and the settings' own ``check()`` (if any)
+raises ConfigError(field name, message) for values it refuses.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+from mjx_surrogate.errors import ConfigError
+
+
+def declared() -> dict[str, Any]:
+    """``"<section>.<name>"`` -> the settings' defaults, for every registered extension
+    that declares settings."""
+    from mjx_surrogate.identification.sysid import SCHEMES
+    from mjx_surrogate.runs.experiment_kinds import EXPERIMENTS
+    from mjx_surrogate.surrogates.registry import SURROGATES
+
+    out = {}
+    for section, registry in (("solver", SCHEMES), ("surrogate", SURROGATES), ("experiment", EXPERIMENTS)):
+        for name, entry in registry.items():
+            if getattr(entry, "settings", None) is not None:
+                out[f"{section}.{name}"] = entry.settings
+    return out
+
+
+def _defaults(key: str) -> Any:
+    found = declared()
+    if key not in found:
+        valid = ", ".join(found) or "none registered"
+        raise ConfigError(f"extensions.{key}", f"no registered extension declares settings here; valid: {valid}")
+    return found[key]
+
+
+def settings_from(defaults: Any, value: Any, field: str) -> Any:
+    """The settings ``value`` (an instance, or a mapping of some fields) over ``defaults``,
+    every field checked (type, finite numbers, the settings' ``check()``)."""
+    from mjx_surrogate.runs.config import from_dict
+
+    cls = type(defaults)
+    if isinstance(value, cls):
+        value = dataclasses.asdict(value)
+    if not isinstance(value, dict):
+        raise ConfigError(field, f"expected {cls.__name__} or a mapping of its fields, got {type(value).__name__}")
+    given = from_dict(cls, value, field)  # field names and types
+    merged = dataclasses.replace(defaults, **{k: getattr(given, k) for k in value})
+    for f in dataclasses.fields(merged):
+        v = getattr(merged, f.name)
+        if isinstance(v, float) and not math.isfinite(v):
+            raise ConfigError(f"{field}.{f.name}", f"must be a finite number, got {v}")
+    check = getattr(merged, "check", None)
+    if check is not None:
+        try:
+            check()
+        except ConfigError as e:
+            raise ConfigError(f"{field}.{e.field}", str(e).removeprefix(f"{e.field}: ")) from None
+    return merged
+
+
+def settings_of(config: Any, section: str, name: str) -> Any:
+    """The settings of extension ``name`` of ``section`` for this config: its declared
+    defaults with the config's values over them."""
+    key = f"{section}.{name}"
+    defaults = _defaults(key)
+    return settings_from(defaults, config.extensions.get(key, defaults), key)
+
+
+def check_extensions(config: Any) -> None:
+    """Every entry of ``config.extensions`` belongs to a registered extension with
+    settings, one the config uses, and holds valid values."""
+    for key, value in config.extensions.items():
+        section, _, name = key.partition(".")
+        settings_from(_defaults(key), value, key)
+        chosen = {
+            "solver": (config.solver.sysid,),
+            "surrogate": config.surrogate.kinds,
+            "experiment": (config.experiment.kind,),
+        }[section]
+        if name not in chosen:
+            raise ConfigError(
+                key, f"settings of {name!r}, which this config does not use ({section}: {', '.join(chosen)})"
+            )
