@@ -45,27 +45,30 @@ DEFAULT_SAMPLES = 64  # sampling MPCs' samples per replan when D2C-MPC did not r
 
 
 def _planners(controller, res, optimum, plan_task, U0, samples, fit):
-    """{label: episode(plant, keys [E], noise) -> batched MPCResult} of one controller."""
+    """{label: episode(plant, key, noise, meter) -> MPCResult} of one controller (the meter
+    counts the episode's control steps and can stop it, :func:`mpc.episode`)."""
     cfg, system, task = res
     m = cfg.mpc
     params, sysid = mpc_params(cfg)
     N = m.steps
     if controller in ("d2c", "oracle"):
         name = "d2c" if controller == "d2c" else cfg.experiment.oracle
-        one = lambda plant, k, w: mpc.receding_horizon(  # noqa: E731
-            system, plan_task, U0, k, N, params, sysid, w, name, plant
+        one = lambda plant, k, w, pm: mpc.receding_horizon(  # noqa: E731
+            system, plan_task, U0, k, N, params, sysid, w, name, plant, pm
         )
         return {"D2C-MPC" if controller == "d2c" else f"oracle MPC ({name})": one}
     if controller == "tvlqr":
         X, U, K = (jnp.asarray(optimum[k]) for k in ("X_star", "U_star", "K_star"))
         ref = (X[: N + 1], U[:N], K[:N])
-        return {"TVLQR tracking": lambda plant, k, w: mpc.tracking(plant, task, *ref, k, w)}
+        return {"TVLQR tracking": lambda plant, k, w, pm: mpc.tracking(plant, task, *ref, k, w)}
     if controller == "surrogates":
         models, train = fit()
         out = {
             f"{label} MPC": (
                 lambda model: (
-                    lambda plant, k, w: mpc.surrogate_mpc(model, plant, plan_task, U0, k, N, params, w)
+                    lambda plant, k, w, pm: mpc.surrogate_mpc(
+                        model, plant, plan_task, U0, k, N, params, w, pm
+                    )
                 )
             )(model)
             for label, model in models.items()
@@ -74,8 +77,8 @@ def _planners(controller, res, optimum, plan_task, U0, samples, fit):
             if m.refit_weight > 0 and isinstance(model, SindyModel):
                 out[f"{label} MPC refitted online"] = (
                     lambda model: (
-                        lambda plant, k, w: mpc_online.refitted_sindy_mpc(
-                            model, train, plant, plan_task, U0, k, N, params, w, m.refit_weight
+                        lambda plant, k, w, pm: mpc_online.refitted_sindy_mpc(
+                            model, train, plant, plan_task, U0, k, N, params, w, m.refit_weight, pm
                         )
                     )
                 )(model)
@@ -83,7 +86,7 @@ def _planners(controller, res, optimum, plan_task, U0, samples, fit):
                 spec = mlp_spec(cfg)
                 out[f"{label} MPC refitted online"] = (
                     lambda model: (
-                        lambda plant, k, w: mpc_online.refitted_mlp_mpc(
+                        lambda plant, k, w, pm: mpc_online.refitted_mlp_mpc(
                             model,
                             train,
                             plant,
@@ -96,6 +99,7 @@ def _planners(controller, res, optimum, plan_task, U0, samples, fit):
                             params,
                             w,
                             m.refit_weight,
+                            pm,
                         )
                     )
                 )(model)
@@ -103,8 +107,8 @@ def _planners(controller, res, optimum, plan_task, U0, samples, fit):
     first = trajectory_cost(plan_task, *open_loop(system.step, task.x0, U0, plan_task.u_min, plan_task.u_max))
     lam = m.mppi_temperature * float(first) if controller == "mppi" else None
     label = "MPPI" if controller == "mppi" else "predictive sampling"
-    one = lambda plant, k, w: mpc_sampling.sampling_mpc(  # noqa: E731
-        system, plan_task, U0, k, N, m.sampling_sigma, samples, lam, w, plant, m.sampling_knots
+    one = lambda plant, k, w, pm: mpc_sampling.sampling_mpc(  # noqa: E731
+        system, plan_task, U0, k, N, m.sampling_sigma, samples, lam, w, plant, m.sampling_knots, pm
     )
     knots = f", {m.sampling_knots} knots" if m.sampling_knots else ""
     return {f"{label} (S={samples}{knots})": one}
@@ -143,8 +147,8 @@ def _controller(controller, res, record, plants, optimum, plan_task, U0, samples
         meter.extend(len(conditions) * (len(planners) - 1))
         for label, one in planners.items():
             for pi, (name, plant) in enumerate(plants.items()):
-                batch = jax.jit(
-                    lambda keys, w, plant=plant, one=one: jax.vmap(lambda k: one(plant, k, w))(keys)
+                batch = jax.jit(  # the meter closed over by the vmap: one stop answer per batch
+                    lambda keys, w, pm, plant=plant, one=one: jax.vmap(lambda k: one(plant, k, w, pm))(keys)
                 )
                 compiled = {}  # once per planner and plant, for every noise level
                 for ni, noise in enumerate(m.process_noise):
@@ -186,11 +190,15 @@ def _condition(res, e: _Episodes, batch, compiled: dict, optimum, samples, fit, 
     compile_s = 0.0
     if "program" not in compiled:
         t0 = time.perf_counter()
-        compiled["program"] = batch.lower(keys, w).compile()
+        compiled["program"] = batch.lower(keys, w, progress.NO_PROGRESS).compile()
         compile_s = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    r = jax.block_until_ready(compiled["program"](keys, w))
-    run_s = time.perf_counter() - t0
+    desc = f"  {e.label}, noise {e.noise:g}: control steps"
+    with progress.meter(desc, m.steps, cfg.experiment.progress, leave=False) as meter:
+        t0 = time.perf_counter()
+        r = jax.block_until_ready(compiled["program"](keys, w, meter))
+        run_s = time.perf_counter() - t0
+    if progress.stop_requested():  # the batch skipped its remaining steps: nothing to keep
+        raise progress.Stopped(f"during {e.label}'s episodes")
     row, X, U = _row(res, e, r, run_s, samples)
     row["compile_s"] = compile_s
     models = fit()[0] if e.controller == "surrogates" else {}

@@ -58,14 +58,15 @@ def stop_requested() -> bool:
 
 
 @contextlib.contextmanager
-def meter(desc: str, total: int, display: bool = True):
-    """A meter for one solve: a tqdm bar when ``display``, stop polling always."""
+def meter(desc: str, total: int, display: bool = True, leave: bool = True):
+    """A meter for one solve: a tqdm bar when ``display`` (kept on screen when it ends if
+    ``leave``), stop polling always."""
     i = next(_IDS)
     bar = None
     if display:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=total, desc=desc, leave=True, dynamic_ncols=True)
+        bar = tqdm(total=total, desc=desc, leave=leave, dynamic_ncols=True)
     _BARS[i] = bar
     try:
         yield ProgressMeter(np.int32(i))
@@ -172,6 +173,28 @@ def poll(progress: ProgressMeter, iteration: jax.Array, cost: jax.Array, mu: jax
         return jax.pure_callback(
             _host_poll, out, progress.meter_id, iteration, cost, mu, vmap_method="expand_dims"
         )
+
+    return jax.lax.cond(progress.meter_id >= 0, call, lambda: jnp.array(False))
+
+
+def _host_step(meter_id, n) -> np.ndarray:
+    """Host side of :func:`poll_step`: the bar shows n + 1 steps begun; the stop flag."""
+    bar = _BARS.get(int(np.atleast_1d(np.asarray(meter_id)).ravel()[0]))
+    if bar is not None:
+        bar.n = int(np.max(np.asarray(n))) + 1
+        bar.refresh()
+    return np.full(np.shape(meter_id), stop_requested(), dtype=bool)
+
+
+def poll_step(progress: ProgressMeter, n: jax.Array) -> jax.Array:
+    """Traced: report that step ``n`` of a loop begins (an MPC episode's control steps);
+    returns True if a stop was requested. With ``progress`` and ``n`` unbatched (a meter
+    closed over by a ``vmap`` of episodes, the loop's own counter) the answer is one for
+    the whole batch, so a ``lax.cond`` on it really skips the remaining steps."""
+
+    def call():
+        out = jax.ShapeDtypeStruct((), jnp.bool_)
+        return jax.pure_callback(_host_step, out, progress.meter_id, n, vmap_method="expand_dims")
 
     return jax.lax.cond(progress.meter_id >= 0, call, lambda: jnp.array(False))
 

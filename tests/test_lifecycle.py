@@ -195,6 +195,7 @@ STUCK = """
 import sys, time
 import numpy as np
 from experiments import run as cli
+from mjx_surrogate.runs.experiment_kinds import ExperimentKind, register_experiment
 
 def kind(res, record, key):
     record.stage("first", lambda: ({"x": 1.0}, {"a": np.arange(3.0)}))
@@ -204,8 +205,9 @@ def kind(res, record, key):
     record.stage("stuck", lambda: (time.sleep(600), ({}, {}))[1])
     return "completed"
 
-cli.kinds = lambda: {"d2c": kind}
-sys.exit(cli.main(["smoke_d2c", "--experiment.no-progress", "--out", sys.argv[1]]))
+register_experiment("stuck", ExperimentKind(kind))
+args = ["--experiment.kind", "stuck", "--experiment.no-progress", "--out", sys.argv[1]]
+sys.exit(cli.main(["smoke_d2c", *args]))
 """
 
 

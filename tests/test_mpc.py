@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from mjx_surrogate import progress
 from mjx_surrogate.control import mpc, mpc_sampling
 from mjx_surrogate.control.ilqr import ILQRParams
 from mjx_surrogate.identification.sysid import SysIdParams
@@ -316,3 +317,67 @@ def test_a_replan_starts_from_the_cheaper_of_the_previous_policy_and_its_control
     for t in range(H):  # the nominal is the controls' own rollout
         x_next = A @ x_next + B @ U[t]
     np.testing.assert_allclose(np.asarray(start.X[-1]), x_next, atol=1e-12)
+
+
+class _StopAt:
+    """A stand-in progress bar that requests a stop once ``at`` control steps have begun."""
+
+    def __init__(self, at: int):
+        self.at, self.n, self.seen = at, 0, []
+
+    def refresh(self):
+        self.seen.append(self.n)
+        if self.n >= self.at:
+            progress.request_stop()
+
+
+@pytest.mark.parametrize("controller", ["d2c", "sampling"])
+def test_a_stop_inside_a_batch_of_episodes_skips_its_remaining_steps(controller):
+    """The meter counts each control step and a stop request skips the rest of every
+    episode of the vmapped batch: no black-box call after it, NaN rows; with no stop the
+    meter changes no number and switching it on does not recompile."""
+    keys = jax.random.split(jax.random.key(1), 3)
+    calls = []
+
+    def f(x, u):  # the black box on the host: its calls counted
+        calls.append(1)
+        return A @ x + B @ u
+
+    plant, task, U0 = from_numpy(f, 2, 1, 0.1), _task(), jnp.zeros((H, 1))
+
+    def batch(meter):
+        if controller == "sampling":
+            one = lambda k: mpc_sampling.sampling_mpc(  # noqa: E731
+                plant, task, U0, k, N, 0.5, 8, None, 0.0, None, 0, meter
+            )
+        else:
+            one = lambda k: mpc.receding_horizon(  # noqa: E731
+                plant, task, U0, k, N, ILQRParams(max_iter=3), SID, 0.0, "d2c", None, meter
+            )
+        return jax.vmap(one)(keys)
+
+    plain = batch(progress.NO_PROGRESS)
+    plain_calls, calls[:] = len(calls), []
+    fn = mpc_sampling.sampling_mpc if controller == "sampling" else mpc.receding_horizon
+    compiled = fn._cache_size()
+    bar = _StopAt(N + 1)  # never reached: counts only
+    with progress.meter("steps", N, display=False) as meter:
+        progress._BARS[int(meter.meter_id)] = bar
+        counted = batch(meter)
+    assert fn._cache_size() == compiled
+    assert bar.seen == list(range(1, N + 1))  # one report per control step, not per episode
+    np.testing.assert_array_equal(np.asarray(counted.X), np.asarray(plain.X))
+    calls[:] = []
+    stop = _StopAt(3)
+    try:
+        with progress.meter("steps", N, display=False) as meter:
+            progress._BARS[int(meter.meter_id)] = stop
+            stopped = batch(meter)
+    finally:
+        progress.clear_stop()
+    assert stop.seen == [1, 2, 3]  # no report after the stop: the flag is one for the batch
+    assert len(calls) == pytest.approx(plain_calls * 2 / N, rel=0.2)  # the skipped steps ran nothing
+    X, U = np.asarray(stopped.X), np.asarray(stopped.U)
+    np.testing.assert_array_equal(X[:, :2], np.asarray(plain.X)[:, :2])  # steps 0 and 1 ran
+    np.testing.assert_array_equal(U[:, :2], np.asarray(plain.U)[:, :2])
+    assert np.isnan(X[:, 2:]).all() and np.isnan(U[:, 2:]).all()  # step 2 on skipped

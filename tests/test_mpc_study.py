@@ -147,6 +147,60 @@ def test_a_failed_batch_keeps_the_finished_conditions_and_a_resumed_run_reuses_t
 
 
 @pytest.mark.slow
+def test_a_stop_inside_a_batch_ends_it_and_a_resumed_run_finishes_it(smoke_mpc, tmp_path, monkeypatch):
+    """A stop request seen at a control step of the second D2C-MPC batch: that batch skips
+    its remaining steps and is not kept, the run ends interrupted with the first condition
+    kept, and resuming runs the rest to the uninterrupted run's costs."""
+    import contextlib
+    import dataclasses
+
+    from experiments import mpc_study
+    from mjx_surrogate import progress
+
+    _, m0, _ = smoke_mpc
+    cfg = cli.load_config("smoke_mpc")
+    cfg = dataclasses.replace(
+        cfg,
+        mpc=dataclasses.replace(cfg.mpc, controllers=("d2c", "tvlqr")),
+        experiment=dataclasses.replace(cfg.experiment, out_dir=str(tmp_path), video=False),
+    )
+    real, batches, seen = progress.meter, [], []
+
+    class StopAtStep2:
+        n = 0
+
+        def refresh(self):
+            seen.append(self.n)
+            if self.n >= 2:
+                progress.request_stop()
+
+    @contextlib.contextmanager
+    def meter(desc, total, display=True, leave=True):
+        with real(desc, total, False, leave) as pm:
+            batches.extend([desc] if "D2C-MPC" in desc else [])  # not the offline solve's
+            if "D2C-MPC" in desc and len(batches) == 2:
+                progress._BARS[int(pm.meter_id)] = StopAtStep2()
+            yield pm
+
+    monkeypatch.setattr(mpc_study.progress, "meter", meter)
+    path = cli.run(cfg, "first")
+    m = json.loads(open(os.path.join(path, "metrics.json")).read())
+    assert m["status"] == "interrupted" and seen == [1, 2]  # no step reported after the stop
+    stages = {k: v["status"] for k, v in m["stages"].items() if k.startswith("mpc/")}
+    assert stages == {"mpc/d2c/mpc_D2C-MPC_0": "done", "mpc/d2c/mpc_D2C-MPC_1": "interrupted"}
+
+    monkeypatch.setattr(mpc_study.progress, "meter", real)
+    again = cli.run(cfg, "again", resume_from=path)
+    m2 = json.loads(open(os.path.join(again, "metrics.json")).read())
+    assert m2["status"] == m0["status"]
+    costs = {(r["controller"], r["process_noise"]): r["costs"] for r in m2["mpc_rows"]}
+    reference = {(r["controller"], r["process_noise"]): r["costs"] for r in m0["mpc_rows"]}
+    assert len(costs) == 4
+    for k, v in costs.items():
+        np.testing.assert_allclose(v, reference[k], rtol=1e-9)
+
+
+@pytest.mark.slow
 def test_the_verdict_its_cause_and_the_page(smoke_mpc):
     """The closed-loop verdict by its rule, the surrogates' one-step errors along their closed
     loops (first plant, least noise), and report.html with both videos inside."""

@@ -32,6 +32,7 @@ from mjx_surrogate.control.d2c import oracle_method, problem
 from mjx_surrogate.control.effort import simulation_curve, steps_per_identification
 from mjx_surrogate.control.ilqr import ILQRParams, Problem, ilqr_advance, ilqr_init, ilqr_result
 from mjx_surrogate.identification import sysid as sid
+from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter, poll_step
 from mjx_surrogate.systems.system import System
 from mjx_surrogate.tasks import Task, task_cost, trajectory_cost
 
@@ -64,9 +65,11 @@ def receding_horizon(
     process_noise: float | jax.Array = 0.0,
     controller: str = "d2c",
     plant: System | None = None,
+    progress: ProgressMeter = NO_PROGRESS,
 ) -> MPCResult:
     """One MPC episode of ``steps`` control steps from ``task.x0``, the first plan warm-started
-    from U0 [H, nu] (H = task.T)."""
+    from U0 [H, nu] (H = task.T); ``progress`` counts its control steps and can stop it
+    (:func:`episode`)."""
     if controller not in CONTROLLERS:
         raise ValueError(f"controller: one of {', '.join(CONTROLLERS)}, got {controller!r}")
     method = "d2c" if controller == "d2c" else oracle_method(controller)
@@ -76,7 +79,7 @@ def receding_horizon(
         return ilqr_replan(problem(system, task.replace(x0=x), sysid, method), plan, params, k)
 
     X, U, (plan_cost, its, ident) = episode(
-        replan, plant_step, task.x0, first_plan(U0, task.x0), key, steps, process_noise
+        replan, plant_step, task.x0, first_plan(U0, task.x0), key, steps, process_noise, progress=progress
     )
     return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)
 
@@ -91,6 +94,7 @@ def surrogate_mpc(
     steps: int,
     params: ILQRParams = ILQRParams(max_iter=5),
     process_noise: float | jax.Array = 0.0,
+    progress: ProgressMeter = NO_PROGRESS,
 ) -> MPCResult:
     """One episode on ``plant`` whose replans run iLQR on a differentiable surrogate (a
     pytree with ``step(x, u)``: a SindyModel, an MLPModel), Jacobians by ``jax.jacfwd``
@@ -100,7 +104,7 @@ def surrogate_mpc(
         return surrogate_replan(model, task, x, plan, params, k)
 
     X, U, (plan_cost, its, ident) = episode(
-        replan, plant.step, task.x0, first_plan(U0, task.x0), key, steps, process_noise
+        replan, plant.step, task.x0, first_plan(U0, task.x0), key, steps, process_noise, progress=progress
     )
     return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)
 
@@ -205,6 +209,7 @@ def episode(
     process_noise,
     memory=None,
     observe=None,
+    progress: ProgressMeter = NO_PROGRESS,
 ):
     """The receding-horizon loop every planner shares: ``replan(x, plan, key) -> (plan,
     info)`` from the measured x and the previous plan shifted by one step (``plan0``: the
@@ -213,11 +218,11 @@ def episode(
     A controller that learns during the episode passes ``memory`` (a pytree) and
     ``observe(memory, n, x, u, x_next) -> memory``, called after every plant step; its
     replan is then ``replan(x, plan, key, memory, n) -> (plan, info, memory)``.
+    ``progress``: told of every control step; once it reports a stop request, the
+    remaining steps are skipped (their rows of X, U and info are NaN, or 0 for integers).
     -> X [steps+1, nx], U [steps, nu], info stacked [steps, ...]."""
 
-    def control_step(carry, inputs):
-        x, plan, mem = carry
-        n, k = inputs
+    def advance(x, plan, mem, n, k):
         k_plan, k_noise = jax.random.split(k)
         if observe is None:
             plan, info = replan(x, plan, k_plan)
@@ -229,10 +234,30 @@ def episode(
             mem = observe(mem, n, x, u, x_next)
         return (x_next, shifted(plan), mem), (x, u, info)
 
+    def control_step(carry, inputs):
+        x, plan, mem, stopped = carry
+        n, k = inputs
+        # unbatched (one answer for a vmapped batch), so both conds really branch
+        stopped = jax.lax.cond(stopped, lambda: stopped, lambda: poll_step(progress, n))
+        shapes = jax.eval_shape(advance, x, plan, mem, n, k)[1]
+
+        def skip():
+            return (x, plan, mem), jax.tree.map(_blank, shapes)
+
+        (x, plan, mem), row = jax.lax.cond(stopped, skip, lambda: advance(x, plan, mem, n, k))
+        return (x, plan, mem, stopped), row
+
     plan0 = jax.tree.map(lambda a: a.astype(x0.dtype), plan0)
     inputs = (jnp.arange(steps), jax.random.split(key, steps))
-    (xN, _, _), (X, U, info) = jax.lax.scan(control_step, (x0, plan0, memory), inputs)
-    return jnp.concatenate([X, xN[None]]), U, info
+    carry = (x0, plan0, memory, jnp.array(False))
+    (xN, _, _, stopped), (X, U, info) = jax.lax.scan(control_step, carry, inputs)
+    return jnp.concatenate([X, jnp.where(stopped, jnp.nan, xN)[None]]), U, info
+
+
+def _blank(s: jax.ShapeDtypeStruct) -> jax.Array:
+    """A skipped step's row: NaN, or 0 for integers and booleans."""
+    fill = jnp.nan if jnp.issubdtype(s.dtype, jnp.inexact) else 0
+    return jnp.full(s.shape, fill, s.dtype)
 
 
 def black_box_steps(result: MPCResult, horizon: int, n_alphas: int, sysid: sid.SysIdParams) -> np.ndarray:

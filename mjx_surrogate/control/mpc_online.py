@@ -38,6 +38,7 @@ from mjx_surrogate.control.ilqr import ILQRParams
 from mjx_surrogate.control.mpc import MPCResult, episode, first_plan, surrogate_replan
 from mjx_surrogate.identification.data import Transitions
 from mjx_surrogate.linalg import spd_solve
+from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.surrogates.mlp import MLPModel, MLPSpec, optimizer, targets
 from mjx_surrogate.surrogates.sindy import SindyModel, design
 from mjx_surrogate.systems.system import System
@@ -79,6 +80,7 @@ def refitted_sindy_mpc(
     params: ILQRParams = ILQRParams(max_iter=5),
     process_noise: float | jax.Array = 0.0,
     weight: float | jax.Array = 10.0,
+    progress: ProgressMeter = NO_PROGRESS,
 ) -> MPCResult:
     """One episode of ``steps`` control steps on ``plant`` from ``task.x0``: SINDy-MPC whose
     model is refitted before every replan (module docstring). ``offline``: the transitions
@@ -115,6 +117,7 @@ def refitted_sindy_mpc(
         process_noise,
         empty_transitions(steps, x0.shape[0], U0.shape[-1], x0.dtype),
         record,
+        progress,
     )
     return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)
 
@@ -160,6 +163,7 @@ def refitted_mlp_mpc(
     params: ILQRParams = ILQRParams(max_iter=5),
     process_noise: float | jax.Array = 0.0,
     weight: float | jax.Array = 10.0,
+    progress: ProgressMeter = NO_PROGRESS,
 ) -> MPCResult:
     """One episode of ``steps`` control steps on ``plant`` from ``task.x0``: MLP-MPC whose
     network takes ``updates`` optimiser steps (``spec``'s) before every replan (module
@@ -204,5 +208,6 @@ def refitted_mlp_mpc(
         process_noise,
         memory,
         lambda mem, n, x, u, x_next: (record(mem[0], n, x, u, x_next), *mem[1:]),
+        progress,
     )
     return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)

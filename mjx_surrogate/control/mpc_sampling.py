@@ -27,6 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate.control.mpc import MPCResult, episode
+from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.systems.system import System
 from mjx_surrogate.tasks import Task, trajectory_cost
 from mjx_surrogate.trajectory import open_loop
@@ -63,6 +64,7 @@ def sampling_mpc(
     process_noise: float | jax.Array = 0.0,
     plant: System | None = None,
     knots: int = 0,
+    progress: ProgressMeter = NO_PROGRESS,
 ) -> MPCResult:
     """One episode of ``steps`` control steps from ``task.x0`` (horizon H = task.T), the
     first plan U0 [H, nu]; ``sigma`` (scalar or [nu], control units) scales the samples,
@@ -85,7 +87,7 @@ def sampling_mpc(
         mean = jnp.einsum("s,stu->tu", w, samples)
         return mean, plan_cost(x, mean)
 
-    X, U, J = episode(replan, plant_step, task.x0, U0, key, steps, process_noise)
+    X, U, J = episode(replan, plant_step, task.x0, U0, key, steps, process_noise, progress=progress)
     ones = jnp.ones((steps,), jnp.int32)
     return MPCResult(X, U, trajectory_cost(task, X, U), J, ones, jnp.zeros((steps, 1), jnp.int8))
 
