@@ -381,3 +381,16 @@ def test_a_stop_inside_a_batch_of_episodes_skips_its_remaining_steps(controller)
     np.testing.assert_array_equal(X[:, :2], np.asarray(plain.X)[:, :2])  # steps 0 and 1 ran
     np.testing.assert_array_equal(U[:, :2], np.asarray(plain.U)[:, :2])
     assert np.isnan(X[:, 2:]).all() and np.isnan(U[:, 2:]).all()  # step 2 on skipped
+
+
+def test_a_long_episode_reports_about_polls_per_episode_times():
+    """Every k-th control step is reported (k = steps // POLLS_PER_EPISODE): the host
+    callback's cost stays bounded on episodes of cheap steps."""
+    steps = 2 * mpc.POLLS_PER_EPISODE + 1
+    bar = _StopAt(steps + 1)
+    with progress.meter("steps", steps, display=False) as meter:
+        progress._BARS[int(meter.meter_id)] = bar
+        mpc_sampling.sampling_mpc(
+            _linear(), _task(), jnp.zeros((H, 1)), jax.random.key(0), steps, 0.5, 4, progress=meter
+        )
+    assert bar.seen == list(range(1, steps + 1, 2))

@@ -37,6 +37,7 @@ from mjx_surrogate.systems.system import System
 from mjx_surrogate.tasks import Task, task_cost, trajectory_cost
 
 CONTROLLERS = ("d2c", "jacfwd", "finite_difference")
+POLLS_PER_EPISODE = 25  # progress reports (and stop checks) per episode, at most about
 
 
 class MPCResult(NamedTuple):
@@ -218,7 +219,8 @@ def episode(
     A controller that learns during the episode passes ``memory`` (a pytree) and
     ``observe(memory, n, x, u, x_next) -> memory``, called after every plant step; its
     replan is then ``replan(x, plan, key, memory, n) -> (plan, info, memory)``.
-    ``progress``: told of every control step; once it reports a stop request, the
+    ``progress``: told of every k-th control step (k = steps // POLLS_PER_EPISODE, at
+    least 1: one host callback costs 0.1-2 ms); once it reports a stop request, the
     remaining steps are skipped (their rows of X, U and info are NaN, or 0 for integers).
     -> X [steps+1, nx], U [steps, nu], info stacked [steps, ...]."""
 
@@ -238,7 +240,8 @@ def episode(
         x, plan, mem, stopped = carry
         n, k = inputs
         # unbatched (one answer for a vmapped batch), so both conds really branch
-        stopped = jax.lax.cond(stopped, lambda: stopped, lambda: poll_step(progress, n))
+        quiet = stopped | (n % every != 0)
+        stopped = jax.lax.cond(quiet, lambda: stopped, lambda: poll_step(progress, n))
         shapes = jax.eval_shape(advance, x, plan, mem, n, k)[1]
 
         def skip():
@@ -247,6 +250,7 @@ def episode(
         (x, plan, mem), row = jax.lax.cond(stopped, skip, lambda: advance(x, plan, mem, n, k))
         return (x, plan, mem, stopped), row
 
+    every = max(1, steps // POLLS_PER_EPISODE)
     plan0 = jax.tree.map(lambda a: a.astype(x0.dtype), plan0)
     inputs = (jnp.arange(steps), jax.random.split(key, steps))
     carry = (x0, plan0, memory, jnp.array(False))
