@@ -4,9 +4,9 @@ The CLI, the benchmarks and the tests call :func:`configure_runtime` first; a no
 should too, before its first JAX computation:
 
 * ``XLA_FLAGS += --xla_cpu_use_fusion_emitters=false`` (jaxlib 0.10, whose XLA knows the
-  flag; jaxlib 0.11's aborts on it, as on the next one): XLA's CPU fusion emitters made MJX
-  rollouts up to ~50x slower and compiles minutes long on many-body models
-  (docs/performance.md). Only effective before JAX starts its backend; skipped when the
+  flag; jaxlib 0.11's aborts on it, as on the next one): XLA's CPU fusion emitters slow MJX
+  rollouts and their compiles on many-body models by large factors (docs/performance.md).
+  Only effective before JAX starts its backend; skipped when the
   user's ``XLA_FLAGS`` already names the flag or ``MJX_SURROGATE_KEEP_XLA_FLAGS=1``.
 * ``XLA_FLAGS += --xla_cpu_collective_call_warn_stuck_timeout_seconds=600``: on a busy
   2-core machine, devices of a CPU mesh reach a collective seconds apart, and XLA's default

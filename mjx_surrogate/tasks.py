@@ -123,7 +123,7 @@ def point_goal_derivatives(task: Task, X: jax.Array, U: jax.Array):
     1/2 w |p(x) - target|^2 taken to Gauss-Newton's order: gradient J'W r, Hessian J'W J
     with J = dp/dx [k, 3, nx] (one ``jacfwd`` of the kinematics). The exact Hessian adds
     sum_k w_k r_k . d2p_k/dx2, which vanishes at the target, and needs second derivatives
-    of the MJX kinematics: their compile took ~30 s on the reacher. The rest of the cost
+    of the MJX kinematics, whose compile is long (docs/performance.md). The rest of the cost
     is differentiated exactly."""
     plain = dataclasses.replace(task, points=None)
 

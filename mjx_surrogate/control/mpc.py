@@ -220,8 +220,9 @@ def episode(
     ``observe(memory, n, x, u, x_next) -> memory``, called after every plant step; its
     replan is then ``replan(x, plan, key, memory, n) -> (plan, info, memory)``.
     ``progress``: told of every k-th control step (k = steps // POLLS_PER_EPISODE, at
-    least 1: one host callback costs 0.1-2 ms); once it reports a stop request, the
-    remaining steps are skipped (their rows of X, U and info are NaN, or 0 for integers).
+    least 1: each report is a host callback, docs/performance.md); once it reports a stop
+    request, the remaining steps are skipped (their rows of X, U and info are NaN, or 0
+    for integers).
     -> X [steps+1, nx], U [steps, nu], info stacked [steps, ...]."""
 
     def advance(x, plan, mem, n, k):

@@ -48,8 +48,8 @@ class MjxPhysics(NamedTuple):
       pushed through a loop over the substeps of the batched physics step (the state and
       the constraint solver's warmstart, which carries over from one substep to the next).
       The same numbers as ``vmap(jacfwd(step))`` (bit for bit in the tests, contacts
-      included), traced in a third to a half of the time (fish, T 600: 3.7-5.2 s against
-      8.9-13.3 s), for the reason above (``benchmarks/mjx_programs.py``).
+      included), traced faster for the reason above (``benchmarks/mjx_programs.py``,
+      docs/performance.md).
     """
 
     step: Callable
@@ -72,8 +72,7 @@ def make_mjx_physics(mj_model: mujoco.MjModel, substeps: int) -> MjxPhysics:
     if jax.config.jax_enable_x64:
         # Under x64 some int32 fields come back from mjx.step as int64 (e.g. tendon
         # wrap data), which a loop carry rejects: start from the dtypes step returns.
-        # Outside compile-time evaluation, where it would run every inner jit eagerly
-        # (fish: 16.6 s against 1.4 s).
+        # Outside compile-time evaluation, where it would run every inner jit eagerly.
         out = jax.eval_shape(mjx.step, model, data0)
         with jax.ensure_compile_time_eval():
             data0 = jax.tree.map(lambda a, o: a.astype(o.dtype), data0, out)

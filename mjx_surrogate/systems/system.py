@@ -100,7 +100,7 @@ class System:
 
     @functools.cached_property
     def _mjx_physics(self) -> backend_mjx.MjxPhysics:
-        """The MJX step, its batch and its Jacobians (building them: 1.5 s for the fish)."""
+        """The MJX step, its batch and its Jacobians, built on first use."""
         return backend_mjx.make_mjx_physics(self.mj_model, self.substeps)
 
     @functools.cached_property
