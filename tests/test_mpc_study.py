@@ -102,23 +102,43 @@ def test_the_sampling_budget_matches_d2c_and_the_table_and_figures_are_written(s
         assert_png(str(path / name))
 
 
+def _d2c_and_tvlqr(out_dir):
+    """The smoke preset with two controllers, written to ``out_dir``, no video."""
+    import dataclasses
+
+    cfg = cli.load_config("smoke_mpc")
+    return dataclasses.replace(
+        cfg,
+        mpc=dataclasses.replace(cfg.mpc, controllers=("d2c", "tvlqr")),
+        experiment=dataclasses.replace(cfg.experiment, out_dir=str(out_dir), video=False),
+    )
+
+
+def _resumed_as_uninterrupted(cfg, path: str, m0: dict) -> dict:
+    """Resume the run at ``path``: it ends as the uninterrupted smoke run ``m0`` did, with
+    its costs; returns the resumed run's metrics."""
+    again = cli.run(cfg, "again", resume_from=path)
+    m2 = json.loads(open(os.path.join(again, "metrics.json")).read())
+    assert m2["status"] == m0["status"]
+    costs = {(r["controller"], r["process_noise"]): r["costs"] for r in m2["mpc_rows"]}
+    reference = {(r["controller"], r["process_noise"]): r["costs"] for r in m0["mpc_rows"]}
+    assert len(costs) == 4
+    for k, v in costs.items():
+        np.testing.assert_allclose(v, reference[k], rtol=1e-9)
+    return m2
+
+
 @pytest.mark.slow
 def test_a_failed_batch_keeps_the_finished_conditions_and_a_resumed_run_reuses_them(
     smoke_mpc, tmp_path, monkeypatch
 ):
     """A stage per planner and condition: the conditions finished before a failure are
     kept, and resuming runs only the others, to the same costs as an uninterrupted run."""
-    import dataclasses
 
     from experiments import mpc_study
 
     _, m0, _ = smoke_mpc
-    cfg = cli.load_config("smoke_mpc")
-    cfg = dataclasses.replace(
-        cfg,
-        mpc=dataclasses.replace(cfg.mpc, controllers=("d2c", "tvlqr")),
-        experiment=dataclasses.replace(cfg.experiment, out_dir=str(tmp_path), video=False),
-    )
+    cfg = _d2c_and_tvlqr(tmp_path)
     real = mpc_study._row
 
     def failing(res, e, *args):
@@ -134,16 +154,9 @@ def test_a_failed_batch_keeps_the_finished_conditions_and_a_resumed_run_reuses_t
     assert done == {"mpc/d2c/mpc_D2C-MPC_0", "mpc/d2c/mpc_D2C-MPC_1", "mpc/tvlqr/mpc_TVLQR_tracking_0"}
 
     monkeypatch.setattr(mpc_study, "_row", real)
-    again = cli.run(cfg, "again", resume_from=path)
-    m2 = json.loads(open(os.path.join(again, "metrics.json")).read())
-    assert m2["status"] == m0["status"]
+    m2 = _resumed_as_uninterrupted(cfg, path, m0)
     resumed = {k for k, v in m2["stages"].items() if v.get("resumed")}
     assert resumed == done | {"d2c"}
-    costs = {(r["controller"], r["process_noise"]): r["costs"] for r in m2["mpc_rows"]}
-    reference = {(r["controller"], r["process_noise"]): r["costs"] for r in m0["mpc_rows"]}
-    assert len(costs) == 4
-    for k, v in costs.items():
-        np.testing.assert_allclose(v, reference[k], rtol=1e-9)
 
 
 @pytest.mark.slow
@@ -152,18 +165,12 @@ def test_a_stop_inside_a_batch_ends_it_and_a_resumed_run_finishes_it(smoke_mpc, 
     its remaining steps and is not kept, the run ends interrupted with the first condition
     kept, and resuming runs the rest to the uninterrupted run's costs."""
     import contextlib
-    import dataclasses
 
     from experiments import mpc_study
     from mjx_surrogate import progress
 
     _, m0, _ = smoke_mpc
-    cfg = cli.load_config("smoke_mpc")
-    cfg = dataclasses.replace(
-        cfg,
-        mpc=dataclasses.replace(cfg.mpc, controllers=("d2c", "tvlqr")),
-        experiment=dataclasses.replace(cfg.experiment, out_dir=str(tmp_path), video=False),
-    )
+    cfg = _d2c_and_tvlqr(tmp_path)
     real, batches, seen = progress.meter, [], []
 
     class StopAtStep2:
@@ -190,14 +197,7 @@ def test_a_stop_inside_a_batch_ends_it_and_a_resumed_run_finishes_it(smoke_mpc, 
     assert stages == {"mpc/d2c/mpc_D2C-MPC_0": "done", "mpc/d2c/mpc_D2C-MPC_1": "interrupted"}
 
     monkeypatch.setattr(mpc_study.progress, "meter", real)
-    again = cli.run(cfg, "again", resume_from=path)
-    m2 = json.loads(open(os.path.join(again, "metrics.json")).read())
-    assert m2["status"] == m0["status"]
-    costs = {(r["controller"], r["process_noise"]): r["costs"] for r in m2["mpc_rows"]}
-    reference = {(r["controller"], r["process_noise"]): r["costs"] for r in m0["mpc_rows"]}
-    assert len(costs) == 4
-    for k, v in costs.items():
-        np.testing.assert_allclose(v, reference[k], rtol=1e-9)
+    _resumed_as_uninterrupted(cfg, path, m0)
 
 
 @pytest.mark.slow
