@@ -157,7 +157,9 @@ def test_native_programs_compile_with_the_systems_options_to_the_same_iterates(p
     monkeypatch.setattr(jax.stages.Lowered, "compile", recording)
     timed = chunked.solve(native, task, U0, jax.random.key(1), P, SID)
     assert seen == [native.compiler_options] * 2  # start and advance
-    whole = solve_d2c(native, task, U0, jax.random.key(1), P, SID)  # XLA's default options
+    # the API's one-program solve compiles with the same options, so it gives the chunks'
+    # iterates bit for bit (XLA's default level, as before system_jit, gave them to round-off)
+    whole = solve_d2c(native, task, U0, jax.random.key(1), P, SID)
     assert int(timed.out.iterations) == int(whole.iterations) > 3
-    np.testing.assert_allclose(np.asarray(timed.out.U), np.asarray(whole.U), rtol=1e-9, atol=1e-12)
-    assert float(timed.out.cost) == pytest.approx(float(whole.cost), rel=1e-12)
+    np.testing.assert_array_equal(np.asarray(timed.out.X_history), np.asarray(whole.X_history))
+    assert float(timed.out.cost) == float(whole.cost)

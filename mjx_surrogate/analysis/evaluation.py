@@ -7,7 +7,6 @@ own step; the cost is the task's (+inf for a trajectory that is not finite).
 
 from __future__ import annotations
 
-import functools
 from typing import NamedTuple
 
 import jax
@@ -17,6 +16,7 @@ import numpy as np
 from mjx_surrogate.identification import step_models
 from mjx_surrogate.identification.data import Dataset, u_max
 from mjx_surrogate.systems import System
+from mjx_surrogate.systems.system_jit import system_jit
 from mjx_surrogate.tasks import Task, trajectory_cost
 from mjx_surrogate.trajectory import feedback_rollout
 
@@ -43,7 +43,7 @@ def replay(system: System, task: Task, X: jax.Array, U: jax.Array, K: jax.Array)
     return Replay(trajectory_cost(task, Xo, Uo), trajectory_cost(task, Xc, Uc), Xo, Xc, err(Xo), err(Xc))
 
 
-@functools.partial(jax.jit, static_argnames=("system", "n_trials"))
+@system_jit(static_argnames=("system", "n_trials"))
 def evaluate_feedback(
     system: System,
     task: Task,

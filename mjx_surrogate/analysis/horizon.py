@@ -15,7 +15,6 @@ B_ref [T, nx, nu] (exact or finite-difference, see :func:`mjx_surrogate.control.
 
 from __future__ import annotations
 
-import functools
 from typing import NamedTuple
 
 import jax
@@ -24,6 +23,7 @@ import jax.numpy as jnp
 from mjx_surrogate import sharding
 from mjx_surrogate.identification import sysid
 from mjx_surrogate.linalg import ltv_relative_error, relative_frobenius
+from mjx_surrogate.systems.system_jit import system_jit
 from mjx_surrogate.trajectory import feedback_rollout
 
 
@@ -35,7 +35,7 @@ class HorizonErrors(NamedTuple):
     spread: jax.Array  # [2, T+1] median over rollouts of ||x_t - X_t|| / RMS ||X||
 
 
-@functools.partial(jax.jit, static_argnames=("system", "n"))
+@system_jit(static_argnames=("system", "n"))
 def identification_errors(
     system,
     X: jax.Array,

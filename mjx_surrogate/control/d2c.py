@@ -13,7 +13,6 @@ kept in the persistent compilation cache: :mod:`mjx_surrogate.control.chunked`.
 
 from __future__ import annotations
 
-import functools
 from typing import NamedTuple
 
 import jax
@@ -34,6 +33,7 @@ from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.identification import sysid_reduced  # noqa: F401  (registers the "reduced" scheme)
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.systems import System
+from mjx_surrogate.systems.system_jit import system_jit
 from mjx_surrogate.tasks import Task, task_cost
 
 ORACLES = ("jacfwd", "finite_difference")
@@ -100,7 +100,7 @@ def sharded_trials(step, closed_loop, mesh) -> ClosedLoopFn:
     return trials
 
 
-@functools.partial(jax.jit, static_argnames=("system",))
+@system_jit(static_argnames=("system",))
 def solve_d2c(
     system: System,
     task: Task,
@@ -114,7 +114,7 @@ def solve_d2c(
     return _solve(system, task, U0, key, params, sysid, "d2c", progress)
 
 
-@functools.partial(jax.jit, static_argnames=("system", "jacobians"))
+@system_jit(static_argnames=("system", "jacobians"))
 def solve_exact(
     system: System,
     task: Task,
@@ -140,7 +140,7 @@ class MultiStart(NamedTuple):
     best_index: jax.Array
 
 
-@functools.partial(jax.jit, static_argnames=("system", "method"))
+@system_jit(static_argnames=("system", "method"))
 def solve_multistart(
     system: System,
     task: Task,

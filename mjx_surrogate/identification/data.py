@@ -18,7 +18,6 @@ training one.
 
 from __future__ import annotations
 
-from functools import partial
 from typing import NamedTuple
 
 import jax
@@ -26,6 +25,7 @@ import jax.numpy as jnp
 
 from mjx_surrogate.identification.rollout import rollout
 from mjx_surrogate.systems.system import System
+from mjx_surrogate.systems.system_jit import system_jit
 
 
 class Dataset(NamedTuple):
@@ -54,7 +54,7 @@ def u_max(U_star: jax.Array, lo: jax.Array | None = None, hi: jax.Array | None =
     return jnp.where(jnp.isfinite(lo) & jnp.isfinite(hi) & (limit > 0), limit, m)
 
 
-@partial(jax.jit, static_argnames=("system", "n_traj"))
+@system_jit(static_argnames=("system", "n_traj"))
 def sample(
     system: System,
     X_star: jax.Array,

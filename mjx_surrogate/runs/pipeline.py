@@ -30,6 +30,7 @@ from mjx_surrogate.runs.resolution import solver_params
 from mjx_surrogate.systems import System
 from mjx_surrogate.tasks import Task, goal_cost, has_terminal, trajectory_cost
 from mjx_surrogate.trajectory import open_loop
+from mjx_surrogate.systems.system_jit import system_jit
 
 
 def initial_controls(
@@ -111,7 +112,7 @@ def gains_verdict(levels, closed_median, open_median) -> str:
     return f"do not use: the closed loop costs more than the open loop at noise level(s) {worse}"
 
 
-@functools.partial(jax.jit, static_argnames=("system",))
+@system_jit(static_argnames=("system",))
 def _replay_cost(system: System, task: Task, U: jax.Array) -> tuple[jax.Array, jax.Array]:
     X, Ua = open_loop(system.step, task.x0, U, task.u_min, task.u_max)
     return X, trajectory_cost(task, X, Ua)

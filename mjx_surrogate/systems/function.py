@@ -74,7 +74,9 @@ class FunctionSystem:
 
     @property
     def compiler_options(self) -> dict | None:
-        return None
+        """A host function is a callback, so its programs are never cached: they compile at
+        XLA's backend optimisation level 1, as the native backend's (:class:`System`)."""
+        return {"xla_backend_optimization_level": 1} if self.backend == "host" else None
 
     def on_one_device(self) -> "FunctionSystem":
         return self
