@@ -37,3 +37,12 @@ def test_each_options_set_has_its_own_jit_and_values_do_not_recompile():
     lowered = f.lower(level1, x)
     assert isinstance(lowered, jax.stages.Lowered)
     np.testing.assert_array_equal(lowered.compile()(x), f(level1, x))
+
+
+def test_a_system_without_compiler_options_gets_xlas_defaults():
+    @dataclasses.dataclass(frozen=True)
+    class Bare:
+        scale: float
+
+    f = system_jit(static_argnames=("system",))(lambda system, x: system.scale * x)
+    assert float(f(Bare(3.0), jnp.asarray(2.0))) == 6.0 and list(f._jits) == [()]

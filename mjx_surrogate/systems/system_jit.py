@@ -16,8 +16,8 @@ import jax
 
 
 class SystemJit:
-    """``fn(system, ...)`` jitted once per distinct ``system.compiler_options``; called and
-    lowered as a ``jax.jit`` is."""
+    """``fn(system, ...)`` jitted once per distinct ``system.compiler_options`` (a system
+    without that attribute gets XLA's defaults); called and lowered as a ``jax.jit`` is."""
 
     def __init__(self, fn: Callable, static_argnames: tuple[str, ...]):
         self._fn, self._static = fn, static_argnames
@@ -25,7 +25,7 @@ class SystemJit:
         functools.update_wrapper(self, fn)
 
     def _jit_for(self, system) -> Callable:
-        options = system.compiler_options or {}
+        options = getattr(system, "compiler_options", None) or {}  # a user object may not say
         key = tuple(sorted(options.items()))
         if key not in self._jits:
             jit = jax.jit(self._fn, static_argnames=self._static, compiler_options=options or None)
