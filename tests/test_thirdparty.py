@@ -342,6 +342,7 @@ def test_every_suite_model_solves_its_hold_task_with_the_documented_defaults(mod
     m = s.mj_model
     assert rc.solver.init == "hold" and rc.solver.n_samples == max(20, 2 * (s.nx + s.nu))
     assert rc.solver.sysid_perturb_x0 is False and rc.solver.sysid_noise_floor == 10.0
+    assert rc.solver.sysid_hold_limits is True
     params, sid = solver_params(rc)
     U0 = pipeline.start_controls(s, tk, rc.solver.init, rc.solver.init_scale, jax.random.key(0))
     d2c = solve_d2c(s, tk, U0, jax.random.key(1), params, sid)

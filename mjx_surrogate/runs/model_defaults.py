@@ -67,6 +67,13 @@ def default_perturb_x0(system_name: str) -> bool:
     return system_name not in USER_SYSTEMS
 
 
+def default_hold_limits(system_name: str) -> bool:
+    """solver.sysid_hold_limits when unset: True for a user's model (the one-step schemes
+    leave a joint that rests on its limit unperturbed: ``sysid.hold_at_limits``), False for
+    registered ones (D2C 2.0's design, as published)."""
+    return system_name in USER_SYSTEMS
+
+
 def default_x64(system_name: str) -> bool:
     """experiment.x64 when unset: float64 for a user's model and every function black box
     (lorenz, f8, the PDEs), float32 for the registered MuJoCo systems."""

@@ -21,6 +21,7 @@ from mjx_surrogate.runs.model_defaults import (
     default_init,
     default_n_samples,
     default_noise_floor,
+    default_hold_limits,
     default_perturb_x0,
     default_sigma,
 )
@@ -252,6 +253,7 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
         significance=s.sysid_significance or 0.0,
         rank_tol=s.sysid_rank_tol,
         perturb_x0=True if s.sysid_perturb_x0 is None else s.sysid_perturb_x0,
+        hold_limits=bool(s.sysid_hold_limits),
         settings=settings_of(cfg, "solver", s.sysid) if get_scheme(s.sysid).settings is not None else None,
     )
     return ilqr, sysid
@@ -316,6 +318,8 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     floor, perturb_x0 = cfg.solver.sysid_noise_floor, cfg.solver.sysid_perturb_x0
     floor = default_noise_floor(cfg.system.name) if floor is None else floor
     perturb_x0 = default_perturb_x0(cfg.system.name) if perturb_x0 is None else perturb_x0
+    hold_limits = cfg.solver.sysid_hold_limits
+    hold_limits = default_hold_limits(cfg.system.name) if hold_limits is None else hold_limits
     solver = dataclasses.replace(
         cfg.solver,
         n_samples=n_samples,
@@ -324,6 +328,7 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
         init=init,
         sysid_noise_floor=floor,
         sysid_perturb_x0=perturb_x0,
+        sysid_hold_limits=hold_limits,
     )
     resolved = dataclasses.replace(cfg, system=sc, task=tc, experiment=ex, solver=solver, mpc=mpc)
     return Resolved(resolved, system, task)

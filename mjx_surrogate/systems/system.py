@@ -9,6 +9,7 @@ from typing import Callable
 
 import jax
 import mujoco
+import numpy as np
 from jax.sharding import Mesh
 
 from mjx_surrogate import sharding
@@ -81,6 +82,13 @@ class System:
     def angle_pairs(self) -> tuple[tuple[int, int], ...]:
         """(angle, angular velocity) state indices of every hinge joint."""
         return tuple(hinge_state_indices(self.mj_model))
+
+    @functools.cached_property
+    def state_limits(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(lower [nx], upper [nx]): the range of each limited hinge or slide joint's qpos,
+        -inf / +inf elsewhere; None if the model limits no such joint. At a limit the
+        one-step map has a kink (the limit's constraint switches on)."""
+        return joint_limits(self.mj_model)
 
     @property
     def compiler_options(self) -> dict | None:
@@ -161,6 +169,18 @@ class System:
             f"System({self.name!r}, backend={self.backend!r}, nx={self.nx}, nu={self.nu}, "
             f"substeps={self.substeps}, dt={self.dt:g})"
         )
+
+
+def joint_limits(m: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray] | None:
+    """:attr:`System.state_limits` of model ``m``."""
+    nx = m.nq + m.nv + m.na
+    lo, hi = np.full(nx, -np.inf), np.full(nx, np.inf)
+    kinds = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    limited = [j for j in range(m.njnt) if m.jnt_limited[j] and int(m.jnt_type[j]) in kinds]
+    for j in limited:
+        a = m.jnt_qposadr[j]
+        lo[a], hi[a] = m.jnt_range[j] + np.array([1.0, -1.0]) * m.jnt_margin[j]  # active inside the margin
+    return (lo, hi) if limited else None
 
 
 def can_have_constraints(m: mujoco.MjModel) -> bool:
