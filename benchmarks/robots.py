@@ -14,8 +14,9 @@ MJX with ``--backend mjx``, for a GPU):
 * the finite-difference oracle from the same start (central differences of the black-box
   step along each coordinate), same stopping rules;
 * the goal test, the control limits and the verdict of each;
-* the closed-loop (u = U + K dx) and open-loop median cost under control noise of 1 % of
-  the control range (64 draws, the same for both).
+* the closed-loop (u = U + s K dx) and open-loop median cost under control noise of 1 % of
+  the control range (64 draws, the same for both), with the gains backed off as a run
+  stores them (s: ``evaluation.backed_off_feedback``), and the full gains' closed loop.
 
     python benchmarks/robots.py [--tasks walker ur5e] [--significance 3] [--backend mjx]
                                 [--out docs/robots.json]
@@ -151,7 +152,7 @@ def run_task(name: str, significance: float = 0.0, backend: str = "native") -> d
     import jax.numpy as jnp
     import numpy as np
 
-    from mjx_surrogate.analysis.evaluation import evaluate_feedback
+    from mjx_surrogate.analysis.evaluation import backed_off_feedback, evaluate_feedback
     from mjx_surrogate.control import chunked
     from mjx_surrogate.runs import pipeline
     from mjx_surrogate.runs.resolution import resolve, solver_params
@@ -170,7 +171,9 @@ def run_task(name: str, significance: float = 0.0, backend: str = "native") -> d
     m_o, _ = pipeline.summary(oracle.out, system, task, tol)
     _, _, _, k_noise = pipeline.experiment_keys(rc.experiment.seed)
     levels = jnp.asarray([0.01], X.dtype)
-    closed, opened = evaluate_feedback(system, task, X, d2c.timed.out.U, d2c.timed.out.K, levels, k_noise, 64)
+    out = d2c.timed.out
+    full, opened = evaluate_feedback(system, task, X, out.U, out.K, levels, k_noise, 64)
+    fb = backed_off_feedback(system, task, X, out.U, out.K, levels, k_noise, 64)
     row = {
         "task": name,
         "backend": backend,
@@ -183,7 +186,9 @@ def run_task(name: str, significance: float = 0.0, backend: str = "native") -> d
         "d2c_goal": m_d["goal"]["reached"],
         "oracle_goal": m_o["goal"]["reached"],
         "gap": (m_d["cost"] - m_o["cost"]) / abs(m_o["cost"]) if m_o["cost"] else None,
-        "noise_1pc_closed": float(np.median(np.asarray(closed))),
+        "noise_1pc_closed_full_gains": float(np.median(np.asarray(full))),
+        "gains_scale": fb.scale,
+        "noise_1pc_closed": float(np.median(fb.closed)),
         "noise_1pc_open": float(np.median(np.asarray(opened))),
         "d2c_compile_s": d2c.timed.compile_s,
         "d2c_run_s": d2c.timed.run_s,
@@ -197,7 +202,7 @@ def run_task(name: str, significance: float = 0.0, backend: str = "native") -> d
 def table(rows: list[dict]) -> str:
     out = [
         "| task | nx, nu | D2C cost (verdict, it) | oracle cost (verdict, it) | gap | goal D2C / oracle "
-        "| 1 % noise closed / open | D2C compile, run s | oracle run s |",
+        "| 1 % noise closed (gain scale) / open; full gains | D2C compile, run s | oracle run s |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
@@ -207,7 +212,8 @@ def table(rows: list[dict]) -> str:
             f"| {r['task']} | {r['nx']}, {r['nu']} | {d['cost']:.5g} ({d['status']}, {d['iterations']}) "
             f"| {o['cost']:.5g} ({o['status']}, {o['iterations']}) | {gap} "
             f"| {r['d2c_goal']} / {r['oracle_goal']} "
-            f"| {r['noise_1pc_closed']:.4g} / {r['noise_1pc_open']:.4g} "
+            f"| {r['noise_1pc_closed']:.4g} ({r['gains_scale']:g}) / {r['noise_1pc_open']:.4g}; "
+            f"{r['noise_1pc_closed_full_gains']:.4g} "
             f"| {r['d2c_compile_s']:.1f}, {r['d2c_run_s']:.1f} | {r['oracle_run_s']:.1f} |"
         )
     return "\n".join(out)

@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate import progress
-from mjx_surrogate.analysis.evaluation import evaluate_feedback
+from mjx_surrogate.analysis.evaluation import backed_off_feedback, evaluate_feedback
 from mjx_surrogate.control import chunked
 from mjx_surrogate.control.d2c import exact_linearize
 from mjx_surrogate.identification import sysid, sysid_reduced
@@ -197,4 +197,15 @@ def _feedback_stage(res: Resolved, a_d2c: dict, k_noise) -> tuple[dict, dict]:
         "open_loop_median": np.median(opened, axis=1).tolist(),
     }
     m["gains"] = pipeline.gains_verdict(ex.noise_levels, m["closed_loop_median"], m["open_loop_median"])
-    return m, {"feedback_closed_costs": closed, "feedback_open_costs": opened}
+    m["gains_scale"] = 1.0
+    arrays = {"feedback_closed_costs": closed, "feedback_open_costs": opened}
+    if m["gains"] != "help":  # back off: the largest scale of K that helps (evaluation.backed_off_feedback)
+        fb = backed_off_feedback(system, task, X, U, K, levels, k_noise, ex.n_noise_trials)
+        m["gains_scale"] = fb.scale
+        if 0 < fb.scale < 1:
+            m["backed_off_closed_loop_median"] = np.median(fb.closed, axis=1).tolist()
+            backed = m["backed_off_closed_loop_median"]
+            helps = pipeline.gains_verdict(ex.noise_levels, backed, m["open_loop_median"]) == "help"
+            m["gains"] += f"; {fb.scale:g} x K " + ("helps" if helps else "does not help either")
+            arrays["feedback_backed_off_costs"] = fb.closed
+    return m, arrays

@@ -1,0 +1,38 @@
+"""Feedback under control noise (mjx_surrogate.analysis.evaluation): the back-off of gains
+that do not help, on a scalar integrator whose closed loops are known in closed form."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from mjx_surrogate.analysis.evaluation import backed_off_feedback, evaluate_feedback
+from mjx_surrogate.systems.function import from_jax
+from mjx_surrogate.tasks import make_task
+
+T = 20
+SYSTEM = from_jax(lambda x, u: x + u, 1, 1, 0.1, name="integrator", u_min=(-1.0,), u_max=(1.0,))
+TASK = make_task([0.0], [0.0], [[1.0]], [[1.0]], [[1.0]], T, (-1.0,), (1.0,))
+LEVELS = jnp.asarray([0.0, 0.1])
+
+
+@pytest.mark.parametrize(
+    "gain, scale",
+    [
+        (-0.6, 1.0),  # x' = 0.4 x + w: the gains help as they are
+        (-3.0, 0.5),  # x' = -2 x + w grows; at half, x' = -0.5 x + w helps
+        (0.5, 0.0),  # positive feedback is worse than none at every scale
+    ],
+)
+def test_gains_are_kept_backed_off_or_dropped_as_their_closed_loop_says(gain, scale):
+    X, U = jnp.zeros((T + 1, 1)), jnp.zeros((T, 1))
+    K = jnp.full((T, 1, 1), gain)
+    key = jax.random.key(4)
+    fb = backed_off_feedback(SYSTEM, TASK, X, U, K, LEVELS, key, 64)
+    assert fb.scale == scale
+    closed, opened = evaluate_feedback(SYSTEM, TASK, X, U, fb.scale * K, LEVELS, key, 64)
+    np.testing.assert_array_equal(fb.closed, closed)  # reported on the evaluation draws
+    np.testing.assert_array_equal(fb.opened, opened)
+    assert np.median(fb.closed[1]) <= np.median(fb.opened[1])
+    if scale == 0.0:
+        np.testing.assert_array_equal(fb.closed, fb.opened)
