@@ -173,7 +173,7 @@ def run_task(name: str, significance: float = 0.0, backend: str = "native") -> d
     levels = jnp.asarray([0.01], X.dtype)
     out = d2c.timed.out
     full, opened = evaluate_feedback(system, task, X, out.U, out.K, levels, k_noise, 64)
-    fb = backed_off_feedback(system, task, X, out.U, out.K, levels, k_noise, 64)
+    fb = backed_off_feedback(system, task, X, out.U, out.K, levels, k_noise, 64, (full, opened))
     row = {
         "task": name,
         "backend": backend,

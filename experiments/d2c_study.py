@@ -200,7 +200,7 @@ def _feedback_stage(res: Resolved, a_d2c: dict, k_noise) -> tuple[dict, dict]:
     m["gains_scale"] = 1.0
     arrays = {"feedback_closed_costs": closed, "feedback_open_costs": opened}
     if m["gains"] != "help":  # back off: the largest scale of K that helps (evaluation.backed_off_feedback)
-        fb = backed_off_feedback(system, task, X, U, K, levels, k_noise, ex.n_noise_trials)
+        fb = backed_off_feedback(system, task, X, U, K, levels, k_noise, ex.n_noise_trials, (closed, opened))
         m["gains_scale"] = fb.scale
         if 0 < fb.scale < 1:
             m["backed_off_closed_loop_median"] = np.median(fb.closed, axis=1).tolist()

@@ -36,3 +36,8 @@ def test_gains_are_kept_backed_off_or_dropped_as_their_closed_loop_says(gain, sc
     assert np.median(fb.closed[1]) <= np.median(fb.opened[1])
     if scale == 0.0:
         np.testing.assert_array_equal(fb.closed, fb.opened)
+    # given K's own evaluation, the same answer without evaluating it again
+    own = evaluate_feedback(SYSTEM, TASK, X, U, K, LEVELS, key, 64)
+    again = backed_off_feedback(SYSTEM, TASK, X, U, K, LEVELS, key, 64, own)
+    assert again.scale == fb.scale
+    np.testing.assert_array_equal(again.closed, fb.closed)

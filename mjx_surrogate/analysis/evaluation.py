@@ -113,6 +113,7 @@ def backed_off_feedback(
     noise_levels: jax.Array,
     key: jax.Array,
     n_trials: int,
+    full: tuple | None = None,
 ) -> Feedback:
     """The gains K [T, nu, nx] of a solve, backed off until they help under control noise.
 
@@ -122,10 +123,9 @@ def backed_off_feedback(
     reported on the draws of ``key``, or 0. TVLQR gains are those of the linearised
     problem; under force limits and contacts the full gains can overreact (the Franka's
     servos: +0.7 % with D2C's gains, +2.4 % with the finite-difference oracle's, -0.6 %
-    at half)."""
-    closed, opened = (
-        np.asarray(a) for a in evaluate_feedback(system, task, X, U, K, noise_levels, key, n_trials)
-    )
+    at half). ``full``: K's (closed, opened) on the draws of ``key``, if already evaluated."""
+    full = full if full is not None else evaluate_feedback(system, task, X, U, K, noise_levels, key, n_trials)
+    closed, opened = (np.asarray(a) for a in full)
     if _helps(noise_levels, closed, opened):
         return Feedback(1.0, closed, opened)
     check = jax.random.fold_in(key, 1)
