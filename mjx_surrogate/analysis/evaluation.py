@@ -98,10 +98,15 @@ class Feedback(NamedTuple):
     opened: np.ndarray
 
 
+def levels_made_worse(levels, closed_median, open_median) -> list:
+    """The noise levels > 0 at which the closed loop's median cost is not at most the open
+    loop's (a NaN counts as worse)."""
+    return [lv for lv, c, o in zip(levels, closed_median, open_median) if lv > 0 and not c <= o]
+
+
 def _helps(levels, closed: np.ndarray, opened: np.ndarray) -> bool:
     """Median closed-loop cost no more than the open loop's at every level > 0."""
-    c, o = np.median(closed, axis=1), np.median(opened, axis=1)
-    return all(not lv > 0 or ci <= oi for lv, ci, oi in zip(np.asarray(levels), c, o))
+    return not levels_made_worse(np.asarray(levels), np.median(closed, axis=1), np.median(opened, axis=1))
 
 
 def backed_off_feedback(

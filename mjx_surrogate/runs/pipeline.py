@@ -22,6 +22,7 @@ from mjx_surrogate.identification import data
 from mjx_surrogate.runs import native_replay
 from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.control.effort import simulation_curve, simulation_metrics, steps_per_identification  # noqa: F401
+from mjx_surrogate.analysis import evaluation
 from mjx_surrogate.analysis.evaluation import finite_or_none
 from mjx_surrogate.control.ilqr import ILQRParams, ILQRResult, StopReason, verdict
 from mjx_surrogate.runs.model_defaults import half_ranges, hold_controls
@@ -106,7 +107,7 @@ def gains_verdict(levels, closed_median, open_median) -> str:
     """Whether the stored gains are to be used: "help" when the closed loop u = U + K dx
     costs no more than the open loop (median over draws) at every noise level > 0, else
     which levels they make worse."""
-    worse = [lv for lv, c, o in zip(levels, closed_median, open_median) if lv > 0 and not c <= o]
+    worse = evaluation.levels_made_worse(levels, closed_median, open_median)
     if not worse:
         return "help"
     return f"do not use: the closed loop costs more than the open loop at noise level(s) {worse}"
