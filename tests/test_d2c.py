@@ -29,6 +29,10 @@ def problem(name, preset, backend, **task):
     return res.system, res.task
 
 
+# One set of settings for the pendulum's jacfwd oracle: its program is compiled once
+PENDULUM_ORACLE = ILQRParams(max_iter=100, rel_tol=1e-7)
+
+
 @pytest.mark.parametrize(
     "sid",
     [SysIdParams(n_samples=10), SysIdParams(1e-6, 1e-6, "forward_difference", 10)],
@@ -38,7 +42,7 @@ def problem(name, preset, backend, **task):
 def test_pendulum_d2c_matches_exact_oracle(sid):
     s, task = problem("pendulum", "pendulum_d2c", "mjx")
     U0 = initial_controls(jax.random.key(0), task.T, 1, "random", 0.1)
-    p = ILQRParams(max_iter=100, rel_tol=1e-7)
+    p = PENDULUM_ORACLE
     d2c = solve_d2c(s, task, U0, jax.random.key(1), p, sid)
     ex = solve_exact(s, task, U0, p)
     assert bool(d2c.converged) and bool(ex.converged)
@@ -81,7 +85,7 @@ def test_multistart_keeps_the_best_and_limits_hold():
 @pytest.mark.slow
 def test_feedback_without_noise_reproduces_the_nominal():
     s, task = problem("pendulum", "pendulum_d2c", "mjx")
-    res = solve_exact(s, task, jnp.zeros((task.T, 1)), ILQRParams(max_iter=50))
+    res = solve_exact(s, task, jnp.zeros((task.T, 1)), PENDULUM_ORACLE)
     closed, opened = evaluate_feedback(
         s, task, res.X, res.U, res.K, jnp.array([0.0, 0.1]), jax.random.key(0), 16
     )

@@ -167,13 +167,17 @@ def test_lstsq_matches_float64_numpy():
         np.testing.assert_allclose(B[t], W[:, 3:], rtol=1e-8)
 
 
+# jacfwd through MJX compiles for tens of seconds: one program per step function and shape
+_exact_jacobians = jax.jit(sysid.exact_jacobians, static_argnums=0)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["pendulum", "cartpole"])
 def test_exact_jacobians_match_finite_differences(systems, name):
     s = systems(name, "mjx")
-    X = jnp.asarray(rng.standard_normal((3, s.nx)) * 0.5)
-    U = jnp.asarray(rng.standard_normal((2, s.nu)))
-    A, B = jax.jit(lambda X, U: sysid.exact_jacobians(s.mjx_step, X, U))(X, U)
+    X = jnp.asarray(rng.standard_normal((11, s.nx)) * 0.5)  # the shapes of the scheme test's
+    U = jnp.asarray(rng.standard_normal((10, s.nu)))  # trajectory: one compiled program for both
+    A, B = _exact_jacobians(s.mjx_step, X, U)
     step = jax.jit(s.mjx_step)
     eps = 1e-6
     for t in range(2):
@@ -208,7 +212,7 @@ def test_difference_schemes_close_to_exact_on_mujoco(systems, scheme, sigma, tol
     p = sysid.SysIdParams(sigma_x=sigma, sigma_u=sigma, n_samples=10, scheme=scheme)
     fit = getattr(sysid, scheme)
     A, B = jax.jit(lambda X, U, k: fit(s.step, X, U, k, p))(X, U, jax.random.key(0))
-    Ae, Be = jax.jit(lambda X, U: sysid.exact_jacobians(systems("cartpole", "mjx").mjx_step, X, U))(X, U)
+    Ae, Be = _exact_jacobians(systems("cartpole", "mjx").mjx_step, X, U)
     rel = np.linalg.norm(np.concatenate([A - Ae, B - Be], -1)) / np.linalg.norm(np.concatenate([Ae, Be], -1))
     assert rel < tol
     if scheme == "forward_difference" and sigma == 1e-4:
