@@ -41,3 +41,22 @@ def test_gains_are_kept_backed_off_or_dropped_as_their_closed_loop_says(gain, sc
     again = backed_off_feedback(SYSTEM, TASK, X, U, K, LEVELS, key, 64, own)
     assert again.scale == fb.scale
     np.testing.assert_array_equal(again.closed, fb.closed)
+
+
+def test_a_backed_off_scale_must_help_on_more_draws_than_chance_explains():
+    """The back-off's rule on the draws a scale is chosen on: a median lower by a hair on
+    33 of 64 paired draws (sign test p 0.45) is not enough; 45 of 64 (p 0.001) is."""
+    from mjx_surrogate.analysis.evaluation import _clearly_helps, _helps
+
+    levels, opened = np.array([0.0, 0.01]), np.ones((2, 64))
+
+    def closed(wins):
+        row = np.where(np.arange(64) < wins, 0.99, 1.01)
+        return np.stack([np.ones(64), row])
+
+    assert _helps(levels, closed(33), opened) and not _clearly_helps(levels, closed(33), opened)
+    assert _clearly_helps(levels, closed(45), opened)
+    with_nan = closed(45)
+    with_nan[1, :20] = np.nan  # a blown-up closed loop counts against it
+    assert not _clearly_helps(levels, with_nan, opened)
+    assert _clearly_helps(np.array([0.0]), closed(0), opened)  # only levels > 0 are judged
