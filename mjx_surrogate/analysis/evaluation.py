@@ -145,8 +145,8 @@ def backed_off_feedback(
     K as it is when its closed loop costs no more than the open loop (median over the draws
     of ``key``, :func:`evaluate_feedback`) at every noise level > 0; otherwise the largest
     scale of :data:`GAIN_SCALES` that does clearly on other draws (``fold_in(key, 1)``;
-    :func:`_clearly_helps`), reported on the draws of ``key``, or 0. TVLQR gains are those of the linearised
-    problem; under force limits and contacts the full gains can overreact (the Franka's
+    :func:`_clearly_helps`), reported on the draws of ``key``, or 0. TVLQR gains are those
+    of the linearised problem; under force limits and contacts the full gains can overreact (the Franka's
     servos: +0.7 % with D2C's gains, +2.4 % with the finite-difference oracle's, -0.6 %
     at half). ``full``: K's (closed, opened) on the draws of ``key``, if already evaluated."""
     full = full if full is not None else evaluate_feedback(system, task, X, U, K, noise_levels, key, n_trials)
