@@ -48,16 +48,16 @@ def level_stage(res: Resolved, X_star, U_star, level: float, i: int, key: jax.Ar
         fitted = fit_all(
             FitContext(cfg, system), data.transitions(train), data.transitions(test), k_fit, meter
         )
-        steps = {name: step_models.time_invariant(f.model.step) for name, f in fitted.items()}
+        steps = {name: step_models.as_pytree(f.model) for name, f in fitted.items()}
         info = {name: f.info for name, f in fitted.items()}
         meter.advance("fit LTV")
         t0 = time.perf_counter()
-        steps["LTV"] = step_models.fit_ltv(train, X_star, U_star).step_t
+        steps["LTV"] = step_models.fit_ltv(train, X_star, U_star).as_pytree()
         info["LTV"] = {"fit_s": time.perf_counter() - t0}
         if cfg.surrogate.reduced_ltv_tol is not None:
             t0 = time.perf_counter()
             tol = cfg.surrogate.reduced_ltv_tol
-            steps["LTV reduced"] = step_models.fit_reduced_ltv(train, X_star, U_star, tol).step_t
+            steps["LTV reduced"] = step_models.fit_reduced_ltv(train, X_star, U_star, tol).as_pytree()
             info["LTV reduced"] = {"fit_s": time.perf_counter() - t0}
         meter.advance("prediction errors")
         per_model, arrays = {}, {}

@@ -5,6 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from mjx_surrogate.analysis import evaluation
 from mjx_surrogate.analysis.evaluation import prediction_errors
 from mjx_surrogate.identification import data, step_models
 from mjx_surrogate.identification.rollout import rollout
@@ -47,6 +48,8 @@ def test_ltv_model_from_data_recovers_a_linear_time_varying_system():
     np.testing.assert_allclose(ltv.B, B, atol=1e-10)
     pred = step_models.predict(ltv.step_t, jnp.asarray(X[:, 0]), jnp.asarray(U))
     np.testing.assert_allclose(pred, X, atol=1e-9)
+    pred = step_models.predict(ltv.as_pytree(), jnp.asarray(X[:, 0]), jnp.asarray(U))
+    np.testing.assert_allclose(pred, X, atol=1e-9)
 
 
 def test_prediction_errors_of_an_exact_surrogate_are_zero_and_divergence_is_reported():
@@ -60,8 +63,11 @@ def test_prediction_errors_of_an_exact_surrogate_are_zero_and_divergence_is_repo
     X = step_models.predict(step_models.time_invariant(model.step), X0, U)
     m, _ = prediction_errors(step_models.time_invariant(model.step), data.Dataset(X, U))
     assert m["one_step_rmse"] < 1e-14 and m["multi_step_rmse"] < 1e-14 and m["diverged"] == 0
+    assert prediction_errors(step_models.as_pytree(model), data.Dataset(X, U))[0] == m
     C2 = C.copy()
     C2[7, 1] = 50.0  # x1' gains 50 x1^2: blows up
     bad = sindy.SindyModel(jnp.asarray(C2), spec, False)
-    m2, _ = prediction_errors(step_models.time_invariant(bad.step), data.Dataset(X, U))
+    n = evaluation._predictions._cache_size()
+    m2, _ = prediction_errors(step_models.as_pytree(bad), data.Dataset(X, U))
     assert m2["diverged"] > 0 and m2["multi_step_rmse"] is None
+    assert evaluation._predictions._cache_size() == n  # another fit, the same program

@@ -167,8 +167,15 @@ def backed_off_feedback(
     return Feedback(0.0, opened, opened)
 
 
+@jax.jit
+def _predictions(step_t: jax.tree_util.Partial, X: jax.Array, U: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Open-loop predictions from X[:, 0] [B, T+1, nx] and one-step predictions [B, T, nx]."""
+    return step_models.predict(step_t, X[:, 0], U), step_models.one_step(step_t, X, U)
+
+
 def prediction_errors(step_t: step_models.StepT, test: Dataset) -> tuple[dict, np.ndarray]:
-    """One-step and open-loop multi-step RMSE of ``step_t`` on test trajectories.
+    """One-step and open-loop multi-step RMSE of ``step_t`` on test trajectories (pass
+    fitted models through :func:`step_models.as_pytree` to compile once per structure).
 
     Returns (metrics, X_pred [N, T+1, nx]). metrics: one_step_rmse and multi_step_rmse
     over all test transitions/steps, multi_step_median (median over trajectories of each
@@ -177,8 +184,9 @@ def prediction_errors(step_t: step_models.StepT, test: Dataset) -> tuple[dict, n
     """
     ok = np.asarray(jnp.isfinite(test.X).all((1, 2)))
     X, U = test.X[ok], test.U[ok]
-    pred = jax.jit(lambda x0, u: step_models.predict(step_t, x0, u))(X[:, 0], U)
-    one = jax.jit(lambda x, u: step_models.one_step(step_t, x, u))(X, U)
+    if not isinstance(step_t, jax.tree_util.Partial):
+        step_t = jax.tree_util.Partial(step_t)
+    pred, one = _predictions(step_t, X, U)
     err_multi = np.asarray((pred - X) ** 2)
     per_traj = np.sqrt(err_multi.reshape(err_multi.shape[0], -1).mean(1))
     finite = np.isfinite(per_traj)

@@ -6,6 +6,10 @@ for the exact black box, the local LTV model, SINDy and MLP surrogates. Time-inv
 maps ignore t. ``predict`` rolls any of them out open loop (a ``lax.scan`` over t, vmapped
 over the batch); ``one_step`` evaluates them on given (x_t, u_t). A surrogate's own
 time-invariant ``step(x, u)`` is what the iLQR takes (``surrogate_control``).
+
+A fitted model passed as a :class:`jax.tree_util.Partial` (:func:`as_pytree`) is an
+argument of a jitted function rather than a constant of it: one program serves every fit
+of the same structure and shapes (every perturbation level, every seed).
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ from typing import Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from mjx_surrogate.identification import sysid
 from mjx_surrogate.identification.data import Dataset
@@ -33,6 +38,10 @@ class LTVModel(NamedTuple):
 
     def step_t(self, t: jax.Array, x: jax.Array, u: jax.Array) -> jax.Array:
         return self.X[t + 1] + self.A[t] @ (x - self.X[t]) + self.B[t] @ (u - self.U[t])
+
+    def as_pytree(self) -> jax.tree_util.Partial:
+        """``step_t`` with this model's arrays as the leaves of a pytree."""
+        return jax.tree_util.Partial(LTVModel.step_t, self)
 
 
 def fit_ltv(data: Dataset, X_nom: jax.Array, U_nom: jax.Array) -> LTVModel:
@@ -58,6 +67,19 @@ def fit_reduced_ltv(data: Dataset, X_nom: jax.Array, U_nom: jax.Array, rank_tol:
 def time_invariant(step: Callable[[jax.Array, jax.Array], jax.Array]) -> StepT:
     """Lift step(x, u) to the time-indexed interface."""
     return lambda t, x, u: step(x, u)
+
+
+def _surrogate_step_t(model, t: jax.Array, x: jax.Array, u: jax.Array) -> jax.Array:
+    return model.step(x, u)
+
+
+def as_pytree(model) -> jax.tree_util.Partial:
+    """A surrogate's ``step(x, u)`` on the time-indexed interface, as a pytree whose leaves
+    are the model's arrays; a model that is not a pytree of arrays stays a constant."""
+    leaves = jax.tree_util.tree_leaves(model)
+    if leaves and all(isinstance(leaf, (jax.Array, np.ndarray)) for leaf in leaves):
+        return jax.tree_util.Partial(_surrogate_step_t, model)
+    return jax.tree_util.Partial(time_invariant(model.step))
 
 
 def black_box(system: System) -> StepT:
