@@ -7,12 +7,12 @@ own step; the cost is the task's (+inf for a trajectory that is not finite).
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from scipy.stats import binomtest
 
 from mjx_surrogate.identification import step_models
 from mjx_surrogate.identification.data import Dataset, u_max
@@ -122,9 +122,7 @@ def _clearly_helps(levels, closed: np.ndarray, opened: np.ndarray, alpha: float 
         if lv <= 0:
             continue
         wins, losses = int(np.sum(c < o)), int(np.sum(~(c < o) & ~(c == o)))
-        n = wins + losses
-        tail = sum(math.comb(n, k) for k in range(wins, n + 1)) / 2.0**n
-        if tail > alpha:
+        if wins + losses == 0 or binomtest(wins, wins + losses, 0.5, "greater").pvalue > alpha:
             return False
     return True
 
