@@ -175,16 +175,11 @@ def breakaway_controls(m: mujoco.MjModel, x: np.ndarray, u_min: np.ndarray, u_ma
     f_j / |G_ja| (:func:`control_slopes`); inf where the actuator drives no such joint.
     A smaller change leaves a joint at rest held."""
     f = np.asarray(m.dof_frictionloss, float)
-    out = np.full(m.nu, np.inf)
     if m.nu == 0 or not np.any(f > 0):
-        return out
+        return np.full(m.nu, np.inf)
     G = np.abs(control_slopes(m, np.asarray(x, float), u_min, u_max)[0])  # [nv, nu]
-    scale = max(float(G.max(initial=0.0)), 1e-300)
-    for a in range(m.nu):
-        j = (f > 0) & (G[:, a] > 1e-9 * scale)
-        if j.any():
-            out[a] = float(np.min(f[j] / G[j, a]))
-    return out
+    drives = (f[:, None] > 0) & (G > 1e-9 * max(float(G.max()), 1e-300))
+    return np.min(np.where(drives, f[:, None] / np.where(drives, G, 1.0), np.inf), axis=0)
 
 
 def friction_sigma(

@@ -286,7 +286,8 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     tc, task = resolve_task(cfg.task, system)
     needs, kind = needs_of(cfg), get_experiment(cfg.experiment.kind)
     n_samples = _check_samples(cfg, system, int(tc.T), IDENTIFICATION in needs)
-    if cfg.system.name == "mjcf":  # a user's model: above its dry friction's break-away
+    unset = cfg.solver.sigma_x is None or cfg.solver.sigma_u is None
+    if cfg.system.name == "mjcf" and unset:  # a user's model: above its dry friction's break-away
         sigma = friction_sigma(sigma, system.mj_model, np.asarray(task.x0, float), task.u_min, task.u_max)
         sigma_x = sigma if cfg.solver.sigma_x is None else cfg.solver.sigma_x
     sigma_u = sigma if cfg.solver.sigma_u is None else cfg.solver.sigma_u
