@@ -85,7 +85,7 @@ def quick(cfg, name: str):
         cfg = r(cfg, surrogate=r(cfg.surrogate, sindy=r(sindy, libraries=sindy.libraries[:1])))
     if name.startswith("burgers"):  # a coarser grid: 32 cells, nx + nu = 40
         cfg = r(cfg, system=r(cfg.system, name="burgers32"), data=r(cfg.data, levels=(0.05, 0.6)))
-    if name.endswith("_control"):  # the exact oracle's compile (~30 s) is left to full runs
+    if name.endswith("_control"):  # the exact oracle's compile (the longest) is left to full runs
         sindy = cfg.surrogate.sindy
         cfg = r(
             cfg,

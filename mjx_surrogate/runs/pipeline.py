@@ -119,8 +119,8 @@ def _replay_cost(system: System, task: Task, U: jax.Array) -> tuple[jax.Array, j
     return X, trajectory_cost(task, X, Ua)
 
 
-# one compiled program per task structure, not an eager op per term (113 small programs
-# for the dm_control dog's quaternions: 2 s of each summary)
+# one compiled program per task structure, not an eager op (and a small compile) per
+# cost term
 _trajectory_cost = jax.jit(trajectory_cost)
 
 

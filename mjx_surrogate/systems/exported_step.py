@@ -3,8 +3,8 @@
 JAX's persistent compilation cache (:mod:`mjx_surrogate.runtime`) spares a second run the
 XLA compile but not the tracing: the key of a cached program is its lowered text, so every
 run first traces the whole solve, and most of that is the MJX step, batched by ``vmap`` for
-each batch size the solve uses (cartpole D2C: about 3 of the 4.3 s a cached run spent
-before its first iteration; docs/performance.md, "Compile times").
+each batch size the solve uses (most of what a cached run spends before its first
+iteration; measured in docs/performance.md, "Compile times").
 
 :func:`with_exported_batches` wraps a step so that it calls ``step``, and under ``vmap``
 ``vmap(step)`` for that batch size, as :mod:`jax.export` programs, serialised once into
@@ -15,7 +15,7 @@ vmaps (a multi-start solve around a vmapped identification) merge into one batch
 work on one device: programs spread over a mesh trace the step and its batch
 (:func:`with_batch_rule`). A native system's MJX step (its exact oracle) is wrapped around
 :func:`lazily` built steps, so that a run which finds every program on disk never builds
-the MJX model (the fish: 1.5 s).
+the MJX model, a cost of its own.
 
 A program's file name hashes everything it depends on: the compiled model, the substeps,
 the batch shape and dtypes, the precision mode (``jax_enable_x64`` sets the MJX model's

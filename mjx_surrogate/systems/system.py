@@ -94,8 +94,8 @@ class System:
     def compiler_options(self) -> dict | None:
         """XLA options for a solve's programs on this system. Native-backend programs hold a
         host callback, which JAX's persistent cache never keeps, so they compile on every
-        run: XLA's backend optimisation level 1 halves that (swimmer6 3.2 s -> 1.5 s) at the
-        same run time (docs/performance.md). None (XLA's defaults) on MJX."""
+        run: XLA's backend optimisation level 1 compiles them faster at the same run time
+        (measured in docs/performance.md, "Compile times"). None (XLA's defaults) on MJX."""
         return {"xla_backend_optimization_level": 1} if self.backend == "native" else None
 
     @functools.cached_property
