@@ -189,15 +189,10 @@ def friction_sigma(
     friction: 10x the smallest :func:`breakaway_controls`, between the default ``sigma``
     and FRICTION_SIGMA_MAX.
 
-    Below its break-away a joint at rest is held: MuJoCo's soft friction passes a fraction
-    of the free response (a fifth to a ninth on a test slider), so the identified B is too
-    small and iLQR finds little or no descent. Hold tasks on gymnasium-robotics' hands,
-    against the finite-difference oracle (``benchmarks/robots.py``): the Adroit door and
-    relocate (arm servos breaking away at 2e-6) stalled 28 % and 54 % above it at 1e-6 and
-    come within 0.7 % at 2e-5; the Adroit pen (break-away 1e-4) 13 % -> 2.8 %. The cap
-    keeps perturbations small against contact events (:func:`default_sigma`): the Shadow
-    hand holding a block goes from the oracle's cost at 1e-6 to 3.8 % above it at 2e-5
-    (34 % at 1e-4; docs/your_model.md)."""
+    Below its break-away a joint at rest is held (MuJoCo's soft friction passes only a
+    fraction of the free response), so the identified B is too small to plan with. The cap
+    keeps perturbations small against contact events (:func:`default_sigma`). The rule's
+    measurements on gymnasium-robotics' hands: docs/performance.md and docs/your_model.md."""
     smallest = float(np.min(breakaway_controls(m, x, u_min, u_max), initial=np.inf))
     if not np.isfinite(smallest) or sigma >= FRICTION_SIGMA_MAX:
         return sigma
