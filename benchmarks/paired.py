@@ -111,6 +111,13 @@ def main() -> None:
     if a.worker:
         worker(*a.worker, a.system, a.pairs, a.max_iter)
         return
+    if a.pairs < 2:
+        ap.error(f"--pairs: {a.pairs} is too few; at least 2 (an interval needs two ratios)")
+    for field, path in (("other", a.other), ("--this", a.this)):
+        if not os.path.isfile(os.path.join(path, "benchmarks", "d2c.py")):
+            ap.error(f"{field}: {path!r} is not a checkout of this repository (no benchmarks/d2c.py)")
+        if not os.path.isfile(os.path.join(path, "configs", f"{a.system}_d2c.py")):
+            ap.error(f"--system: {a.system!r} has no configs/{a.system}_d2c.py in {path!r}")
     with tempfile.TemporaryDirectory() as folder:
         _pass_turn(folder, "A")
         common = ["--system", a.system, "--pairs", str(a.pairs)]
