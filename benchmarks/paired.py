@@ -126,7 +126,15 @@ def main() -> None:
             subprocess.Popen([sys.executable, __file__, "x", *common, "--worker", path, me, other, folder])
             for path, me, other in ((os.path.abspath(a.other), "A", "B"), (os.path.abspath(a.this), "B", "A"))
         ]
-        if any(p.wait() for p in procs):
+        while all(p.poll() is None for p in procs):
+            time.sleep(0.2)
+        if any(p.returncode for p in procs if p.poll() is not None):
+            for p in procs:  # the other one would wait for its turn forever
+                p.kill()
+            sys.exit("a worker failed")
+        for p in procs:
+            p.wait()
+        if any(p.returncode for p in procs):
             sys.exit("a worker failed")
         A, B = (json.load(open(os.path.join(folder, f"{k}.json"))) for k in "AB")
     ratios = [b / x for x, b in zip(A["times"], B["times"])]
