@@ -46,6 +46,7 @@ def test_chunks_give_the_iterates_of_the_one_program_solve(pendulum):
     assert timed.compile_s > 0 and timed.run_s > 0
 
 
+@pytest.mark.slow
 def test_multistart_chunks_are_the_single_solves_of_split_keys(pendulum):
     # solve_multistart's keys: jax.random.split(key, S), one per start
     system, task, U0 = pendulum

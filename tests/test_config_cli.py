@@ -172,6 +172,7 @@ def _cost(cfg, X, U):
     return run + 0.5 * dx[-1] @ Qf @ dx[-1]
 
 
+@pytest.mark.slow
 def test_run_folder_schema_and_native_replay(tmp_path):
     code = cli.main(["smoke_rollout", "--out", str(tmp_path), "--experiment.name", "r"])
     assert code == 0

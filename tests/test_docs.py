@@ -118,6 +118,7 @@ def test_function_systems_module_runs_the_control_study_from_the_command_line(tm
     assert metrics["d2c"]["goal"]["reached"]
 
 
+@pytest.mark.slow
 def test_the_mpc_page_runs_as_written():
     """docs/mpc.md's "From Python": a D2C-MPC episode with a replan's parameters from
     ``ms.mpc_params``, shapes as the page states, the pendulum at the top at the end."""

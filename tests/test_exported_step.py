@@ -36,6 +36,7 @@ def test_exported_step_gives_the_plain_steps_numbers_batched_nested_in_scans(sys
     assert len(os.listdir(tmp_path)) == 3  # programs for [nx], [7, nx] and [21, nx]
 
 
+@pytest.mark.slow
 def test_a_second_wrapper_loads_the_programs_without_tracing_the_step(systems, tmp_path, monkeypatch):
     monkeypatch.setattr(exported_step, "cache_folder", lambda: str(tmp_path))
     s = systems("pendulum", "mjx")
@@ -59,6 +60,7 @@ def test_a_second_wrapper_loads_the_programs_without_tracing_the_step(systems, t
     assert traced and len(os.listdir(tmp_path)) > files
 
 
+@pytest.mark.slow
 def test_nothing_is_written_with_the_compilation_cache_off(systems, monkeypatch):
     monkeypatch.setattr(exported_step, "cache_folder", lambda: None)
     s = systems("pendulum", "mjx")
@@ -67,6 +69,7 @@ def test_nothing_is_written_with_the_compilation_cache_off(systems, monkeypatch)
     np.testing.assert_array_equal(out, jax.jit(jax.vmap(s.mjx_step))(x, u))
 
 
+@pytest.mark.slow
 def test_exported_jacobians_are_jacfwd_through_the_plain_step_and_step_stays_differentiable(systems):
     from mjx_surrogate.identification import sysid
 

@@ -66,6 +66,7 @@ def test_increment_target_and_no_recompile():
     assert mlp.train._cache_size() == n
 
 
+@pytest.mark.slow
 def test_stopping_test_ends_training_where_the_rule_first_holds():
     """The run stops at the first epoch e >= W where the best test loss fell by less than
     tol over W epochs (checked on the stored losses in NumPy); vmapped seeds stop alone."""

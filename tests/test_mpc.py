@@ -175,6 +175,7 @@ def test_black_box_steps_are_the_calls_the_black_box_received():
     assert sum(calls) == 5 + int(per_replan.sum()), (sum(calls), per_replan)
 
 
+@pytest.mark.slow
 def test_episodes_batch_by_vmap_and_a_new_start_does_not_recompile():
     system, task, U0, params = _linear(), _task(), jnp.zeros((H, 1)), ILQRParams(max_iter=3)
     one = lambda x0, key: mpc.receding_horizon(  # noqa: E731
@@ -235,6 +236,7 @@ def test_sampling_with_zero_spread_applies_the_shifted_warm_start():
     np.testing.assert_allclose(np.asarray(r.X), np.array(X), atol=1e-12)
 
 
+@pytest.mark.slow
 def test_mppi_at_zero_temperature_is_predictive_sampling_and_both_beat_no_control():
     system, task, U0 = _linear(), _task(), jnp.zeros((H, 1))
     ps = mpc_sampling.sampling_mpc(system, task, U0, jax.random.key(4), N, 2.0, 64)
@@ -331,6 +333,7 @@ class _StopAt:
             progress.request_stop()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("controller", ["d2c", "sampling"])
 def test_a_stop_inside_a_batch_of_episodes_skips_its_remaining_steps(controller):
     """The meter counts each control step and a stop request skips the rest of every

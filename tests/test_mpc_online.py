@@ -4,6 +4,7 @@ keeps the first fit's support, and with no weight is the plain SINDy-MPC."""
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from mjx_surrogate.control import mpc
 from mjx_surrogate.control.ilqr import ILQRParams
@@ -50,6 +51,7 @@ def _task():
     return make_task((1.0, 0.0), (0.0, 0.0), np.diag([1.0, 0.1]), np.diag([10.0, 1.0]), np.diag([0.01]), 10)
 
 
+@pytest.mark.slow
 def test_with_no_weight_it_is_sindy_mpc_and_with_weight_it_learns_the_plant():
     off = _data(A, B, 200, 0)
     model = sindy.fit(SPEC, off.x, off.u, off.x_next)
@@ -95,6 +97,7 @@ def test_the_mlp_refit_loss_counts_each_episode_row_weight_times():
     np.testing.assert_allclose(float(got), expected, rtol=1e-4)
 
 
+@pytest.mark.slow
 def test_with_no_updates_it_is_mlp_mpc_and_with_updates_it_learns_the_plant():
     """updates = 0 replays the plain MLP-MPC; with updates on a plant with three times the
     control authority the refitted network plans a cheaper closed loop."""

@@ -124,6 +124,7 @@ def test_a_function_black_box_plant_has_its_parameter_changed():
         check_plant(model, "rho=30", model)
 
 
+@pytest.mark.slow
 def test_a_users_function_entry_builds_the_plant(tmp_path):
     """system.entry naming a function: the plant calls it with the plant's keywords."""
     from experiments import run as cli

@@ -3,10 +3,12 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from mjx_surrogate.identification.rollout import perturbed_rollouts, rollout
 
 
+@pytest.mark.slow
 def test_rollout_backends_agree_and_shapes(systems):
     mjx_sys, nat_sys = systems("cartpole", "mjx"), systems("cartpole", "native")
     key = jax.random.key(0)

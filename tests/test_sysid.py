@@ -219,6 +219,7 @@ def test_difference_schemes_close_to_exact_on_mujoco(systems, scheme, sigma, tol
         assert rel > 1e-6  # first-order error is visible at this sigma
 
 
+@pytest.mark.slow
 def test_finite_difference_jacobians_match_jacfwd_on_mujoco():
     import jax
     import jax.numpy as jnp

@@ -77,6 +77,7 @@ def test_zero_pattern_matches_numpy_ols_t_values(scheme):
     assert dropped > 0  # the test has work to do here
 
 
+@pytest.mark.slow
 def test_a_jumping_row_no_longer_leaks_into_the_control_column():
     """The object's row fitted across its jump gets a control coefficient far from its
     true 0; the t-test removes it and keeps the driven rows' exact coefficients."""

@@ -405,6 +405,7 @@ def test_the_readme_user_model_command_runs_the_dm_control_humanoid(tmp_path):
     assert J == pytest.approx(d2c["cost"], rel=1e-6, abs=1e-12)
 
 
+@pytest.mark.slow
 def test_gymnasium_robotics_models_step_natively_and_hands_with_friction_get_larger_perturbations():
     """Every model of gymnasium-robotics' MuJoCo assets with controls (Adroit and Shadow
     hands: tendons, touch sensors, mocap; Fetch: a weld; the kitchen) steps natively as
