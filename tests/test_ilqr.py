@@ -288,6 +288,7 @@ def test_a_wrong_model_stalls_instead_of_converging_on_regularised_steps():
     assert not bool(res.converged)
 
 
+@pytest.mark.slow
 def test_a_heavily_regularised_step_gaining_little_is_no_converged_cost_change():
     # mu_init 1e4 makes the first steps about 1e4 times shorter than Newton's: their small
     # gain says nothing about a minimum (once declared "converged" at 1.7x the optimum).
@@ -297,6 +298,7 @@ def test_a_heavily_regularised_step_gaining_little_is_no_converged_cost_change()
     assert float(res.cost) == pytest.approx(float(opt.cost), rel=1e-5)
 
 
+@pytest.mark.slow
 def test_short_accepted_steps_raise_mu_up_to_mu_max_without_stalling():
     zeros = jnp.zeros((T, 1))
     # A linear model: the full step is accepted; raise below alpha 1.5 treats it as short.

@@ -90,6 +90,7 @@ def test_signal_mid_solve_ends_the_run_interrupted_and_keeps_its_results(tmp_pat
     assert b"Traceback" not in seen
 
 
+@pytest.mark.slow
 def test_failed_figure_keeps_the_solve_and_is_reported(tmp_path, monkeypatch):
     from mjx_surrogate.runs import plots
 
@@ -274,6 +275,7 @@ def test_a_stop_between_the_steps_of_a_stage_ends_it_interrupted(tmp_path):
     assert "s" not in record.metrics  # its partial work is not kept as a result
 
 
+@pytest.mark.slow
 def test_a_run_stopped_after_its_d2c_stage_keeps_that_stages_figures(tmp_path, monkeypatch):
     import experiments.d2c_study as study
 

@@ -41,7 +41,7 @@ def _lqr_first_gain(A, B, horizon):
     return K
 
 
-@pytest.mark.parametrize("controller", ["jacfwd", "d2c"])
+@pytest.mark.parametrize("controller", [pytest.param("jacfwd", marks=pytest.mark.slow), "d2c"])
 def test_mpc_on_a_linear_system_is_the_receding_horizon_lqr(controller):
     """Unconstrained linear-quadratic: every replan is the horizon-H LQR, so the closed loop
     is x_{n+1} = (A + B K_0) x_n; D2C identifies the linear map to round-off."""
@@ -158,6 +158,7 @@ def test_the_plant_is_stepped_with_the_episodes_noise_and_the_model_is_not_the_p
     assert not np.allclose(np.asarray(other.X), Xn)
 
 
+@pytest.mark.slow
 def test_black_box_steps_are_the_calls_the_black_box_received():
     """A NumPy black box counts the rows it is asked to step: the episode's calls are the
     plant's N steps plus black_box_steps per replan."""

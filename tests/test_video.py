@@ -33,6 +33,7 @@ def test_a_label_is_written_on_a_dark_band_at_the_top_of_every_frame():
     assert not np.array_equal(band[0], video.label(frames, "MPPI")[0, : video.LABEL_HEIGHT])
 
 
+@pytest.mark.slow
 def test_without_a_gl_context_the_reason_comes_back_in_one_line_and_nothing_is_written(tmp_path, monkeypatch):
     model = make_system("pendulum", "native").mj_model
     mujoco.mj_saveModel(model, str(tmp_path / "m.mjb"), None)
