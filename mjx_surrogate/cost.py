@@ -33,3 +33,11 @@ def trajectory_cost(cost: Cost, X: jax.Array, U: jax.Array) -> jax.Array:
     J = jax.vmap(cost.running)(X[:-1], U).sum() + cost.terminal(X[-1])
     bad = ~jnp.all(jnp.isfinite(X)) | (jnp.max(jnp.abs(X)) > BLOWUP) | ~jnp.isfinite(J)
     return jnp.where(bad, jnp.inf, J)
+
+
+def hessian_and_gradient(f: Callable, argnums: int | tuple[int, ...] = 0) -> Callable:
+    """args -> (Hessian, gradient) of the scalar f, as ``jax.hessian`` and ``jax.grad`` give
+    them, from one forward-over-reverse program whose primal is the gradient (a separate
+    ``jax.grad`` would trace and compile the reverse pass, and the cost's code, once more)."""
+    grad = jax.grad(f, argnums=argnums)
+    return jax.jacfwd(lambda *args: (lambda g: (g, g))(grad(*args)), argnums=argnums, has_aux=True)

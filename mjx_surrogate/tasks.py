@@ -68,12 +68,16 @@ def quat_error(q: jax.Array, g: jax.Array) -> jax.Array:
 def state_error(task: Task, x: jax.Array) -> jax.Array:
     """e(x) [nx]: x - x_goal, hinge angles wrapped, quaternion blocks as (0, rotvec)."""
     e = x - task.x_goal
-    if task.hinges:
-        i = jnp.asarray(task.hinges)
-        e = e.at[i].set(jnp.mod(e[i] + jnp.pi, 2 * jnp.pi) - jnp.pi)
-    for a in task.quats:
-        rot = quat_error(x[a : a + 4], task.x_goal[a : a + 4])
-        e = e.at[a].set(0.0).at[a + 1 : a + 4].set(rot)
+    if task.hinges:  # a constant mask, not a gather and a scatter: a smaller program
+        wrap = np.isin(np.arange(x.shape[-1]), task.hinges)
+        e = jnp.where(wrap, jnp.mod(e + jnp.pi, 2 * jnp.pi) - jnp.pi, e)
+    if task.quats:
+        q = [x[a : a + 4] for a in task.quats]
+        g = [task.x_goal[a : a + 4] for a in task.quats]
+        # several blocks: one vmapped error, so that the program does not grow with their number
+        rot = [quat_error(q[0], g[0])] if len(q) == 1 else jax.vmap(quat_error)(jnp.stack(q), jnp.stack(g))
+        for a, r in zip(task.quats, rot):
+            e = e.at[a].set(0.0).at[a + 1 : a + 4].set(r)
     return e
 
 
@@ -134,13 +138,10 @@ def point_goal_derivatives(task: Task, X: jax.Array, U: jax.Array):
         H = jnp.einsum("k,kcm,kcn->mn", weights, J, J)
         return g, H
 
-    lx, lu = jax.vmap(jax.grad(lambda x, u: running_cost(plain, x, u), argnums=(0, 1)))(X[:-1], U)
-    (lxx, _), (lux, luu) = jax.vmap(jax.hessian(lambda x, u: running_cost(plain, x, u), argnums=(0, 1)))(
-        X[:-1], U
-    )
+    running = cost_lib.hessian_and_gradient(lambda x, u: running_cost(plain, x, u), (0, 1))
+    ((lxx, _), (lux, luu)), (lx, lu) = jax.vmap(running)(X[:-1], U)
     g, H = jax.vmap(lambda x: gn(x, task.weights))(X[:-1])
-    Vx = jax.grad(lambda x: terminal_cost(plain, x))(X[-1])
-    Vxx = jax.hessian(lambda x: terminal_cost(plain, x))(X[-1])
+    Vxx, Vx = cost_lib.hessian_and_gradient(lambda x: terminal_cost(plain, x))(X[-1])
     gT, HT = gn(X[-1], task.final_weights)
     return lx + g, lu, lxx + H, luu, lux, Vx + gT, Vxx + HT
 

@@ -326,3 +326,24 @@ def test_batched_feedback_rollouts_equal_the_vmapped_rollout():
     np.testing.assert_allclose(np.asarray(X), np.asarray(X1), rtol=0, atol=1e-13)
     np.testing.assert_allclose(np.asarray(U), np.asarray(U1), rtol=0, atol=1e-13)
     assert float(jnp.max(U[..., 0])) <= 0.5 and float(jnp.min(U[..., 1])) >= -1.0
+
+
+def test_cost_derivatives_are_jax_grad_and_hessian_from_one_program():
+    """The running and terminal expansions (one forward-over-reverse program each) equal
+    ``jax.grad`` and ``jax.hessian`` of a non-quadratic cost, term by term."""
+    from mjx_surrogate.control.riccati import cost_derivatives
+    from mjx_surrogate.cost import Cost
+
+    running = lambda x, u: jnp.sum(jnp.sin(x) * x[::-1]) + jnp.cos(x[0] * u[1]) + u @ u * x[1]  # noqa: E731
+    terminal = lambda x: jnp.sum(jnp.exp(0.3 * x) * x**2)  # noqa: E731
+    rng = np.random.default_rng(3)
+    X, U = jnp.asarray(rng.normal(size=(5, 3))), jnp.asarray(rng.normal(size=(4, 2)))
+    lx, lu, lxx, luu, lux, Vx, Vxx = cost_derivatives(Cost(running, terminal), X, U)
+    gx, gu = jax.vmap(jax.grad(running, argnums=(0, 1)))(X[:-1], U)
+    (hxx, _), (hux, huu) = jax.vmap(jax.hessian(running, argnums=(0, 1)))(X[:-1], U)
+    for got, want in zip(
+        (lx, lu, lxx, luu, lux, Vx, Vxx),
+        (gx, gu, hxx, huu, hux, jax.grad(terminal)(X[-1]), jax.hessian(terminal)(X[-1])),
+    ):
+        assert got.shape == want.shape
+        np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-13)

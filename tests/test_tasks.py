@@ -95,3 +95,29 @@ def test_native_point_kinematics_equal_mjx_with_their_jacobians():
     Jm = jax.jit(jax.vmap(jax.jacfwd(mjx_fn)))(X)
     assert Jn.shape == (6, 2, 3, m.nq + m.nv)
     np.testing.assert_allclose(Jn, Jm, atol=1e-8)
+
+
+def test_several_quaternion_blocks_each_get_their_rotation_vector_from_one_program():
+    """A free joint and two ball joints (three quaternion blocks) around a hinge: each block's
+    error is MuJoCo's own quaternion difference and the hinge is wrapped; the blocks share
+    one vmapped error, so the program holds one arctan2 however many blocks there are."""
+    from mjx_surrogate.tasks import make_task
+
+    quats, hinge, nq, nv = (3, 7, 12), 11, 16, 13
+    rng = np.random.default_rng(7)
+    x, goal = rng.normal(size=nq + nv), rng.normal(size=nq + nv)
+    for a in quats:
+        x[a : a + 4], goal[a : a + 4] = _unit(x[a : a + 4]), _unit(goal[a : a + 4])
+    x[hinge] = goal[hinge] + 0.3 + 4 * np.pi
+    eye = np.eye(nq + nv)
+    task = make_task(x, goal, eye, eye, np.eye(1), 5, quats=quats, hinges=(hinge,))
+    e = np.asarray(state_error(task, jnp.asarray(x)))
+    for a in quats:
+        ref = np.zeros(3)
+        mujoco.mju_subQuat(ref, x[a : a + 4], goal[a : a + 4])
+        assert e[a] == 0.0 and np.allclose(e[a + 1 : a + 4], ref, atol=1e-10), a
+    assert e[hinge] == pytest.approx(0.3)
+    rest = np.setdiff1d(np.arange(nq + nv), [i for a in quats for i in range(a, a + 4)] + [hinge])
+    np.testing.assert_array_equal(e[rest], (x - goal)[rest])
+    program = jax.jit(lambda x: running_cost(task, x, jnp.zeros(1))).lower(jnp.asarray(x)).as_text()
+    assert program.count("atan2") == 1
