@@ -74,7 +74,8 @@ def state_error(task: Task, x: jax.Array) -> jax.Array:
     if task.quats:
         q = [x[a : a + 4] for a in task.quats]
         g = [task.x_goal[a : a + 4] for a in task.quats]
-        # several blocks: one vmapped error, so that the program does not grow with their number
+        # several blocks: one vmapped error, so that the program does not grow with their
+        # number; one block: the plain call (vmapped, its derivatives round differently)
         rot = [quat_error(q[0], g[0])] if len(q) == 1 else jax.vmap(quat_error)(jnp.stack(q), jnp.stack(g))
         for a, r in zip(task.quats, rot):
             e = e.at[a].set(0.0).at[a + 1 : a + 4].set(r)
