@@ -70,3 +70,37 @@ def test_seeds_differ_but_share_the_distribution(systems):
     stds = [float(jnp.std(sets.U[i] - U_star)) for i in range(3)]
     assert not np.allclose(sets.U[0], sets.U[1])
     np.testing.assert_allclose(stds, 0.15, rtol=0.05)
+
+
+def test_split_transitions_and_the_design_matrix_compile_one_program_each():
+    """Each is one program (eager, every operation compiled on its own: 17 to 29 programs
+    here for each new data shape); a non-finite entry still drops its transition."""
+    from jax import monitoring
+
+    from mjx_surrogate.surrogates import library, sindy
+
+    compiles = []
+
+    def listener(event, duration, **kw):
+        if event == "/jax/core/compile/backend_compile_duration":
+            compiles.append(event)
+
+    rng = np.random.default_rng(7)
+    X, U = jnp.asarray(rng.normal(size=(13, 9, 3))), jnp.asarray(rng.normal(size=(13, 8, 2)))
+    spec, key, x, u = library.parse("poly2_trig", (0,), 1), jax.random.key(0), X[0, :-1], U[0]
+    monitoring.register_event_duration_secs_listener(listener)
+    try:
+        counts = []
+        for call in (
+            lambda: data.split(data.Dataset(X, U), key),
+            lambda: data.transitions(data.Dataset(X, U)),
+            lambda: sindy.design(spec, x, u),
+        ):
+            compiles.clear()
+            jax.block_until_ready(call())
+            counts.append(len(compiles))
+    finally:
+        monitoring.unregister_event_duration_listener(listener)
+    assert counts == [1, 1, 1], counts
+    tr = data.transitions(data.Dataset(X.at[2, 3, 1].set(jnp.nan), U))
+    assert tr.x.shape == (13 * 8 - 2, 3) and bool(jnp.isfinite(tr.x).all())

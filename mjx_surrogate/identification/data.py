@@ -18,10 +18,12 @@ training one.
 
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from mjx_surrogate.identification.rollout import rollout
 from mjx_surrogate.systems.system import System
@@ -102,7 +104,13 @@ def split(data: Dataset, key: jax.Array, test_fraction: float = 0.1) -> tuple[Da
     n_test = max(1, int(round(test_fraction * n)))
     if n_test >= n:
         raise ValueError(f"test_fraction={test_fraction} leaves no training trajectory of {n}")
-    perm = jax.random.permutation(key, n)
+    return _split(data, key, n_test)
+
+
+@functools.partial(jax.jit, static_argnums=2)
+def _split(data: Dataset, key: jax.Array, n_test: int) -> tuple[Dataset, Dataset]:
+    # one program: eager, the permutation and each take would compile on their own
+    perm = jax.random.permutation(key, data.X.shape[0])
     test, train = perm[:n_test], perm[n_test:]
     take = lambda idx: Dataset(data.X[idx], data.U[idx])  # noqa: E731
     return take(train), take(test)
@@ -111,11 +119,22 @@ def split(data: Dataset, key: jax.Array, test_fraction: float = 0.1) -> tuple[Da
 def transitions(data: Dataset) -> Transitions:
     """Flatten [N, T, ...] into M = N*T transitions, dropping any with a non-finite entry.
 
-    Runs eagerly (the number kept depends on the data).
+    Runs eagerly (the number kept depends on the data): one program flattens and tests,
+    and only data with a non-finite entry are then indexed.
     """
+    x, u, xn, ok = _flat_transitions(data)
+    ok = np.asarray(ok)
+    if ok.all():
+        return Transitions(x, u, xn)
+    keep = np.flatnonzero(ok)
+    return Transitions(x[keep], u[keep], xn[keep])
+
+
+@jax.jit
+def _flat_transitions(data: Dataset) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
     nx, nu = data.X.shape[-1], data.U.shape[-1]
     x = data.X[:, :-1].reshape(-1, nx)
     xn = data.X[:, 1:].reshape(-1, nx)
     u = data.U.reshape(-1, nu)
     ok = jnp.isfinite(x).all(-1) & jnp.isfinite(xn).all(-1) & jnp.isfinite(u).all(-1)
-    return Transitions(x[ok], u[ok], xn[ok])
+    return x, u, xn, ok

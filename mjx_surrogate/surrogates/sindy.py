@@ -42,6 +42,7 @@ class SindyModel:
         return x + out if self.increment else out
 
 
+@partial(jax.jit, static_argnums=0)  # eager, each block would compile on its own
 def design(spec: LibrarySpec, x: jax.Array, u: jax.Array) -> jax.Array:
     """Theta [R, P] from states x [R, nx] and controls u [R, nu]."""
     return library.features(spec, jnp.concatenate([x, u], axis=-1))
