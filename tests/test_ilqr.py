@@ -338,7 +338,7 @@ def test_cost_derivatives_are_jax_grad_and_hessian_from_one_program():
     terminal = lambda x: jnp.sum(jnp.exp(0.3 * x) * x**2)  # noqa: E731
     rng = np.random.default_rng(3)
     X, U = jnp.asarray(rng.normal(size=(5, 3))), jnp.asarray(rng.normal(size=(4, 2)))
-    got = jax.jit(lambda X, U: cost_derivatives(Cost(running, terminal), X, U))(X, U)
+    expansion = jax.jit(lambda X, U: cost_derivatives(Cost(running, terminal), X, U))(X, U)
 
     @jax.jit
     def reference(X, U):  # jitted: eager, each of its operations would compile on its own
@@ -346,6 +346,6 @@ def test_cost_derivatives_are_jax_grad_and_hessian_from_one_program():
         (hxx, _), (hux, huu) = jax.vmap(jax.hessian(running, argnums=(0, 1)))(X[:-1], U)
         return gx, gu, hxx, huu, hux, jax.grad(terminal)(X[-1]), jax.hessian(terminal)(X[-1])
 
-    for got, want in zip(got, reference(X, U)):
+    for got, want in zip(expansion, reference(X, U)):
         assert got.shape == want.shape
         np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-13)
