@@ -22,7 +22,6 @@ import copy
 import jax.numpy as jnp
 import mujoco
 import numpy as np
-from scipy.optimize import lsq_linear
 
 from mjx_surrogate.identification.sysid import SysIdParams
 
@@ -165,6 +164,8 @@ def hold_controls(m: mujoco.MjModel, x: np.ndarray, u_min: np.ndarray, u_max: np
     ridge = 1e-6 * scale  # picks the control nearest 0 along directions that move nothing
     A = np.vstack([G, ridge * np.eye(m.nu)])
     b = np.concatenate([tau - f0 + G @ centre, ridge * nearest0])
+    from scipy.optimize import lsq_linear  # imported here: scipy.optimize takes 0.4 s to import
+
     u = lsq_linear(A, b, bounds=(lo, hi), method="bvls" if np.all(bounded) else "trf").x
     return np.clip(np.where(direct, u, nearest0), lo, hi)
 

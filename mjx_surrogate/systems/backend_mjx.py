@@ -11,12 +11,16 @@ import jax
 import jax.numpy as jnp
 import mujoco
 
-# mujoco.mjx prints "Failed to import warp" to stdout when the optional GPU Warp backend
-# is absent; that is expected on CPU, so this one import is kept quiet.
-with contextlib.redirect_stdout(io.StringIO()):
-    from mujoco import mjx
-
 from mjx_surrogate.trajectory import simulate_batch
+
+
+def import_mjx():
+    """``mujoco.mjx``, imported on first use: it takes about 0.6 s (trimesh, scipy), which a
+    native or function black box never needs. It prints "Failed to import warp" to stdout
+    when the optional GPU Warp backend is absent, as expected on CPU: kept quiet."""
+    with contextlib.redirect_stdout(io.StringIO()):
+        from mujoco import mjx
+    return mjx
 
 
 def _without_batched_lapack(mj_model: mujoco.MjModel) -> mujoco.MjModel:
@@ -61,6 +65,7 @@ def make_mjx_physics(mj_model: mujoco.MjModel, substeps: int) -> MjxPhysics:
     """The :class:`MjxPhysics` of ``mj_model``, x = [qpos, qvel, act]. The MJX model is put
     on the device once, in the dtype that is active when this is called (float64 if
     ``jax_enable_x64`` is on)."""
+    mjx = import_mjx()
     # Built eagerly even when first requested inside a trace (System.mjx_step is created
     # lazily): the model and data are constants of every program, never tracers.
     with jax.ensure_compile_time_eval():

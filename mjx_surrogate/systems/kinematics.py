@@ -10,18 +10,13 @@ dynamics are never differentiated here.
 
 from __future__ import annotations
 
-import contextlib
-import io
-
 import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
 
 from mjx_surrogate.errors import ConfigError
-
-with contextlib.redirect_stdout(io.StringIO()):  # silence "Failed to import warp"
-    from mujoco import mjx
+from mjx_surrogate.systems.backend_mjx import import_mjx
 
 _KINDS = {"site": mujoco.mjtObj.mjOBJ_SITE, "body": mujoco.mjtObj.mjOBJ_BODY}
 
@@ -47,6 +42,7 @@ def point_ids(m: mujoco.MjModel, goals, field: str = "task.goals") -> list[tuple
 
 def make_points_fn(m: mujoco.MjModel, ids: list[tuple[str, int]], field: str = "task.goals"):
     """``points(x [nx]) -> [k, 3]`` world positions of the (kind, id) points at qpos = x[:nq]."""
+    mjx = import_mjx()
     try:
         with jax.ensure_compile_time_eval():
             device = jax.local_devices()[0]
