@@ -10,12 +10,10 @@ can load the model.
 
 from __future__ import annotations
 
-import contextlib
-import io
-
 import mujoco
 import numpy as np
 
+from mjx_surrogate.systems.backend_mjx import import_mjx
 from mjx_surrogate.systems.system import state_labels
 
 
@@ -27,10 +25,7 @@ def _names(m: mujoco.MjModel, obj, count: int) -> list[str]:
 def mjx_support(m: mujoco.MjModel) -> str:
     """ "yes", or why ``mjx.put_model`` refuses the model."""
     try:
-        with contextlib.redirect_stdout(io.StringIO()):
-            from mujoco import mjx
-
-            mjx.put_model(m)
+        import_mjx().put_model(m)
     except Exception as exc:  # MJX raises NotImplementedError / ValueError for features it lacks
         return f"no ({type(exc).__name__}: {' '.join(str(exc).split())[:200]})"
     return "yes"
