@@ -9,6 +9,7 @@ from mjx_surrogate.identification import data
 from mjx_surrogate.identification.rollout import rollout
 
 
+@pytest.mark.slow
 def test_u_max_and_perturbation_statistics(systems):
     sys_ = systems("pendulum")
     T = 8
@@ -61,6 +62,7 @@ def test_split_by_trajectory_and_transitions(systems):
     assert data.transitions(bad).x.shape[0] == 225 - 2  # both transitions touching the NaN
 
 
+@pytest.mark.slow
 def test_seeds_differ_but_share_the_distribution(systems):
     sys_ = systems("pendulum")
     X_star = jnp.zeros((6, 2))

@@ -119,6 +119,7 @@ def test_returned_gains_are_the_unregularised_lqr_gains_after_a_regularised_last
     np.testing.assert_allclose(res.K, -L, atol=1e-6)
 
 
+@pytest.mark.slow
 def test_tvlqr_gains_equal_the_backward_pass_at_a_box_constrained_optimum():
     """At an optimum with active limits, :func:`riccati.tvlqr_gains` (k taken as 0, the
     clamped set read off U and Q_u) gives the backward pass's K, zero rows included."""

@@ -39,6 +39,7 @@ def test_fits_a_smooth_map_to_a_stated_loss():
         np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.slow
 def test_seeds_by_vmap_equal_separate_trainings():
     spec = SPEC._replace(epochs=3, checkpoints=())
     keys = jax.random.split(jax.random.key(5), 2)

@@ -44,6 +44,7 @@ def test_pod_sindy_is_exact_at_the_subspaces_rank_and_has_a_floor_below():
     assert errors[R] < 1e-10 and errors[R - 1] > 1e-2, errors
 
 
+@pytest.mark.slow
 def test_ltv_in_the_snapshot_basis_is_exact_where_the_full_regression_is_not_determined():
     """Deviations from a nominal span 3 of 12 directions: the full-order regression of
     A_t is rank-deficient; in the snapshot basis the lifted model predicts exactly."""

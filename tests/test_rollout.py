@@ -22,6 +22,7 @@ def test_rollout_backends_agree_and_shapes(systems):
     np.testing.assert_array_equal(Xm[:, 0], x0)
 
 
+@pytest.mark.slow
 def test_perturbed_rollouts_deterministic_and_distributed(systems):
     s = systems("pendulum", "mjx")
     x0 = jnp.array([np.pi - 0.1, 0.0])

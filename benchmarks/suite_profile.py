@@ -1,0 +1,140 @@
+"""Where the test suite's time goes: a pytest plugin and its summary.
+
+Record (each xdist worker writes ``DIR/profile-<pid>.json``)::
+
+    SUITE_PROFILE_DIR=DIR python -m pytest -q -n 2 -p benchmarks.suite_profile
+
+Summarise::
+
+    python -m benchmarks.suite_profile DIR [--top 30]
+
+Per test: wall time, CPU time of the test process and of the subprocesses it waited for
+(``resource.getrusage``), and JAX's own compile events in the test process: tracing
+(``jaxpr_trace_duration``), lowering to MLIR and XLA compilation, with the number of
+programs compiled and how many took under 0.1 s. A program loaded from the persistent
+compilation cache is not an XLA compile. Work done in a subprocess counts in its CPU time
+only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import glob
+import json
+import os
+import resource
+import time
+
+import pytest
+
+EVENTS = {
+    "/jax/core/compile/jaxpr_trace_duration": "trace_s",
+    "/jax/core/compile/jaxpr_to_mlir_module_duration": "lower_s",
+    "/jax/core/compile/backend_compile_duration": "compile_s",
+}
+SMALL_S = 0.1
+FIELDS = (
+    "wall_s",
+    "cpu_s",
+    "subprocess_cpu_s",
+    "compile_s",
+    "trace_s",
+    "lower_s",
+    "programs",
+    "small_programs",
+)
+_current: list[str | None] = [None]
+_records: dict[str, dict[str, float]] = collections.defaultdict(lambda: dict.fromkeys(FIELDS, 0.0))
+
+
+def _on_event(event: str, duration: float, **kwargs) -> None:
+    field, test = EVENTS.get(event), _current[0]
+    if field is None or test is None:
+        return
+    rec = _records[test]
+    rec[field] += duration
+    if field == "compile_s":
+        rec["programs"] += 1
+        rec["small_programs"] += duration < SMALL_S
+
+
+def _cpu() -> tuple[float, float]:
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime, children.ru_utime + children.ru_stime
+
+
+def pytest_configure(config) -> None:
+    import jax.monitoring
+
+    jax.monitoring.register_event_duration_secs_listener(_on_event)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """Times the whole protocol of one test: setup, call, teardown."""
+    _current[0] = item.nodeid
+    wall0, (own0, children0) = time.perf_counter(), _cpu()
+    try:
+        return (yield)
+    finally:
+        own, children = _cpu()
+        rec = _records[item.nodeid]
+        rec["wall_s"] += time.perf_counter() - wall0
+        rec["cpu_s"] += own - own0
+        rec["subprocess_cpu_s"] += children - children0
+        _current[0] = None
+
+
+def pytest_sessionfinish(session) -> None:
+    out = os.environ.get("SUITE_PROFILE_DIR")
+    if out and _records:
+        os.makedirs(out, exist_ok=True)
+        with open(os.path.join(out, f"profile-{os.getpid()}.json"), "w") as f:
+            json.dump(_records, f)
+
+
+def load(folder: str) -> dict[str, dict[str, float]]:
+    """Every worker's records of ``folder``, merged: test id -> field -> value."""
+    merged: dict[str, dict[str, float]] = {}
+    for path in sorted(glob.glob(os.path.join(folder, "profile-*.json"))):
+        with open(path) as f:
+            merged.update(json.load(f))
+    return merged
+
+
+def totals(records: dict[str, dict[str, float]], key=lambda test: "all") -> dict[str, dict[str, float]]:
+    """Sums of every field, grouped by ``key(test id)``."""
+    out: dict[str, dict[str, float]] = collections.defaultdict(lambda: dict.fromkeys(FIELDS, 0.0))
+    for test, rec in records.items():
+        row = out[key(test)]
+        for field in FIELDS:
+            row[field] += rec.get(field, 0.0)
+    return dict(out)
+
+
+def _table(rows: dict[str, dict[str, float]], top: int) -> str:
+    labels = (f.replace("subprocess_", "child ").replace("_", " ") for f in FIELDS)
+    head = f"{'':60s}" + "".join(f"{label:>15s}" for label in labels)
+    lines = [head]
+    for name, row in sorted(rows.items(), key=lambda kv: -kv[1]["wall_s"])[:top]:
+        lines.append(f"{name[-60:]:60s}" + "".join(f"{row[f]:15.1f}" for f in FIELDS))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("folder", help="the SUITE_PROFILE_DIR of a profiled run")
+    ap.add_argument("--top", type=int, default=30, help="how many files and tests to list")
+    a = ap.parse_args(argv)
+    records = load(a.folder)
+    if not records:
+        ap.error(f"folder: no profile-*.json in {a.folder!r}; record one first (see --help)")
+    print(f"{len(records)} tests\n" + _table(totals(records), 1))
+    print("\nby file\n" + _table(totals(records, lambda t: t.split("::")[0]), a.top))
+    print("\nby test\n" + _table(totals(records, lambda t: t), a.top))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

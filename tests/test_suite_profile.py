@@ -1,0 +1,55 @@
+"""benchmarks/suite_profile.py: a profiled pytest run records each test's compiles and CPU."""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from benchmarks import suite_profile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+TESTS = """
+import subprocess, sys
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+
+def test_two_new_programs():
+    f = jax.jit(lambda x: jnp.sin(x) * 2.0)
+    assert float(f(np.float32(0.0))) == 0.0
+    assert f(np.zeros(3, np.float32)).shape == (3,)  # a second shape: a second program
+
+
+def test_a_busy_child():
+    code = "s = 0\\nfor i in range(3_000_000): s += i"
+    subprocess.run([sys.executable, "-c", code], check=True)
+"""
+
+
+@pytest.mark.slow
+def test_a_profiled_run_counts_each_tests_programs_and_its_childs_cpu(tmp_path):
+    (tmp_path / "test_tiny.py").write_text(textwrap.dedent(TESTS))
+    out = tmp_path / "profile"
+    env = dict(os.environ, SUITE_PROFILE_DIR=str(out), PYTHONPATH=ROOT)
+    cmd = [sys.executable, "-m", "pytest", "-q", "-p", "benchmarks.suite_profile", "-p", "no:cacheprovider"]
+    done = subprocess.run(cmd + [str(tmp_path)], cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert done.returncode == 0, done.stdout[-2000:]
+    records = suite_profile.load(str(out))
+    programs = records["test_tiny.py::test_two_new_programs"]
+    child = records["test_tiny.py::test_a_busy_child"]
+    assert programs["programs"] == 2 and programs["compile_s"] > 0 and programs["trace_s"] > 0
+    assert programs["wall_s"] >= programs["compile_s"]
+    assert child["programs"] == 0 and child["subprocess_cpu_s"] > 0.05, child
+    everything = suite_profile.totals(records)["all"]
+    assert everything["programs"] == 2 and everything["wall_s"] == pytest.approx(
+        programs["wall_s"] + child["wall_s"]
+    )
+    assert suite_profile.main([str(out), "--top", "3"]) == 0
+    with pytest.raises(SystemExit) as exc:
+        suite_profile.main([str(tmp_path / "nothing")])
+    assert exc.value.code == 2
