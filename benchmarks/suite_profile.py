@@ -1,6 +1,6 @@
 """Where the test suite's time goes: a pytest plugin and its summary.
 
-Record (each xdist worker writes ``DIR/profile-<pid>.json``)::
+Record (each xdist worker writes ``DIR/profile-<run>-<pid>.json``)::
 
     SUITE_PROFILE_DIR=DIR python -m pytest -q -n 2 -p benchmarks.suite_profile
 
@@ -13,7 +13,7 @@ Per test: wall time, CPU time of the test process and of the subprocesses it wai
 (``jaxpr_trace_duration``), lowering to MLIR and XLA compilation, with the number of
 programs compiled and how many took under 0.1 s. A program loaded from the persistent
 compilation cache is not an XLA compile. Work done in a subprocess counts in its CPU time
-only.
+only. A folder may hold several runs: the summary reads the newest.
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ import json
 import os
 import resource
 import time
+import uuid
 
 import pytest
 
@@ -90,14 +91,21 @@ def pytest_sessionfinish(session) -> None:
     out = os.environ.get("SUITE_PROFILE_DIR")
     if out and _records:
         os.makedirs(out, exist_ok=True)
-        with open(os.path.join(out, f"profile-{os.getpid()}.json"), "w") as f:
+        run = os.environ.get("PYTEST_XDIST_TESTRUNUID") or uuid.uuid4().hex  # the workers' common id
+        with open(os.path.join(out, f"profile-{run}-{os.getpid()}.json"), "w") as f:
             json.dump(_records, f)
 
 
 def load(folder: str) -> dict[str, dict[str, float]]:
-    """Every worker's records of ``folder``, merged: test id -> field -> value."""
+    """The newest run's records in ``folder``, its workers' merged: test id -> field -> value."""
+    runs: dict[str, list[str]] = collections.defaultdict(list)
+    for path in glob.glob(os.path.join(folder, "profile-*-*.json")):
+        runs[os.path.basename(path).split("-")[1]].append(path)
+    if not runs:
+        return {}
+    newest = max(runs.values(), key=lambda paths: max(os.path.getmtime(p) for p in paths))
     merged: dict[str, dict[str, float]] = {}
-    for path in sorted(glob.glob(os.path.join(folder, "profile-*.json"))):
+    for path in sorted(newest):
         with open(path) as f:
             merged.update(json.load(f))
     return merged

@@ -50,6 +50,10 @@ def test_a_profiled_run_counts_each_tests_programs_and_its_childs_cpu(tmp_path):
         programs["wall_s"] + child["wall_s"]
     )
     assert suite_profile.main([str(out), "--top", "3"]) == 0
+    # a second run into the same folder: the summary reads it alone
+    again = subprocess.run(cmd + ["-k", "child", str(tmp_path)], cwd=tmp_path, env=env, capture_output=True)
+    assert again.returncode == 0 and len(list(out.iterdir())) == 2
+    assert list(suite_profile.load(str(out))) == ["test_tiny.py::test_a_busy_child"]
     with pytest.raises(SystemExit) as exc:
         suite_profile.main([str(tmp_path / "nothing")])
     assert exc.value.code == 2
