@@ -36,6 +36,8 @@ def test_a_profiled_run_counts_each_tests_programs_and_its_childs_cpu(tmp_path):
     (tmp_path / "test_tiny.py").write_text(textwrap.dedent(TESTS))
     out = tmp_path / "profile"
     env = dict(os.environ, SUITE_PROFILE_DIR=str(out), PYTHONPATH=ROOT)
+    for name in ("PYTEST_XDIST_TESTRUNUID", "PYTEST_ADDOPTS"):  # this run's, when profiled or under xdist
+        env.pop(name, None)
     cmd = [sys.executable, "-m", "pytest", "-q", "-p", "benchmarks.suite_profile", "-p", "no:cacheprovider"]
     done = subprocess.run(cmd + [str(tmp_path)], cwd=tmp_path, env=env, capture_output=True, text=True)
     assert done.returncode == 0, done.stdout[-2000:]
