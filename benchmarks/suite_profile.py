@@ -11,7 +11,8 @@ Summarise::
 Per test: wall time, CPU time of the test process and of the subprocesses it waited for
 (``resource.getrusage``), and JAX's own compile events in the test process: tracing
 (``jaxpr_trace_duration``), lowering to MLIR and XLA compilation, with the number of
-programs compiled and how many took under 0.1 s. A program loaded from the persistent
+programs compiled and how many took under 0.1 s, and the time Python's garbage collector
+ran in the test process (``gc.callbacks``). A program loaded from the persistent
 compilation cache is not an XLA compile. Work done in a subprocess counts in its CPU time
 only. A folder may hold several runs: the summary reads the newest.
 """
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import gc
 import glob
 import json
 import os
@@ -44,6 +46,7 @@ FIELDS = (
     "lower_s",
     "programs",
     "small_programs",
+    "gc_s",
 )
 _current: list[str | None] = [None]
 _records: dict[str, dict[str, float]] = collections.defaultdict(lambda: dict.fromkeys(FIELDS, 0.0))
@@ -60,6 +63,16 @@ def _on_event(event: str, duration: float, **kwargs) -> None:
         rec["small_programs"] += duration < SMALL_S
 
 
+_gc_start: list[float | None] = [None]
+
+
+def _on_gc(phase: str, info: dict) -> None:
+    if phase == "start":
+        _gc_start[0] = time.perf_counter()
+    elif _gc_start[0] is not None and _current[0] is not None:
+        _records[_current[0]]["gc_s"] += time.perf_counter() - _gc_start[0]
+
+
 def _cpu() -> tuple[float, float]:
     own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
     return own.ru_utime + own.ru_stime, children.ru_utime + children.ru_stime
@@ -69,6 +82,7 @@ def pytest_configure(config) -> None:
     import jax.monitoring
 
     jax.monitoring.register_event_duration_secs_listener(_on_event)
+    gc.callbacks.append(_on_gc)
 
 
 @pytest.hookimpl(wrapper=True)

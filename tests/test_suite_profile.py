@@ -12,7 +12,7 @@ from benchmarks import suite_profile
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 TESTS = """
-import subprocess, sys
+import gc, subprocess, sys
 
 import jax
 import jax.numpy as jnp
@@ -25,7 +25,13 @@ def test_two_new_programs():
     assert f(np.zeros(3, np.float32)).shape == (3,)  # a second shape: a second program
 
 
-def test_a_busy_child():
+def test_a_busy_child_and_the_collector():
+    for _ in range(20):  # cycles of objects only the collector frees, and 20 full collections
+        cycles = [[] for _ in range(100_000)]
+        for c in cycles:
+            c.append(c)
+        del cycles
+        gc.collect()
     code = "s = 0\\nfor i in range(3_000_000): s += i"
     subprocess.run([sys.executable, "-c", code], check=True)
 """
@@ -43,10 +49,11 @@ def test_a_profiled_run_counts_each_tests_programs_and_its_childs_cpu(tmp_path):
     assert done.returncode == 0, done.stdout[-2000:]
     records = suite_profile.load(str(out))
     programs = records["test_tiny.py::test_two_new_programs"]
-    child = records["test_tiny.py::test_a_busy_child"]
+    child = records["test_tiny.py::test_a_busy_child_and_the_collector"]
     assert programs["programs"] == 2 and programs["compile_s"] > 0 and programs["trace_s"] > 0
     assert programs["wall_s"] >= programs["compile_s"]
     assert child["programs"] == 0 and child["subprocess_cpu_s"] > 0.05, child
+    assert child["gc_s"] > 0.05 and child["gc_s"] > 10 * programs["gc_s"], (child, programs)
     everything = suite_profile.totals(records)["all"]
     assert everything["programs"] == 2 and everything["wall_s"] == pytest.approx(
         programs["wall_s"] + child["wall_s"]
@@ -55,7 +62,7 @@ def test_a_profiled_run_counts_each_tests_programs_and_its_childs_cpu(tmp_path):
     # a second run into the same folder: the summary reads it alone
     again = subprocess.run(cmd + ["-k", "child", str(tmp_path)], cwd=tmp_path, env=env, capture_output=True)
     assert again.returncode == 0 and len(list(out.iterdir())) == 2
-    assert list(suite_profile.load(str(out))) == ["test_tiny.py::test_a_busy_child"]
+    assert list(suite_profile.load(str(out))) == ["test_tiny.py::test_a_busy_child_and_the_collector"]
     with pytest.raises(SystemExit) as exc:
         suite_profile.main([str(tmp_path / "nothing")])
     assert exc.value.code == 2
