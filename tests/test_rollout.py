@@ -112,3 +112,64 @@ def test_native_one_step_equals_the_rollout_of_one_step(systems):
         del sim.step
     assert calls == [(B - 4, sim.nx)]
     np.testing.assert_array_equal(np.asarray(out), ref[3:-1])
+
+
+_SENSED = """
+<mujoco>
+  <worldbody>
+    <body><joint name="hinge" type="hinge" axis="0 1 0" damping="0.1"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -0.5" size="0.05"/></body>
+  </worldbody>
+  <actuator><motor joint="hinge" ctrlrange="-2 2"/></actuator>
+  <sensor><jointpos joint="hinge"/><jointvel joint="hinge"/></sensor>
+</mujoco>
+"""
+
+
+_PID_PLUGIN = """<extension><plugin plugin="mujoco.pid">
+  <instance name="pid"><config key="kp" value="4"/></instance></plugin></extension>"""
+
+
+def _mj_steps(m, x, u, substeps):
+    import mujoco
+
+    d = mujoco.MjData(m)
+    d.qpos[:], d.qvel[:], d.ctrl[:] = x[: m.nq], x[m.nq :], u
+    for _ in range(substeps):
+        mujoco.mj_step(m, d)
+    return np.concatenate([d.qpos, d.qvel])
+
+
+def test_native_sensors_are_off_unless_they_can_act():
+    """The native simulator switches off the sensors the solver never reads; with a MuJoCo
+    control callback installed (it runs after the sensors and may read them) they stay on.
+    Either way its states are mj_step's with the sensors on, bit for bit."""
+    import mujoco
+
+    from mjx_surrogate.systems.backend_native import NativeSimulator
+
+    m = mujoco.MjModel.from_xml_string(_SENSED)
+    x, u = np.array([0.3, -0.2]), np.array([0.5])
+    off = NativeSimulator(m, substeps=3, nthread=1)
+    assert off.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_SENSOR
+    assert not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_SENSOR  # the user's model untouched
+    np.testing.assert_array_equal(off.step(x[None], u[None])[0], _mj_steps(m, x, u, 3))
+    np.testing.assert_array_equal(off(x, u[None])[1], _mj_steps(m, x, u, 3))
+
+    def feedback(model, data):  # a user's controller that reads the sensors
+        data.ctrl[0] = -2.0 * data.sensordata[0] - 0.5 * data.sensordata[1]
+
+    mujoco.set_mjcb_control(feedback)
+    try:
+        on = NativeSimulator(m, substeps=3, nthread=1)
+        want = _mj_steps(m, x, u, 3)
+        assert not on.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_SENSOR
+        np.testing.assert_array_equal(on.step(x[None], u[None])[0], want)
+        assert not np.array_equal(want, off.step(x[None], u[None])[0])  # the sensors act here
+    finally:
+        mujoco.set_mjcb_control(None)
+    motor = '<motor joint="hinge" ctrlrange="-2 2"/>'
+    servo = '<plugin joint="hinge" plugin="mujoco.pid" instance="pid"/>'
+    pid = _SENSED.replace("<worldbody>", _PID_PLUGIN + "<worldbody>").replace(motor, servo)
+    kept = NativeSimulator(mujoco.MjModel.from_xml_string(pid), substeps=3, nthread=1)
+    assert not kept.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_SENSOR  # a plugin may act

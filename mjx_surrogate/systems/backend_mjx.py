@@ -23,8 +23,8 @@ def import_mjx():
     return mjx
 
 
-def _without_batched_lapack(mj_model: mujoco.MjModel) -> mujoco.MjModel:
-    """A copy of the model that MJX steps without LAPACK custom calls.
+def _stepping_model(mj_model: mujoco.MjModel) -> mujoco.MjModel:
+    """A copy of the model that MJX steps without LAPACK custom calls and without sensors.
 
     jaxlib 0.10's CPU LAPACK kernels split a batch over XLA's intra-op thread pool and
     block on it; when the pool's threads all run such kernels at once (vmapped rollouts,
@@ -32,11 +32,15 @@ def _without_batched_lapack(mj_model: mujoco.MjModel) -> mujoco.MjModel:
     deadlocks (seen on the fish, 2 cores; docs/performance.md). MJX's sparse mass-matrix
     path factors and solves M with its own loops, and its CG solver needs no Cholesky,
     so neither emits LAPACK. Same physics, to round-off (tests/test_systems.py).
+
+    Sensors only write ``sensordata``, which the solver never reads (MJX runs no plugin or
+    callback through which they could act): switched off, they are not traced or compiled.
     """
     m = copy.copy(mj_model)
     m.opt.jacobian = mujoco.mjtJacobian.mjJAC_SPARSE
     if m.opt.solver == mujoco.mjtSolver.mjSOL_NEWTON:
         m.opt.solver = mujoco.mjtSolver.mjSOL_CG
+    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
     return m
 
 
@@ -72,7 +76,7 @@ def make_mjx_physics(mj_model: mujoco.MjModel, substeps: int) -> MjxPhysics:
         # On this process's own device: under jax.distributed, jax.devices()[0] may be
         # another process's.
         device = jax.local_devices()[0]
-        model = mjx.put_model(_without_batched_lapack(mj_model), device=device)
+        model = mjx.put_model(_stepping_model(mj_model), device=device)
         data0 = mjx.make_data(model, device=device)
     if jax.config.jax_enable_x64:
         # Under x64 some int32 fields come back from mjx.step as int64 (e.g. tendon

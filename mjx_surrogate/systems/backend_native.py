@@ -28,6 +28,18 @@ from mujoco import rollout as mj_rollout
 
 _SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
 _ROW = mujoco.mjtState.mjSTATE_INTEGRATION
+# MuJoCo's global callbacks that run after the position and velocity sensors of a step
+# (mj_forward's order) and may read them to change the motion.
+_CALLBACKS_AFTER_SENSORS = ("control", "passive", "act_dyn", "act_gain", "act_bias")
+
+
+def sensors_can_act(mj_model: mujoco.MjModel) -> bool:
+    """Whether the model's sensors can change its motion: a plugin (its computations and
+    state advance with the sensor stage) or an installed MuJoCo callback that runs after the
+    sensors. Otherwise sensors only write ``sensordata``, which the solver never reads."""
+    if mj_model.nplugin > 0:
+        return True
+    return any(getattr(mujoco, f"get_mjcb_{name}")() is not None for name in _CALLBACKS_AFTER_SENSORS)
 
 
 def _diverged(a: np.ndarray) -> np.ndarray:
@@ -44,7 +56,7 @@ class _StepBuffers(NamedTuple):
     init: np.ndarray  # [B, nstate]: the template, x written per call
     ctrl: np.ndarray  # [B, substeps, nu]
     state: np.ndarray  # [B, substeps, nstate]
-    sensordata: np.ndarray  # [B, substeps, nsensordata]: the model's sensors, computed anyway
+    sensordata: np.ndarray  # [B, substeps, nsensordata]: the model's sensors (unused)
 
 
 class NativeSimulator:
@@ -52,7 +64,10 @@ class NativeSimulator:
 
     The simulator steps a copy of the model with MuJoCo's automatic reset off: a diverged
     state stays diverged instead of being silently replaced by the initial state (which a
-    one-step call from time 0 could not tell apart from a real step). A control step whose
+    one-step call from time 0 could not tell apart from a real step). The copy's sensors
+    are off too unless they can change the motion (:func:`sensors_can_act`, checked when the
+    simulator is made): the states are those of ``mj_step`` with them on, bit for bit, at
+    less cost (a range finder or touch sensor can cost more than the physics). A control step whose
     control or resulting state is non-finite or beyond ``mjMAXVAL`` (MuJoCo would zero such
     a control), and every step after it, is returned as NaN so that callers reject it.
 
@@ -66,6 +81,8 @@ class NativeSimulator:
     def __init__(self, mj_model: mujoco.MjModel, substeps: int, nthread: int | None = None):
         self.model = copy.copy(mj_model)
         self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
+        if not sensors_can_act(mj_model):
+            self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
         self.substeps = substeps
         self.nthread = max(1, nthread or os.cpu_count() or 1)
         self._free: queue.SimpleQueue = queue.SimpleQueue()
