@@ -446,3 +446,37 @@ def test_gymnasium_robotics_models_step_natively_and_hands_with_friction_get_lar
 
     assert sigma("adroit_hand/adroit_door.xml") == (2e-5, 2e-5)
     assert sigma("kitchen_franka/kitchen_assets/kitchen_env_model.xml") == (1e-6, 1e-6)
+
+
+def test_mjx_steps_dm_control_models_with_energy_on_and_names_what_it_cannot_simulate(capsys, tmp_path):
+    """dm_control's pendulum enables energy, which MJX refuses: the MJX backend steps it with
+    energy and sensors off, as mj_step does with them on (to 1e-12); `inspect` says MJX
+    supports it. gymnasium's humanoid uses the PGS solver, which MJX lacks: one line naming
+    system.backend and pointing to native, exit status 2, before anything is compiled."""
+    from experiments import run as cli
+    from mjx_surrogate.errors import ConfigError
+    from mjx_surrogate.systems.inspection import mjx_support
+    from mjx_surrogate.systems.system import build_system
+
+    pendulum, humanoid = model_path("dm_control", "pendulum.xml"), model_path("gymnasium", "humanoid.xml")
+    if pendulum is None or humanoid is None:
+        pytest.skip("dm_control or gymnasium wheel not reachable")
+    m = mujoco.MjModel.from_xml_path(pendulum)
+    assert m.opt.enableflags & mujoco.mjtEnableBit.mjENBL_ENERGY  # as downloaded
+    assert mjx_support(m) == "yes"
+    s = build_system("pendulum", None, 2, "mjx", path=pendulum)
+    for x, u in (([0.3, -1.0], [0.5]), ([2.5, 4.0], [-1.0])):
+        d = mujoco.MjData(m)
+        d.qpos[:], d.qvel[:], d.ctrl[:] = x[:1], x[1:], u
+        mujoco.mj_step(m, d, 2)
+        got = np.asarray(s.step(jnp.asarray(x), jnp.asarray(u)))
+        np.testing.assert_allclose(got, np.concatenate([d.qpos, d.qvel]), rtol=0, atol=1e-12)
+    with pytest.raises(ConfigError, match="native") as err:
+        build_system("humanoid", None, 1, "mjx", path=humanoid)
+    assert err.value.field == "system.backend" and "PGS" in str(err.value)
+    argv = ["default", "--system.name", "mjcf", "--system.mjcf_path", humanoid, "--system.backend", "mjx"]
+    capsys.readouterr()
+    assert cli.main(argv + ["--task.preset", "hold", "--out", str(tmp_path)]) == 2
+    assert not any(tmp_path.iterdir())
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith("error: system.backend: MJX cannot simulate this model") and "native" in line

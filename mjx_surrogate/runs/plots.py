@@ -32,12 +32,20 @@ def state_fan(
     return fig
 
 
+def _log_scale_if_positive(ax, values: list[np.ndarray]) -> None:
+    """A log y axis when every finite value is positive; linear otherwise (a cost can be 0:
+    a hold task started at an equilibrium)."""
+    finite = np.concatenate([np.ravel(v)[np.isfinite(np.ravel(v))] for v in values] + [np.ones(1)])
+    ax.set_yscale("log" if np.all(finite > 0) else "linear")
+
+
 def cost_history(histories: dict[str, np.ndarray], title: str = ""):
-    """Cost against iteration for each named solve (log scale)."""
+    """Cost against iteration for each named solve (log scale where every cost is positive)."""
     fig, ax = plt.subplots(figsize=(5, 3.4))
     for name, h in histories.items():
         h = np.asarray(h)
-        ax.semilogy(np.arange(len(h)), h, marker="o", ms=3, label=name)
+        ax.plot(np.arange(len(h)), h, marker="o", ms=3, label=name)
+    _log_scale_if_positive(ax, [np.asarray(h, float) for h in histories.values()])
     ax.set_xlabel("iteration")
     ax.set_ylabel("cost J on the black box")
     ax.set_title(title, fontsize=10)
@@ -256,7 +264,8 @@ def cost_vs_simulations(curves: dict[str, tuple[np.ndarray, np.ndarray]], title:
     """Cost after each iteration against the black-box control steps simulated so far."""
     fig, ax = plt.subplots(figsize=(5, 3.4))
     for label, (steps, cost) in curves.items():
-        ax.semilogy(steps, cost, marker=".", label=label)
+        ax.plot(steps, cost, marker=".", label=label)
+    _log_scale_if_positive(ax, [np.asarray(cost, float) for _, cost in curves.values()])
     ax.set_xlabel("simulated control steps")
     ax.set_ylabel("cost J")
     ax.set_title(title, fontsize=10)

@@ -11,6 +11,7 @@ import jax
 import jax.numpy as jnp
 import mujoco
 
+from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.trajectory import simulate_batch
 
 
@@ -23,8 +24,8 @@ def import_mjx():
     return mjx
 
 
-def _stepping_model(mj_model: mujoco.MjModel) -> mujoco.MjModel:
-    """A copy of the model that MJX steps without LAPACK custom calls and without sensors.
+def stepping_model(mj_model: mujoco.MjModel) -> mujoco.MjModel:
+    """A copy of the model that MJX steps: no LAPACK custom calls, no sensors, no energy.
 
     jaxlib 0.10's CPU LAPACK kernels split a batch over XLA's intra-op thread pool and
     block on it; when the pool's threads all run such kernels at once (vmapped rollouts,
@@ -33,15 +34,29 @@ def _stepping_model(mj_model: mujoco.MjModel) -> mujoco.MjModel:
     path factors and solves M with its own loops, and its CG solver needs no Cholesky,
     so neither emits LAPACK. Same physics, to round-off (tests/test_systems.py).
 
-    Sensors only write ``sensordata``, which the solver never reads (MJX runs no plugin or
-    callback through which they could act): switched off, they are not traced or compiled.
+    Sensors and energy only write ``sensordata`` and ``energy``, which the solver never
+    reads (MJX runs no plugin or callback through which they could act): sensors switched
+    off are not traced or compiled, and energy, which MJX refuses (dm_control's pendulum,
+    cartpole and acrobot enable it), is not computed.
     """
     m = copy.copy(mj_model)
     m.opt.jacobian = mujoco.mjtJacobian.mjJAC_SPARSE
     if m.opt.solver == mujoco.mjtSolver.mjSOL_NEWTON:
         m.opt.solver = mujoco.mjtSolver.mjSOL_CG
     m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
+    m.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
     return m
+
+
+def put_model(mj_model: mujoco.MjModel, device=None, field: str = "system.backend"):
+    """``mjx.put_model`` of :func:`stepping_model`; a feature MJX lacks (a solver, a pair of
+    colliding geom types, a plugin...) is a :class:`ConfigError` naming ``field`` that
+    points to the native backend, not a traceback."""
+    try:
+        return import_mjx().put_model(stepping_model(mj_model), device=device)
+    except (NotImplementedError, ValueError) as exc:
+        why = " ".join(str(exc).split())[:200]
+        raise ConfigError(field, f"MJX cannot simulate this model ({why}); use 'native'") from None
 
 
 class MjxPhysics(NamedTuple):
@@ -76,7 +91,7 @@ def make_mjx_physics(mj_model: mujoco.MjModel, substeps: int) -> MjxPhysics:
         # On this process's own device: under jax.distributed, jax.devices()[0] may be
         # another process's.
         device = jax.local_devices()[0]
-        model = mjx.put_model(_stepping_model(mj_model), device=device)
+        model = put_model(mj_model, device=device)
         data0 = mjx.make_data(model, device=device)
     if jax.config.jax_enable_x64:
         # Under x64 some int32 fields come back from mjx.step as int64 (e.g. tendon
