@@ -274,12 +274,13 @@ def _suite_models():
 
 def _assert_native_steps_are_mj_step(m: mujoco.MjModel, rng, label: str) -> None:
     """NativeSimulator.step on 3 perturbed states with random in-range controls equals plain
-    mj_step (2 substeps), bit for bit, its sensors off unless they can act."""
-    from mjx_surrogate.systems.backend_native import NativeSimulator, sensors_can_act
+    mj_step (2 substeps), bit for bit, its sensors and energy off unless they can act."""
+    from mjx_surrogate.systems.backend_native import NativeSimulator, outputs_can_act
 
     sim = NativeSimulator(m, substeps=2, nthread=1)
     off = bool(sim.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_SENSOR)
-    assert off != sensors_can_act(m), label
+    assert off != outputs_can_act(m), label
+    assert not (off and sim.model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_ENERGY), label
     nx, nu, B = sim.nx, m.nu, 3
     x = np.tile(sim.template[1 : 1 + nx], (B, 1))
     x[:, m.nq : m.nq + m.nv] += 0.1 * rng.standard_normal((B, m.nv))  # velocities: any value is a state

@@ -33,10 +33,11 @@ _ROW = mujoco.mjtState.mjSTATE_INTEGRATION
 _CALLBACKS_AFTER_SENSORS = ("control", "passive", "act_dyn", "act_gain", "act_bias")
 
 
-def sensors_can_act(mj_model: mujoco.MjModel) -> bool:
-    """Whether the model's sensors can change its motion: a plugin (its computations and
-    state advance with the sensor stage) or an installed MuJoCo callback that runs after the
-    sensors. Otherwise sensors only write ``sensordata``, which the solver never reads."""
+def outputs_can_act(mj_model: mujoco.MjModel) -> bool:
+    """Whether the model's sensors or energy can change its motion: through a plugin (its
+    computations and state advance with the sensor stage) or an installed MuJoCo callback
+    that runs after them. Otherwise they only write ``sensordata`` and ``energy``, which the
+    solver never reads."""
     if mj_model.nplugin > 0:
         return True
     return any(getattr(mujoco, f"get_mjcb_{name}")() is not None for name in _CALLBACKS_AFTER_SENSORS)
@@ -65,9 +66,9 @@ class NativeSimulator:
     The simulator steps a copy of the model with MuJoCo's automatic reset off: a diverged
     state stays diverged instead of being silently replaced by the initial state (which a
     one-step call from time 0 could not tell apart from a real step). The copy's sensors
-    are off too unless they can change the motion (:func:`sensors_can_act`, checked when the
-    simulator is made): the states are those of ``mj_step`` with them on, bit for bit, at
-    less cost (a range finder or touch sensor can cost more than the physics). A control step whose
+    and energy are off too unless they can change the motion (:func:`outputs_can_act`,
+    checked when the simulator is made): the states are those of ``mj_step`` with them on,
+    bit for bit, at less cost (range finders can cost more than the physics). A control step whose
     control or resulting state is non-finite or beyond ``mjMAXVAL`` (MuJoCo would zero such
     a control), and every step after it, is returned as NaN so that callers reject it.
 
@@ -81,8 +82,9 @@ class NativeSimulator:
     def __init__(self, mj_model: mujoco.MjModel, substeps: int, nthread: int | None = None):
         self.model = copy.copy(mj_model)
         self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
-        if not sensors_can_act(mj_model):
+        if not outputs_can_act(mj_model):
             self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
+            self.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
         self.substeps = substeps
         self.nthread = max(1, nthread or os.cpu_count() or 1)
         self._free: queue.SimpleQueue = queue.SimpleQueue()
