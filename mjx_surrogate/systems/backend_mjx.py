@@ -48,15 +48,22 @@ def stepping_model(mj_model: mujoco.MjModel) -> mujoco.MjModel:
     return m
 
 
+class MjxUnsupported(ConfigError):
+    """A model with a feature MJX lacks; ``reason`` is MJX's own word for it."""
+
+    def __init__(self, field: str, reason: str):
+        self.reason = reason
+        super().__init__(field, f"MJX cannot simulate this model ({reason}); use 'native'")
+
+
 def put_model(mj_model: mujoco.MjModel, device=None, field: str = "system.backend"):
     """``mjx.put_model`` of :func:`stepping_model`; a feature MJX lacks (a solver, a pair of
-    colliding geom types, a plugin...) is a :class:`ConfigError` naming ``field`` that
-    points to the native backend, not a traceback."""
+    colliding geom types, a plugin...) is :class:`MjxUnsupported` naming ``field``, not a
+    traceback."""
     try:
         return import_mjx().put_model(stepping_model(mj_model), device=device)
-    except (NotImplementedError, ValueError) as exc:
-        why = " ".join(str(exc).split())[:200]
-        raise ConfigError(field, f"MJX cannot simulate this model ({why}); use 'native'") from None
+    except Exception as exc:  # NotImplementedError mostly; any refusal of the model
+        raise MjxUnsupported(field, " ".join(str(exc).split())[:200]) from None
 
 
 class MjxPhysics(NamedTuple):

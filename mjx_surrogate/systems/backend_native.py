@@ -68,9 +68,11 @@ class NativeSimulator:
     one-step call from time 0 could not tell apart from a real step). The copy's sensors
     and energy are off too unless they can change the motion (:func:`outputs_can_act`,
     checked when the simulator is made): the states are those of ``mj_step`` with them on,
-    bit for bit, at less cost (range finders can cost more than the physics). A control step whose
-    control or resulting state is non-finite or beyond ``mjMAXVAL`` (MuJoCo would zero such
-    a control), and every step after it, is returned as NaN so that callers reject it.
+    bit for bit, at less cost (range finders can cost more than the physics).
+
+    A control step whose control or resulting state is non-finite or beyond ``mjMAXVAL``
+    (MuJoCo would zero such a control), and every step after it, is returned as NaN so that
+    callers reject it.
 
     Calls may come concurrently (one per device when the batch is spread over a mesh,
     :mod:`mjx_surrogate.sharding`): each call takes a free set of MjData, or a free line-search batch

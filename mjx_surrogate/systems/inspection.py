@@ -13,7 +13,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from mjx_surrogate.systems.backend_mjx import import_mjx, stepping_model
+from mjx_surrogate.systems.backend_mjx import MjxUnsupported, put_model
 from mjx_surrogate.systems.system import state_labels
 
 
@@ -23,12 +23,12 @@ def _names(m: mujoco.MjModel, obj, count: int) -> list[str]:
 
 
 def mjx_support(m: mujoco.MjModel) -> str:
-    """ "yes", or why ``mjx.put_model`` refuses the model as the MJX backend steps it
-    (:func:`~mjx_surrogate.systems.backend_mjx.stepping_model`)."""
+    """ "yes", or why the MJX backend cannot simulate the model
+    (:func:`~mjx_surrogate.systems.backend_mjx.put_model`)."""
     try:
-        import_mjx().put_model(stepping_model(m))
-    except Exception as exc:  # MJX raises NotImplementedError / ValueError for features it lacks
-        return f"no ({type(exc).__name__}: {' '.join(str(exc).split())[:200]})"
+        put_model(m)
+    except MjxUnsupported as exc:
+        return f"no ({exc.reason})"
     return "yes"
 
 
