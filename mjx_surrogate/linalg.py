@@ -1,10 +1,11 @@
 """Small dense solves in plain JAX ops (no LAPACK custom calls).
 
 jaxlib 0.10's batched LAPACK kernels split their batch over XLA's CPU thread pool from
-inside a thread of that pool and wait on it; when all pool threads run such kernels at once
-the process deadlocks (docs/performance.md, "Solved: the 2-core hang"). The solver and the
-LTV fit run inside vmaps and loops and only need small symmetric positive-definite
-systems, solved here by elimination, so they never emit a batched LAPACK call.
+inside a thread of that pool and wait on it; when all pool threads run such kernels at
+once the process deadlocks (docs/performance.md, "No LAPACK in compiled programs"). The
+solver and the LTV fit run inside vmaps and loops and only need small symmetric
+positive-definite systems, solved here by elimination, so they never emit a batched LAPACK
+call.
 """
 
 from __future__ import annotations
