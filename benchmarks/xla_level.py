@@ -6,8 +6,8 @@ per preset and level (no compile shared), compile apart from run, run the median
     python benchmarks/xla_level.py [--presets pendulum_d2c fish_d2c swimmer6_d2c]
                                    [--levels default 1 0] [--repeats 3]
 
-Native programs hold the simulator's callback, which JAX never caches, so they compile on
-every run; ``System.compiler_options`` picks level 1 for them (docs/performance.md).
+A native program compiles on a model's first run (later runs load it from JAX's cache);
+``System.compiler_options`` picks level 1 for them (docs/performance.md).
 """
 
 from __future__ import annotations

@@ -24,9 +24,11 @@ should too, before its first JAX computation:
 * JAX's persistent compilation cache in ``$MJX_SURROGATE_CACHE`` (default
   ``~/.cache/mjx_surrogate/jax``): a program compiled once (by any process) is loaded, not
   recompiled. ``MJX_SURROGATE_CACHE=off`` (or ``compile_cache=False``) switches it off.
-  Programs with host callbacks are not cached by JAX: the native backend's simulator is
-  one, and so is a progress meter polled from inside a solve; the CLI drives its solves
-  from the host instead (:mod:`mjx_surrogate.control.chunked`), so its MJX programs are cached.
+  Programs with ``jax.pure_callback`` are not cached by JAX: a progress meter polled from
+  inside a solve is one, and so is a user's NumPy function; the CLI drives its solves from
+  the host instead (:mod:`mjx_surrogate.control.chunked`), so their programs are cached.
+  The native backend's simulator is a named host call that the cache keeps
+  (:mod:`mjx_surrogate.systems.host_call`).
   JAX does not cache tracing; the MJX step's own programs are exported into the same folder
   and loaded by later runs instead of traced (:mod:`mjx_surrogate.systems.exported_step`).
 """

@@ -137,8 +137,8 @@ def test_new_values_do_not_recompile_the_chunks(pendulum):
 
 @pytest.mark.slow
 def test_native_programs_compile_with_the_systems_options_to_the_same_iterates(pendulum, monkeypatch):
-    # Native-backend programs hold a host callback and are never cached: they compile with
-    # System.compiler_options (a lower XLA backend optimisation level), MJX ones as before.
+    # Native-backend programs compile with System.compiler_options (a lower XLA backend
+    # optimisation level), MJX ones with XLA's defaults.
     system, task, U0 = pendulum
     assert system.backend == "mjx" and system.compiler_options is None
     _, native, _ = resolve(

@@ -7,9 +7,9 @@ rollout) and ``advance`` (iterate up to a given iteration count), and the host l
 ``advance`` in chunks of about ``chunk_s`` seconds: between chunks it updates the progress
 bar and checks for a stop request (SIGINT/SIGTERM), which ends the solve with
 ``StopReason.INTERRUPTED`` and its best iterate. On the MJX backend neither program holds a
-callback, so a second run of the same problem loads both from the cache
-(:mod:`mjx_surrogate.runtime`); the native backend's simulator is a callback and is
-compiled afresh every time (quickly: docs/performance.md, "Compile times").
+callback, and the native backend's simulator is a named host call that the cache keeps
+(:mod:`mjx_surrogate.systems.host_call`), so a second run of the same problem loads both
+from the cache (:mod:`mjx_surrogate.runtime`).
 
 The iterates are the ones of the one-program solve with the same inputs: the loop body is
 the same function. ``U0`` [T, nu] gives one solve (an :class:`~mjx_surrogate.control.ilqr.ILQRResult`),

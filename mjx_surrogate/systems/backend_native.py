@@ -1,7 +1,9 @@
 """Native backend: MuJoCo C through ``mujoco.rollout``, called from jitted code.
 
-The host call sits behind ``jax.pure_callback`` so a surrounding ``jit``/``vmap``/
-``while_loop`` trace is unchanged; it is a true black box (no derivatives) and runs
+The host call sits behind :func:`mjx_surrogate.systems.host_call.call` (a named XLA
+custom call keyed by the simulated model's content, so its programs enter JAX's
+persistent compilation cache) so a surrounding ``jit``/``vmap``/``while_loop`` trace is
+unchanged; it is a true black box (no derivatives) and runs
 every MuJoCo feature. Whole horizons go to C in one call, multi-threaded; the line
 search's feedback rollouts go one control step per ``mujoco.batch`` call.
 
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import hashlib
 import os
 import queue
 from typing import NamedTuple
@@ -25,6 +28,8 @@ import mujoco
 import numpy as np
 from mujoco import batch as mj_batch
 from mujoco import rollout as mj_rollout
+
+from mjx_surrogate.systems import host_call
 
 _SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
 _ROW = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -102,6 +107,16 @@ class NativeSimulator:
         self._ctrl_col = mujoco.mj_stateSize(self.model, int(mujoco.mjtState.mjSTATE_CTRL) - 1)
         self._batches: dict[int, queue.SimpleQueue] = {}  # free batches by size
         self._step_buffers: dict[int, queue.SimpleQueue] = {}  # free one-step buffers by size
+        self.key = self._content_key()
+
+    def _content_key(self) -> str:
+        """What determines this simulator's results: the stepped model's bytes (options and
+        flags included), the substeps and the thread count."""
+        buf = np.empty(mujoco.mj_sizeModel(self.model), np.uint8)
+        mujoco.mj_saveModel(self.model, None, buf)
+        digest = hashlib.sha256(buf.tobytes())
+        digest.update(f"{self.substeps}/{self.nthread}".encode())
+        return f"native-mujoco-{digest.hexdigest()[:32]}"
 
     def _new_datas(self) -> list:
         return [mujoco.MjData(self.model) for _ in range(self.nthread)]
@@ -274,7 +289,7 @@ def make_native_closed_loop(sim: NativeSimulator):
                 jnp.broadcast_to(hi, (nu,)),
             )
         ]
-        return jax.pure_callback(sim.closed_loop, out, *args, vmap_method="sequential")
+        return host_call.call(f"{sim.key}/closed_loop", sim.closed_loop, out, *args, vmap_method="sequential")
 
     return closed_loop
 
@@ -285,7 +300,8 @@ def make_native_rollout(sim: NativeSimulator):
     def rollout(x0: jax.Array, U: jax.Array) -> jax.Array:
         T = U.shape[-2]
         out = jax.ShapeDtypeStruct(x0.shape[:-1] + (T + 1, sim.nx), x0.dtype)
-        return jax.pure_callback(sim, out, x0, U.astype(x0.dtype), vmap_method="broadcast_all")
+        U = U.astype(x0.dtype)
+        return host_call.call(f"{sim.key}/rollout", sim, out, x0, U, vmap_method="broadcast_all")
 
     return rollout
 
@@ -295,6 +311,7 @@ def make_native_step(sim: NativeSimulator):
 
     def step(x: jax.Array, u: jax.Array) -> jax.Array:
         out = jax.ShapeDtypeStruct(jnp.broadcast_shapes(x.shape[:-1], u.shape[:-1]) + (sim.nx,), x.dtype)
-        return jax.pure_callback(sim.step, out, x, u.astype(x.dtype), vmap_method="broadcast_all")
+        u = u.astype(x.dtype)
+        return host_call.call(f"{sim.key}/step", sim.step, out, x, u, vmap_method="broadcast_all")
 
     return step

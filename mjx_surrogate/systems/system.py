@@ -92,9 +92,8 @@ class System:
 
     @property
     def compiler_options(self) -> dict | None:
-        """XLA options for a solve's programs on this system. Native-backend programs hold a
-        host callback, which JAX's persistent cache never keeps, so they compile on every
-        run: XLA's backend optimisation level 1 compiles them faster at the same run time
+        """XLA options for a solve's programs on this system. Native-backend programs compile
+        at XLA's backend optimisation level 1: faster to compile at about the same run time
         (measured in docs/performance.md, "Compile times"). None (XLA's defaults) on MJX."""
         return {"xla_backend_optimization_level": 1} if self.backend == "native" else None
 

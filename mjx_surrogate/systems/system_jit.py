@@ -2,7 +2,7 @@
 
 A solve's first argument is its (static) system; :attr:`System.compiler_options` says how
 its programs are compiled (a lower XLA backend optimisation level on the native backend,
-whose programs hold a host callback and so compile on every run). The command line's
+whose programs compile faster so). The command line's
 chunked driver passes those options when it compiles; :func:`system_jit` gives a public
 API call the same programs, so a notebook's solve and the command line's compile alike.
 """
