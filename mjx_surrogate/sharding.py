@@ -57,9 +57,10 @@ def device_mesh(
 def one_device_per_process(mesh: Mesh | None) -> Mesh | None:
     """The mesh narrowed to the first of its devices in each process (None if one remains).
 
-    For host callbacks (the native backend): JAX hands a callback its arguments on the
-    process's first CPU device, so callbacks of two devices of one process wait on the same
-    device, and in a reproduction this deadlocked (both callbacks idle, 0 % CPU). One
+    For the native backend. Made for ``jax.pure_callback``, which hands a callback its
+    arguments on the process's first CPU device: callbacks of two devices of one process
+    waited on the same device, and in a reproduction this deadlocked (both idle, 0 % CPU).
+    The simulator's named host call reads each device's buffers, and the rule stays: one
     device per process keeps the spread across hosts; MuJoCo's own threads use the cores.
     """
     if mesh is None:

@@ -149,3 +149,36 @@ def test_a_native_rollouts_program_is_loaded_from_the_cache_by_a_new_process(tmp
     (first, total), (second, again) = run(), run()
     assert first == 0 and second >= 1 and again == total
     assert any(f.startswith("jit_rollout") for f in os.listdir(tmp_path / "cache"))
+
+
+def test_a_native_solves_programs_and_point_goals_hold_no_python_callback():
+    """Every host call of a native solve (the simulator; native kinematics for point
+    goals) is named, so the whole program can be cached."""
+    from mjx_surrogate.control import chunked
+    from mjx_surrogate.control.ilqr import ILQRParams
+    from mjx_surrogate.identification.sysid import SysIdParams
+    from mjx_surrogate.runs.config import Config, SystemConfig, TaskConfig
+    from mjx_surrogate.runs.resolution import resolve
+    from mjx_surrogate.systems.kinematics import native_points_fn
+
+    cfg = Config(
+        system=SystemConfig(name="pendulum", backend="native"), task=TaskConfig(preset="pendulum_d2c", T=10)
+    )
+    _, system, task = resolve(cfg)
+    U0, key, P, SID = (
+        jnp.zeros((10, system.nu)),
+        jax.random.key(0),
+        ILQRParams(max_iter=3),
+        SysIdParams(n_samples=6),
+    )
+    state, _ = jax.eval_shape(lambda: chunked.start(system, task, U0, key, P, SID, "d2c"))
+    points = native_points_fn(system.mj_model, [("body", 1)])
+    texts = [
+        chunked.start.lower(system, task, U0, key, P, SID, "d2c").as_text(),
+        chunked.advance.lower(
+            system, task, state, jnp.asarray(1), jnp.asarray(False), P, SID, "d2c"
+        ).as_text(),
+        jax.jit(jax.jacfwd(points)).lower(jnp.zeros(system.nx)).as_text(),
+    ]
+    for text in texts:
+        assert host_call.TARGET in text and "python_cpu_callback" not in text

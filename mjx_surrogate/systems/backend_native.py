@@ -48,6 +48,16 @@ def outputs_can_act(mj_model: mujoco.MjModel) -> bool:
     return any(getattr(mujoco, f"get_mjcb_{name}")() is not None for name in _CALLBACKS_AFTER_SENSORS)
 
 
+def model_key(mj_model: mujoco.MjModel, *extra) -> str:
+    """A name for host calls on ``mj_model`` (:mod:`~mjx_surrogate.systems.host_call`): a
+    digest of the model's bytes (options and flags included) and of ``extra``."""
+    buf = np.empty(mujoco.mj_sizeModel(mj_model), np.uint8)
+    mujoco.mj_saveModel(mj_model, None, buf)
+    digest = hashlib.sha256(buf.tobytes())
+    digest.update(repr(extra).encode())
+    return f"mujoco-{digest.hexdigest()[:32]}"
+
+
 def _diverged(a: np.ndarray) -> np.ndarray:
     """[..., n] -> [...]: any entry non-finite or beyond ``mjMAXVAL``, MuJoCo's own test for
     a bad state or control (two reductions, no temporary of a's size: NaN propagates)."""
@@ -107,16 +117,8 @@ class NativeSimulator:
         self._ctrl_col = mujoco.mj_stateSize(self.model, int(mujoco.mjtState.mjSTATE_CTRL) - 1)
         self._batches: dict[int, queue.SimpleQueue] = {}  # free batches by size
         self._step_buffers: dict[int, queue.SimpleQueue] = {}  # free one-step buffers by size
-        self.key = self._content_key()
-
-    def _content_key(self) -> str:
-        """What determines this simulator's results: the stepped model's bytes (options and
-        flags included), the substeps and the thread count."""
-        buf = np.empty(mujoco.mj_sizeModel(self.model), np.uint8)
-        mujoco.mj_saveModel(self.model, None, buf)
-        digest = hashlib.sha256(buf.tobytes())
-        digest.update(f"{self.substeps}/{self.nthread}".encode())
-        return f"native-mujoco-{digest.hexdigest()[:32]}"
+        # what determines its results: the stepped model, the substeps, the thread count
+        self.key = model_key(self.model, "simulator", substeps, self.nthread)
 
     def _new_datas(self) -> list:
         return [mujoco.MjData(self.model) for _ in range(self.nthread)]

@@ -3,12 +3,14 @@
 Task costs on points (a fingertip at a target, a nose, an end effector) need p(x) and its
 Jacobian. Two sources, the same numbers: MJX forward kinematics on the same model
 (traced, autodiff gives the Jacobian), or native ``mj_kinematics`` called from inside the
-trace (``native_points_fn``: every model MuJoCo loads, nothing to compile; the Jacobian
+trace (``native_points_fn``, a named host call: every model MuJoCo loads; the Jacobian
 by central differences in qpos, exact to round-off for the smooth kinematic map). The
 dynamics are never differentiated here.
 """
 
 from __future__ import annotations
+
+import copy
 
 import jax
 import jax.numpy as jnp
@@ -16,7 +18,9 @@ import mujoco
 import numpy as np
 
 from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.systems import host_call
 from mjx_surrogate.systems.backend_mjx import import_mjx
+from mjx_surrogate.systems.backend_native import model_key
 
 _KINDS = {"site": mujoco.mjtObj.mjOBJ_SITE, "body": mujoco.mjtObj.mjOBJ_BODY}
 
@@ -62,9 +66,12 @@ def make_points_fn(m: mujoco.MjModel, ids: list[tuple[str, int]], field: str = "
 
 def native_points_fn(m: mujoco.MjModel, ids: list[tuple[str, int]]):
     """``points(x [nx]) -> [k, 3]`` as :func:`make_points_fn`, by native ``mj_kinematics``
-    through ``jax.pure_callback`` (batched over any leading axes), with a custom JVP whose
-    Jacobian [k, 3, nx] (zero beyond qpos) comes from central differences in qpos."""
+    through a named host call (:mod:`~mjx_surrogate.systems.host_call`, batched over any
+    leading axes), with a custom JVP whose Jacobian [k, 3, nx] (zero beyond qpos) comes from
+    central differences in qpos."""
+    m = copy.copy(m)  # the key is its content: a later edit of the caller's model is not seen
     nq, k = m.nq, len(ids)
+    key = model_key(m, "points", [(kind, int(j)) for kind, j in ids])
     h = 1e-6
 
     def at(q: np.ndarray, data: mujoco.MjData) -> np.ndarray:
@@ -91,18 +98,18 @@ def native_points_fn(m: mujoco.MjModel, ids: list[tuple[str, int]]):
                 J[b, :, :, i] = (at(row[:nq] + e, data) - at(row[:nq] - e, data)) / (2 * h)
         return J.reshape(x.shape[:-1] + (k, 3, x.shape[-1])).astype(x.dtype)
 
-    def call(fn, x, shape):
+    def call(name, fn, x, shape):
         out = jax.ShapeDtypeStruct(x.shape[:-1] + shape, x.dtype)
-        return jax.pure_callback(fn, out, x, vmap_method="broadcast_all")
+        return host_call.call(f"{key}/{name}", fn, out, x, vmap_method="broadcast_all")
 
     @jax.custom_jvp
     def points(x: jax.Array) -> jax.Array:
-        return call(host_points, x, (k, 3))
+        return call("points", host_points, x, (k, 3))
 
     @points.defjvp
     def _jvp(primals, tangents):
         (x,), (dx,) = primals, tangents
-        J = call(host_jacobian, x, (k, 3, x.shape[-1]))
+        J = call("jacobian", host_jacobian, x, (k, 3, x.shape[-1]))
         return points(x), jnp.einsum("...kcn,...n->...kc", J, dx)
 
     return points
