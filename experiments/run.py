@@ -351,8 +351,8 @@ def _unrecognized(joined: str, argv: list[str]) -> ConfigError:
         hint = f"; did you mean {', '.join(dict.fromkeys(similar[:3]))}?" if similar else ""
         return ConfigError(options[0], f"unknown field{hint} (run with --help for the valid fields)")
     stray = tokens[0] if tokens else "?"
-    before = argv[argv.index(stray) - 1] if stray in argv and argv.index(stray) > 0 else None
-    if before and before.startswith("--"):
+    before = _flag_before(argv, stray)
+    if before:
         parent, _, leaf = before[2:].replace("-", "_").rpartition(".")
         prefix, leaf = (f"{parent}." if parent else ""), leaf.removeprefix("no_")
         return ConfigError(
@@ -361,6 +361,30 @@ def _unrecognized(joined: str, argv: list[str]) -> ConfigError:
             f"--{prefix}no_{leaf} to switch it off",
         )
     return ConfigError("overrides", f"unexpected value {stray!r} (options are --field value)")
+
+
+def _flag_before(argv: list[str], stray: str) -> str | None:
+    """The on/off flag a stray value follows in argv (``--experiment.progress False``), not
+    merely its first occurrence: ``False`` may also be the value of an option that takes
+    one (``--experiment.exact_oracle False``)."""
+    after = [argv[i - 1] for i, a in enumerate(argv) if a == stray and i > 0 and argv[i - 1].startswith("--")]
+    flags = [b for b in after if _is_flag(b)]
+    return (flags or after or [None])[0]
+
+
+def _is_flag(option: str) -> bool:
+    """Whether ``--section.field`` (or ``--section.no_field``) names a plain bool field of
+    the config, which tyro takes as a flag without a value."""
+    import typing
+
+    *sections, leaf = option[2:].replace("-", "_").split(".")
+    cls = Config
+    for name in sections:
+        cls = typing.get_type_hints(cls).get(name)
+        if not dataclasses.is_dataclass(cls):
+            return False
+    hints = typing.get_type_hints(cls)
+    return hints.get(leaf, hints.get(leaf.removeprefix("no_"))) is bool
 
 
 class RunWriteFailed(Exception):

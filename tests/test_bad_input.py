@@ -209,6 +209,12 @@ MESSAGES = [
         ["x64"],
     ),
     (["smoke_d2c", "--experiment.x64", "True"], "--experiment.x64", ["'True'", "no_x64"], []),
+    (  # the stray value is the flag's, not the option's before it that takes the same word
+        ["smoke_d2c", "--experiment.exact_oracle", "False", "--experiment.progress", "False"],
+        "--experiment.progress",
+        ["'False'", "no_progress"],
+        ["exact_oracle"],
+    ),
     (["smoke_d2c", "--task.T", "2.5"], "--task.T", ["'2.5'", "integer"], ["Got errors"]),
     (["smoke_d2c", "--solver.max_iter", "abc"], "--solver.max_iter", ["'abc'", "integer"], []),
     (["smoke_d2c", "--solver.sysid_design", "sobol"], "--solver.sysid_design", ["'sobol'", "orthogonal"], []),
