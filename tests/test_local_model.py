@@ -134,3 +134,30 @@ def test_the_model_for_a_reduced_problem_carries_its_basis():
     assert m0.A.shape == (T, r, r) and m0.V.shape == (T + 1, nx, r)
     m, _ = model(p, m0, *nominal())
     np.testing.assert_array_equal(m.V, V)
+
+
+def test_the_first_models_zero_expansion_has_the_cost_derivatives_shapes_and_dtypes():
+    """Built without tracing the cost's second derivatives, it is what tracing them gives:
+    a free joint's quaternion error, float32 and mixed precision, point goals' own ones."""
+    from mjx_surrogate.control.riccati import cost_derivatives
+    from mjx_surrogate.tasks import make_task, task_cost
+
+    goal = np.r_[0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    quat = make_task(np.zeros(9), goal, np.eye(9), np.eye(9), np.eye(2), 3, quats=(2,))
+    points = lambda x: jnp.stack([x[:3], 2 * x[:3]])  # noqa: E731
+    goals = make_task(
+        np.zeros(9), goal, np.eye(9), np.eye(9), np.eye(2), 3, points=points, targets=np.ones((2, 3))
+    )
+    for cost in (task_cost(quat), task_cost(goals)):
+        for x_dtype, u_dtype in (
+            (jnp.float64, jnp.float64),
+            (jnp.float32, jnp.float32),
+            (jnp.float64, jnp.float32),
+        ):
+            X, U = jnp.zeros((4, 9), x_dtype), jnp.zeros((3, 2), u_dtype)
+            if cost.derivatives is not None and x_dtype != u_dtype:
+                continue  # the Gauss-Newton derivatives take one precision
+            want = jax.eval_shape(lambda X, U: cost_derivatives(cost, X, U), X, U)
+            got = lm.zero_expansion(cost, X, U)
+            assert [(a.shape, a.dtype) for a in got] == [(w.shape, w.dtype) for w in want], (x_dtype, u_dtype)
+            assert all(not np.any(np.asarray(a)) for a in got)

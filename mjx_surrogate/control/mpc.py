@@ -225,6 +225,7 @@ def episode(
     for integers).
     -> X [steps+1, nx], U [steps, nu], info stacked [steps, ...]."""
 
+    @jax.jit  # traced once: for the skipped branch's shapes and for the step itself
     def advance(x, plan, mem, n, k):
         k_plan, k_noise = jax.random.split(k)
         if observe is None:
