@@ -20,6 +20,7 @@ import shutil
 import sys
 import tempfile
 import threading
+import typing
 
 from experiments.summary import summary_line, summary_screen
 from mjx_surrogate.errors import ConfigError
@@ -375,8 +376,6 @@ def _flag_before(argv: list[str], stray: str) -> str | None:
 def _is_flag(option: str) -> bool:
     """Whether ``--section.field`` (or ``--section.no_field``) names a plain bool field of
     the config, which tyro takes as a flag without a value."""
-    import typing
-
     *sections, leaf = option[2:].replace("-", "_").split(".")
     cls = Config
     for name in sections:
