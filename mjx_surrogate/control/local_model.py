@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from mjx_surrogate.cost import Cost
+from mjx_surrogate.control.riccati import zero_cost_derivatives
 
 if TYPE_CHECKING:
     from mjx_surrogate.control.ilqr import Problem
@@ -134,21 +134,6 @@ def full_gains(K: jax.Array, V: jax.Array) -> jax.Array:
     return K if V.size == 0 else jnp.einsum("tkr,tnr->tkn", K, V[:-1])
 
 
-def zero_expansion(cost: Cost, X: jax.Array, U: jax.Array) -> tuple:
-    """Zeros in the shapes and dtypes of
-    :func:`~mjx_surrogate.control.riccati.cost_derivatives` at X [T+1, nx], U [T, nu],
-    the cost's second derivatives not traced (for a free joint's quaternion error they are
-    a large part of a solve's program): autodiff gives each derivative the dtype of the
-    gradient it differentiates (l_x, l_xx, V_x, V_xx: X's; l_u, l_uu, l_ux: U's). A cost
-    that brings its own ``derivatives`` is asked for their shapes."""
-    if cost.derivatives is not None:
-        shapes = jax.eval_shape(cost.derivatives, X, U)
-        return jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), shapes)
-    (T, nu), nx, x, u = U.shape, X.shape[-1], X.dtype, U.dtype
-    shapes = (((T, nx), x), ((T, nu), u), ((T, nx, nx), x), ((T, nu, nu), u), ((T, nu, nx), u))
-    return tuple(jnp.zeros(shape, dtype) for shape, dtype in shapes + (((nx,), x), ((nx, nx), x)))
-
-
 def init_model(problem: Problem, X: jax.Array, U: jax.Array) -> ModelState:
     """No model yet (zeros), for the first nominal X [T+1, nx], U [T, nu]: the first
     iteration identifies, with ``linearize`` (coarse) where a fine model is given."""
@@ -163,7 +148,7 @@ def init_model(problem: Problem, X: jax.Array, U: jax.Array) -> ModelState:
         V=jnp.zeros((0,) if rank is None else (T + 1, nx, r), dtype),
         X=X,
         U=U,
-        expansion=zero_expansion(problem.cost, X, U),
+        expansion=zero_cost_derivatives(problem.cost, X, U),
         reuse=ReuseState(jnp.array(True), jnp.array(False), jnp.array(False), jnp.asarray(0)),
         refine=RefineState(jnp.array(fine), jnp.array(fine)),
     )

@@ -135,3 +135,17 @@ def cost_derivatives(cost: Cost, X: jax.Array, U: jax.Array):
     ((lxx, _), (lux, luu)), (lx, lu) = jax.vmap(hessian_and_gradient(cost.running, (0, 1)))(X[:-1], U)
     VxxT, VxT = hessian_and_gradient(cost.terminal, 0)(X[-1])
     return lx, lu, lxx, luu, lux, VxT, VxxT
+
+
+def zero_cost_derivatives(cost: Cost, X: jax.Array, U: jax.Array):
+    """Zeros in the shapes and dtypes of :func:`cost_derivatives` at X, U, the second
+    derivatives not traced (their trace, for a free joint's quaternion error, is costly):
+    autodiff gives each derivative the dtype of the gradient it differentiates (l_x, l_xx,
+    V_x, V_xx: X's; l_u, l_uu, l_ux: U's). A cost's own ``derivatives`` are asked for their
+    shapes."""
+    if cost.derivatives is not None:
+        shapes = jax.eval_shape(cost.derivatives, X, U)
+        return jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), shapes)
+    (T, nu), nx, x, u = U.shape, X.shape[-1], X.dtype, U.dtype
+    shapes = (((T, nx), x), ((T, nu), u), ((T, nx, nx), x), ((T, nu, nu), u), ((T, nu, nx), u))
+    return tuple(jnp.zeros(shape, dtype) for shape, dtype in shapes + (((nx,), x), ((nx, nx), x)))
