@@ -336,7 +336,7 @@ HOLD_MODELS.remove("dm_control/humanoid")
 def test_every_suite_model_solves_its_hold_task_with_the_documented_defaults(model):
     """Every dm_control suite model and gymnasium MuJoCo asset with controls, as downloaded,
     through the documented defaults for a user's model (task preset ``hold``, solver.init
-    ``hold``, samples and perturbations from model_defaults), two D2C iterations on the
+    ``hold``, samples and perturbations from model_defaults), one D2C iteration on the
     native backend: no field given but the model and the iteration count. Checked: the
     cost never rises, the controls stay in the model's ctrlrange, the cost is that of the
     controls replayed with ``mujoco.rollout`` and the verdict is true of the outcome."""
@@ -347,7 +347,7 @@ def test_every_suite_model_solves_its_hold_task_with_the_documented_defaults(mod
     cfg = Config(
         system=SystemConfig(name="mjcf", mjcf_path=path, backend="native"),
         task=TaskConfig(preset="hold"),
-        solver=SolverConfig(max_iter=2),
+        solver=SolverConfig(max_iter=1),  # the whole iteration; a second one doubled the dog's 10 s run
     )
     res = resolve(cfg)
     s, tk, rc = res.system, res.task, res.config
