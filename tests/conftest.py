@@ -45,7 +45,7 @@ def systems():
 
 
 # The longest tests first, so that with two xdist workers none of them starts last and
-# leaves one worker idle at the end (the order is otherwise unchanged).
+# leaves one worker idle at the end.
 _LONGEST_FIRST = (
     "test_reproduce.py",
     "test_sharding.py",
@@ -63,5 +63,9 @@ def pytest_collection_finish(session):
 
 
 def pytest_collection_modifyitems(config, items):
+    """The files above first, then the other files with slow tests, then the files of fast
+    tests only: the last tests handed out are short, so the two workers end together.
+    A file's tests stay together, in their order (module fixtures are built once)."""
     rank = {name: i for i, name in enumerate(_LONGEST_FIRST)}
-    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+    slow = {item.path.name for item in items if item.get_closest_marker("slow")}
+    items.sort(key=lambda item: (rank.get(item.path.name, len(rank)), item.path.name not in slow))
