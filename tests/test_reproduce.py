@@ -84,7 +84,7 @@ def test_every_preset_of_the_reproduction_resolves_at_its_quick_size():
 
 
 @pytest.mark.slow
-def test_quick_reproduction_produces_every_figure_and_resumes(tmp_path, capsys, monkeypatch):
+def test_quick_reproduction_produces_its_experiments_figures_and_resumes(tmp_path, capsys, monkeypatch):
     """``reproduce --quick --only IN_SUITE``: each experiment kind's outputs end to end
     (predict, analysis, control, the PDE presets, closed loop); one sweep serves them all."""
     import contextlib
