@@ -204,12 +204,20 @@ def _mlp_gram(s: _Study, j: int, level: float) -> tuple[dict, np.ndarray]:
         mlp.targets(te.x, te.x_next, spec_mlp.increment),
     )
     zs, _ = spectra.standardise(r.model, z[: a.gram_points], z[: a.gram_points, : s.system.nx])
-    eig = spectra.eigenvalues(spectra.mlp_gram(r.model, zs))
+    G = spectra.mlp_gram(r.model, zs)
+    eig = spectra.eigenvalues(G)
+    tol = spectra.gram_rank_tolerance(zs.shape[0] * s.system.nx, eig.size, G.dtype)
+    rank, cond_rest = spectra.rank_and_condition(eig, tol)
+    hidden = sum(spec_mlp.widths)  # one scaling symmetry per ReLU unit: an exact null direction each
     return {
         "condition": spectra.condition(eig),
         "n_params": int(eig.size),
         "eigenvalues_below_1e-12_of_max": int(np.sum(eig < 1e-12 * eig[0])),
-        "precision": "float64 Gram of float32 Jacobians",
+        "null_space": int(eig.size - rank),  # eigenvalues below tol: the Gram's numerical null space
+        "hidden_unit_symmetries": hidden,
+        "rank_tolerance": tol,
+        "condition_of_the_rest": cond_rest,  # apart from the null space (spectra.rank_and_condition)
+        "precision": f"{G.dtype} Gram of {G.dtype} Jacobians at the trained (float32) parameters",
     }, eig
 
 

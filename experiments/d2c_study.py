@@ -88,7 +88,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     if exact_hist is not None:
         hist["exact Jacobians"] = exact_hist
     record.figure("cost_history.png", lambda: plots.cost_history(hist, f"{system.name}: {cfg.task.preset}"))
-    _, a_fb = record.stage("feedback", lambda: _feedback_stage(res, a_d2c, k_noise))
+    _, a_fb = record.stage("feedback", lambda: _feedback_stage(res, a_d2c, k_noise, m_d2c["status"]))
     record.figure(
         "feedback_noise.png",
         lambda: plots.cost_vs_noise(
@@ -186,8 +186,9 @@ def _exact(
     return a_ex["exact_cost_history"][: m_ex["iterations"] + 1]
 
 
-def _feedback_stage(res: Resolved, a_d2c: dict, k_noise) -> tuple[dict, dict]:
-    """The optimum under control noise, open loop (u*) and closed by its gains (u* + K dx)."""
+def _feedback_stage(res: Resolved, a_d2c: dict, k_noise, status: str) -> tuple[dict, dict]:
+    """The optimum under control noise, open loop (u*) and closed by its gains (u* + K dx);
+    the gains' verdict (none for a solve of ``status`` stationary or diverged)."""
     cfg, system, task = res
     ex = cfg.experiment
     X, U, K = (jnp.asarray(a_d2c[k]) for k in ("d2c_X", "d2c_U", "d2c_K"))
@@ -200,10 +201,14 @@ def _feedback_stage(res: Resolved, a_d2c: dict, k_noise) -> tuple[dict, dict]:
         "closed_loop_median": np.median(closed, axis=1).tolist(),
         "open_loop_median": np.median(opened, axis=1).tolist(),
     }
-    m["gains"] = pipeline.gains_verdict(ex.noise_levels, m["closed_loop_median"], m["open_loop_median"])
+    m["gains"] = pipeline.gains_verdict(
+        ex.noise_levels, m["closed_loop_median"], m["open_loop_median"], status
+    )
     m["gains_scale"] = 1.0
     arrays = {"feedback_closed_costs": closed, "feedback_open_costs": opened}
-    if m["gains"] != "help":  # back off: the largest scale of K that helps (evaluation.backed_off_feedback)
+    if m["gains"].startswith(
+        "do not use"
+    ):  # back off: the largest scale of K that helps (evaluation.backed_off_feedback)
         fb = backed_off_feedback(system, task, X, U, K, levels, k_noise, ex.n_noise_trials, (closed, opened))
         m["gains_scale"] = fb.scale
         if 0 < fb.scale < 1:

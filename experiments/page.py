@@ -22,10 +22,11 @@ PAGE = "report.html"
 EMBED_LIMIT = 32 * 2**20  # bytes: a larger video is linked beside the page, not embedded
 STATUS_MEANING = {
     "converged": "a stopping rule of the solver was met",
+    "stationary": "the solve stopped at its start: no step lowered the cost (see the hint)",
     "stalled": "no descent found up to the largest regularisation; the cost is finite",
     "max_iter": "the iteration limit was reached before a stopping rule",
     "completed": "every stage finished",
-    "diverged": "the cost became non-finite",
+    "diverged": "the black box returned non-finite states; the last finite iterate is kept, if any",
     "failed": "an error ended the run; the stages finished before it are kept",
     "interrupted": "stopped by a signal; the stages finished before it are kept",
 }
@@ -71,7 +72,7 @@ def _metrics(folder: str) -> dict:
 
 def _verdict(m: dict) -> list[str]:
     status = m.get("status", "unknown")
-    cls = {"diverged": "bad", "failed": "bad", "interrupted": "stop"}.get(status, "ok")
+    cls = {"diverged": "bad", "failed": "bad", "interrupted": "stop", "stationary": "stop"}.get(status, "ok")
     out = [
         f'<p><span class="status {cls}" id="status">{html.escape(status)}</span> '
         f"{html.escape(STATUS_MEANING.get(status, ''))}</p>"

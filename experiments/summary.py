@@ -22,6 +22,8 @@ def summary_screen(metrics: dict, path: str) -> str:
             + f") {reached}"
             + (f"; goal cost {goal.get('goal_cost_start')} -> {goal.get('goal_cost_final')}" if goal else "")
         )
+        if m.get("hint"):
+            lines.append(f"           hint: {m['hint']}")
     gains = (metrics.get("feedback") or {}).get("gains")
     if gains:
         lines.append(f"  feedback gains: {gains}")

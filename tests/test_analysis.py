@@ -79,8 +79,10 @@ def test_mlp_jacobian_gram_matches_finite_differences():
         [(h(flat.at[i].add(eps)) - h(flat.at[i].add(-eps))) / (2 * eps) for i in range(flat.shape[0])], axis=1
     )
     np.testing.assert_allclose(H, fd, atol=2e-3)
-    G = np.asarray(spectra.mlp_gram(model, zs))
-    np.testing.assert_allclose(G, H.T @ H / 8, rtol=1e-10, atol=1e-12)
+    G = np.asarray(spectra.mlp_gram(model, zs))  # evaluated at the same parameters in float64
+    H64 = np.asarray(spectra.mlp_jacobian(model, zs, evaluate_in=jnp.float64))
+    np.testing.assert_allclose(H64, H, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(G, H64.T @ H64 / 8, rtol=1e-10, atol=1e-12)
     d = np.asarray(spectra.mlp_descent_direction(model, zs, ys))
     loss = lambda th_: np.mean((h(th_) - np.asarray(ys, np.float64).ravel()) ** 2)  # noqa
     g = np.array(
@@ -101,3 +103,35 @@ def test_error_projections_vanish_for_the_own_fit_and_spread_across_sets():
     assert D.shape == (3, 4, 1) and np.abs(D).max() > 1e-4
     cos = spectra.cosine_matrix(np.eye(3))
     np.testing.assert_allclose(cos, np.eye(3))
+
+
+def test_a_relu_mlps_gram_is_singular_by_its_symmetries_and_the_rest_is_judged_apart():
+    """Each ReLU hidden unit's scaling (w_in, b) -> c (w_in, b), w_out -> w_out / c leaves the
+    network unchanged: one exact null direction of the Jacobian Gram per unit, with more
+    data than parameters. The whole Gram's condition number is then no evidence of
+    ill-conditioning; the spectrum apart from that null space is (float64 NumPy reference)."""
+    from experiments import report
+
+    spec = mlp.MLPSpec(widths=(5,), batch_size=16, epochs=2)
+    z = jax.random.normal(jax.random.key(0), (64, 2))
+    y = jnp.sin(z)
+    model = mlp.train(spec, jax.random.key(2), z, y, z, y).model
+    zs, _ = spectra.standardise(model, z, y)
+    H = np.asarray(spectra.mlp_jacobian(model, zs), np.float64)  # [64 * 2, 27]
+    assert H.shape == (128, 27)
+    H = np.asarray(spectra.mlp_jacobian(model, zs, evaluate_in=jnp.float64))  # as mlp_gram takes it
+    eig = spectra.eigenvalues(spectra.mlp_gram(model, zs))
+    rank, cond = spectra.rank_and_condition(eig, spectra.gram_rank_tolerance(*H.shape, np.float64))
+    assert rank == np.linalg.matrix_rank(H) == 27 - 5  # one null direction per hidden unit, no more
+    sv = np.linalg.svd(H, compute_uv=False)
+    np.testing.assert_allclose(cond, sv[0] ** 2 / sv[rank - 1] ** 2, rtol=1e-6)
+    assert np.isfinite(cond) and spectra.condition(eig) > 1e15  # whole: singular to rounding
+    # the rule on the whole Gram holds whatever the network; on the rest it can fail
+    row = {"condition": spectra.condition(eig), "condition_of_the_rest": cond}
+    assert report._ill_conditioned({"MLP": row}) is True
+    assert report._ill_conditioned({"MLP": row}, "condition_of_the_rest") is (cond > 1e6)
+    assert (
+        report._ill_conditioned({"MLP": row | {"condition_of_the_rest": 50.0}}, "condition_of_the_rest")
+        is False
+    )
+    assert report._ill_conditioned({"MLP": {"condition": 1e9}}, "condition_of_the_rest") is None  # not kept

@@ -220,6 +220,18 @@ MESSAGES = [
     (["smoke_d2c", "--solver.sysid_design", "sobol"], "--solver.sysid_design", ["'sobol'", "orthogonal"], []),
     (["smoke_predict", "--data.levels", "0"], "data.levels", ["> 0", "got 0"], []),
     (["smoke_d2c", "--data.levels", "0.1", "-1"], "data.levels", ["got -1"], []),
+    # a grid whose dense nx x nx arrays do not fit: refused before the task's Q is built
+    # (262144^2 float64 is 512 GiB), at the shortest horizon's bound ...
+    (
+        ["burgers_d2c", "--system.name", "burgers262144"],
+        "system.name",
+        ["nx = 262144", "T = 1", "LTV model", "GiB", "valid here: nx <="],
+        [],
+    ),
+    (["burgers_ro_d2c", "--system.name", "burgers262144"], "system.name", ["Hessians)"], ["LTV model"]),
+    # ... and at the preset's horizon once it is read (T = 1 fits here, T = 50 does not):
+    # the horizon is what to change
+    (["burgers_d2c", "--system.name", "burgers8192"], "task.T", ["nx = 8192", "T = 50", "T <="], ["T = 1"]),
 ]
 
 

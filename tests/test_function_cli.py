@@ -181,3 +181,44 @@ def test_the_papers_analysis_kind_runs_on_a_function_black_box(tmp_path, capsys)
     (folder,) = glob.glob(str(tmp_path / "*_a"))
     assert json.load(open(os.path.join(folder, "metrics.json")))["status"] in ("converged", "stalled")
     assert os.path.isfile(os.path.join(folder, "gram_spectra.png"))
+
+
+FAILS_LATER = PENDULUM.replace(
+    "def step(x, u, dt=0.05):\n",
+    "CALLS = [0]\n\n\ndef step(x, u, dt=0.05):\n    CALLS[0] += 1\n    if CALLS[0] > 8000:\n"
+    "        return np.full(2, np.nan)\n",
+)
+
+
+def test_a_black_box_that_turns_nan_mid_solve_keeps_its_last_finite_iterate(tmp_path, capsys):
+    """A host step that returns NaN after 8,000 calls (the solve takes about 15,000): the
+    solve ends ``diverged`` at the iteration where it did, keeping the last finite iterate
+    (its controls, its states as the clean step gives them, its cost); no gains verdict on
+    NaN costs."""
+    entry = _module(tmp_path, FAILS_LATER, "fails_later.py") + ":make_system"
+    argv = ["--system.name", "python", "--system.entry", entry, *TASK.split(), "--experiment.kind", "d2c"]
+    argv += [
+        "--experiment.exact-oracle",
+        "False",
+        "--experiment.no-progress",
+        "--out",
+        str(tmp_path / "runs"),
+    ]
+    assert cli.main(argv) == 1  # diverged
+    (folder,) = glob.glob(str(tmp_path / "runs" / "*"))
+    m = json.load(open(os.path.join(folder, "metrics.json")))
+    d2c = m["d2c"]
+    assert m["status"] == d2c["status"] == "diverged"
+    assert 1 <= d2c["last_finite_iteration"] == d2c["iterations"] - 1, d2c
+    assert d2c["cost"] is not None and d2c["cost"] == d2c["cost_solver"] < d2c["goal"]["goal_cost_start"]
+    assert "last finite iterate" in d2c["hint"] and "last finite iterate" in d2c["cost_source"]
+    assert m["feedback"]["gains"].startswith("not judged")
+    with np.load(os.path.join(folder, "arrays.npz")) as a:
+        U, X = a["d2c_U"], a["d2c_X"]
+    x, ref = np.zeros(2), [np.zeros(2)]
+    for u in U:  # the kept controls on the step as it was before it failed, float64 NumPy
+        omega = x[1] + 0.05 * (-9.81 * np.sin(x[0]) - 0.1 * x[1] + u[0])
+        x = np.array([x[0] + 0.05 * omega, omega])
+        ref.append(x)
+    np.testing.assert_allclose(X, np.array(ref), rtol=1e-9, atol=1e-12)
+    assert "hint: the black box returned non-finite states" in capsys.readouterr().out

@@ -185,6 +185,55 @@ def test_blown_up_trials_rejected_and_nonfinite_start_reported():
     assert np.all(np.isfinite(h)) and np.all(np.diff(h) <= 0)
 
 
+def bilinear_problem():
+    """x = [p, v], v' = v + 0.1 u p: at p = 0 the controls act on nothing, so every local
+    model says they do not change the cost (a goal at p = 1 all the same)."""
+    step = lambda x, u: jnp.stack([x[0] + 0.1 * x[1], x[1] + 0.1 * u[0] * x[0]])  # noqa: E731
+    jac = jax.vmap(jax.jacfwd(step, argnums=(0, 1)))
+    lin = lambda X, U, K, key: jac(X[:-1], U)  # noqa: E731
+    goal = jnp.array([1.0, 0.0])
+    cost = Cost(lambda x, u: 0.005 * u @ u, lambda x: 50.0 * (x - goal) @ (x - goal))
+    return step, lin, cost
+
+
+def solve_from(problem, x0, U0, **kw):
+    step, lin, cost = problem
+    f = lambda x0, U0: ilqr(
+        step, lin, cost, x0, U0, jnp.full(1, -10.0), jnp.full(1, 10.0), ILQRParams(**kw), jax.random.key(0)
+    )
+    return jax.jit(f)(jnp.asarray(x0, float), U0)
+
+
+def test_a_start_where_the_controls_act_on_nothing_is_stationary_not_converged():
+    res = solve_from(bilinear_problem(), [0.0, 0.0], jnp.zeros((T, 1)))
+    reason = StopReason(int(res.stop_reason))
+    assert reason == StopReason.STATIONARY and reason.verdict == "stationary", reason.description
+    assert not bool(res.converged) and int(res.iterations) == 1
+    assert float(res.cost) == float(res.cost_history[0]) == 50.0  # no decrease at all
+    # The control: the same system from a start where the controls act is solved and
+    # converges (a minimum rule after a decrease), so the rule can tell the two apart.
+    moved = solve_from(bilinear_problem(), [0.5, 0.0], jnp.zeros((T, 1)))
+    assert bool(moved.converged), StopReason(int(moved.stop_reason)).description
+    assert float(moved.cost) < 0.01 * float(moved.cost_history[0])
+
+
+def test_a_model_that_turns_non_finite_stops_diverged_keeping_the_last_finite_iterate():
+    # The exact LQ model, until the nominal leaves |u| < 1e-3 (the first step, to the LQR
+    # optimum): then NaN, as a black box that fails mid-solve gives.
+    step, lin, cost = linear_problem()
+    nan_later = lambda X, U, K, key: tuple(  # noqa: E731
+        M * jnp.where(jnp.max(jnp.abs(U)) > 1e-3, jnp.nan, 1.0) for M in lin(X, U, K, key)
+    )
+    res = run(step, nan_later, cost, jnp.zeros((T, 1)), rel_tol=1e-12, mu_init=0.0)
+    reason = StopReason(int(res.stop_reason))
+    assert reason == StopReason.MODEL_NOT_FINITE and reason.verdict == "diverged", reason.description
+    assert int(res.iterations) == 2 and not bool(res.converged)  # stopped at once, not after mu_max
+    _, U_ref, X_ref = riccati_lqr()
+    np.testing.assert_allclose(res.U, U_ref, atol=1e-9)  # iteration 1's iterate, finite, kept
+    np.testing.assert_allclose(res.X, X_ref, atol=1e-9)
+    assert np.isfinite(float(res.cost)) and float(res.cost) == float(res.cost_history[1])
+
+
 def test_absurd_weights_reported_not_nan():
     step, lin, _ = linear_problem()
     cost = Cost(lambda x, u: 0.5 * 1e300 * x @ x + 0.5 * u @ u, lambda x: 1e300 * (1e300 * x @ x))

@@ -157,6 +157,20 @@ def test_gains_verdict_names_the_levels_where_feedback_hurts():
     assert "do not use" in pipeline.gains_verdict([0.01], [float("nan")], [1.0])
 
 
+def test_gains_verdict_says_no_effect_or_not_judged_where_help_would_be_vacuous():
+    inf = float("inf")
+    # gains that do not act (K = 0: the closed loop is the open loop) do not "help"
+    same = pipeline.gains_verdict([0.0, 0.01, 0.1], [50.0, 50.001, 50.004], [50.0, 50.001, 50.004])
+    assert same.startswith("no effect"), same
+    assert pipeline.gains_verdict([0.01, 0.1], [50.0, 50.003], [50.0, 50.004]) == "help"  # less at one level
+    # inf <= inf is no evidence: an open loop that is not finite leaves nothing to judge
+    assert pipeline.gains_verdict([0.01, 0.1], [inf, inf], [inf, inf]).startswith("not judged")
+    assert pipeline.gains_verdict([0.01], [inf], [1.0]).startswith("do not use")  # the gains blow it up
+    for status in ("stationary", "diverged"):
+        assert pipeline.gains_verdict([0.01], [1.0], [2.0], status) == f"not judged: the solve is {status}"
+    assert pipeline.gains_verdict([0.01], [1.0], [2.0], "converged") == "help"
+
+
 def test_a_saturated_actuator_identifies_as_exactly_zero_with_the_noise_floor(tmp_path):
     """A position servo held at its force limit moves nothing: its B column is exactly 0.
     Least squares leaves round-off there, which the user-model default noise floor zeroes

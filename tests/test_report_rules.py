@@ -40,6 +40,15 @@ def test_the_prediction_verdict_follows_the_rules_thresholds(monkeypatch):
     assert report._predict_claim(metrics(0.05), scale=1.0)[0] is False
 
 
+def test_a_local_model_that_predicts_worse_than_the_best_global_one_does_not_hold():
+    # accurate against the state (1.2 of a state of 100) but 1.2x the best global model's
+    # error: the paper's comparison fails (a 1.5x allowance used to let it hold)
+    held, text = report._predict_claim(metrics(1.2), scale=100.0)
+    assert held is False and "1.2x the best global model's" in text
+    assert "(at each level: 1.2 at 10 %, 0.222 at 60 %)" in text
+    assert report._predict_claim(metrics(0.9), scale=100.0)[0] is True
+
+
 def test_the_report_ends_with_the_table_of_rules(tmp_path):
     text = report.render(
         {n: None for n in EXPERIMENTS}, {}, str(tmp_path / "figures"), str(tmp_path), True, 0.0
@@ -53,3 +62,70 @@ def test_the_report_ends_with_the_table_of_rules(tmp_path):
 def test_a_rule_formats_percentages():
     r = Rule("x", "c", "within {tol_pct} % and {tol}", (("tol", 0.05),))
     assert r.rule_text() == "within 5 % and 0.05"
+
+
+def _theory_findings(sigmas=(0.5, 1.0), max_order=4):
+    """The theory experiment's findings, computed as it computes them (exact rational
+    moments; a small Monte Carlo that the rules do not read)."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from experiments import theory_study
+
+    a = SimpleNamespace(theory_mc_samples=50, theory_mc_trials=4)
+    orders = np.arange(1, max_order + 1)
+    by = {f"{s:g}": theory_study._one_sigma(a, s, orders, np.random.default_rng(0))[0] for s in sigmas}
+    return theory_study._findings({"by_sigma": by})
+
+
+def test_each_theory_formula_has_its_own_verdict_and_the_numbers_decide_it():
+    fnd = _theory_findings()
+    held = {name: report_rules.theory_claim(fnd, name)[0] for name in report_rules.THEORY}
+    # the monomial formula is exact; the printed Hermite, Legendre and conditioning formulas
+    # are off by more than their factors (paper / exact 0.021-5.5, 0.11-150, 0.0086-1)
+    assert held == {
+        "theory_monomial": True,
+        "theory_hermite": False,
+        "theory_legendre": False,
+        "theory_condition": False,
+    }
+    _, lo, hi = report_rules.theory_claim(fnd, "theory_hermite")
+    assert 0.021 < lo < 0.022 and 5 < hi < 6  # sigma 0.5, N = 4: 13.7 / 638; sigma 1, N = 4: 3500 / 638
+
+
+@pytest.mark.parametrize(
+    "name,contradicting,verdict",
+    [
+        ("theory_monomial", [1.0, 1.0 + 1e-6], False),  # off by 1e-6: not exact
+        ("theory_hermite", [0.9, 1.2], True),  # within a factor 2 everywhere
+        ("theory_hermite", [0.6, 2.1], False),
+        ("theory_legendre", [0.55, 1.9], True),
+        ("theory_condition", [0.2, 3.0], True),  # within an order of magnitude
+        ("theory_condition", [0.09, 3.0], False),
+    ],
+)
+def test_a_theory_rule_turns_with_data_that_contradict_it(name, contradicting, verdict):
+    fnd = _theory_findings()
+    key = report_rules.THEORY[name]
+    for d in fnd.values():
+        d[key] = list(contradicting)
+    assert report_rules.theory_claim(fnd, name)[0] is verdict
+
+
+def test_the_report_prints_one_theory_verdict_per_formula(tmp_path):
+    import json
+
+    folder = tmp_path / "theory"
+    folder.mkdir()
+    fnd = _theory_findings()
+    (folder / "metrics.json").write_text(
+        json.dumps({"status": "completed", "findings": fnd, "orders": [1, 2, 3, 4]})
+    )
+    folders = {n: None for n in EXPERIMENTS} | {"theory": str(folder)}
+    text = report.render(folders, {}, str(tmp_path / "figures"), str(tmp_path), True, 0.0)
+    part = text[text.index("## The theory, numerically") :]
+    part = part[: part.index("\n## ", 1)]
+    verdicts = [ln for ln in part.splitlines() if ln.startswith("**Claim:**")]
+    assert len(verdicts) == 4 and sum("**held**" in v for v in verdicts) == 1, verdicts
+    assert "Cause: The printed formula keeps only the leading monomial" in part

@@ -32,9 +32,21 @@ def condition(eigs: np.ndarray) -> float:
     return float(eigs[0] / eigs[-1]) if eigs[-1] > 0 else float("inf")
 
 
-def _flat_apply(model: MLPModel):
-    """(theta_flat [n_theta], zs [nz] standardised) -> h [nx] standardised; and theta0."""
-    flat, unravel = ravel_pytree(model.params)
+def rank_and_condition(eigs: np.ndarray, rel: float) -> tuple[int, float]:
+    """The numerical rank (eigenvalues above ``rel`` lambda_max, eigs in descending order;
+    ``rel`` e.g. :func:`gram_rank_tolerance`)
+    and the condition number of that part, lambda_max / the smallest of them: the
+    conditioning of a Gram apart from its exact null space (an MLP's hidden-unit scaling
+    symmetries, or fewer data than parameters, make the whole Gram singular by construction)."""
+    kept = eigs[eigs > rel * eigs[0]]
+    return int(kept.size), float(kept[0] / kept[-1])
+
+
+def _flat_apply(model: MLPModel, dtype=None):
+    """(theta_flat [n_theta], zs [nz] standardised) -> h [nx] standardised; and theta0
+    (the trained parameters, cast to ``dtype`` if given: the same network evaluated in it)."""
+    params = model.params if dtype is None else jax.tree.map(lambda a: a.astype(dtype), model.params)
+    flat, unravel = ravel_pytree(params)
 
     def h(theta, zs):
         return nnx.merge(model.graphdef, unravel(theta))(zs)
@@ -47,17 +59,28 @@ def standardise(model: MLPModel, z: jax.Array, y: jax.Array) -> tuple[jax.Array,
     return ((z - n.z_mean) / n.z_std).astype(jnp.float32), ((y - n.y_mean) / n.y_std).astype(jnp.float32)
 
 
-def mlp_jacobian(model: MLPModel, zs: jax.Array, dtype=jnp.float64) -> jax.Array:
-    """H [R * nx, n_theta]: d h(z_i, theta) / d theta stacked over the points zs [R, nz]."""
-    h, flat = _flat_apply(model)
+def mlp_jacobian(model: MLPModel, zs: jax.Array, dtype=jnp.float64, evaluate_in=None) -> jax.Array:
+    """H [R * nx, n_theta]: d h(z_i, theta) / d theta stacked over the points zs [R, nz],
+    computed in the network's own precision (or ``evaluate_in``), returned as ``dtype``."""
+    h, flat = _flat_apply(model, evaluate_in)
+    zs = zs if evaluate_in is None else zs.astype(evaluate_in)
     J = jax.vmap(jax.jacrev(h), in_axes=(None, 0))(flat, zs)  # [R, nx, n_theta]
     return J.reshape(-1, flat.shape[0]).astype(dtype)
 
 
 def mlp_gram(model: MLPModel, zs: jax.Array) -> jax.Array:
-    """(1/R) H' H [n_theta, n_theta] in float64 where enabled."""
-    H = mlp_jacobian(model, zs, jnp.result_type(float))
+    """(1/R) H' H [n_theta, n_theta], the Jacobian evaluated at the trained parameters in
+    float64 where enabled: the null space of the ReLU units' scaling symmetries is then exact
+    to float64, not buried under float32 rounding (:func:`rank_and_condition`)."""
+    H = mlp_jacobian(model, zs, jnp.result_type(float), evaluate_in=jnp.result_type(float))
     return H.T @ H / zs.shape[0]
+
+
+def gram_rank_tolerance(n_rows: int, n_cols: int, dtype) -> float:
+    """The relative eigenvalue below which a formed Gram H'H / R (H [n_rows, n_cols]) is
+    singular at its precision: max(n_rows, n_cols) eps, the resolution of its eigenvalues
+    (numpy's ``matrix_rank`` rule, applied to the Gram rather than to H)."""
+    return float(max(n_rows, n_cols) * jnp.finfo(dtype).eps)
 
 
 def mlp_descent_direction(model: MLPModel, zs: jax.Array, ys: jax.Array) -> jax.Array:

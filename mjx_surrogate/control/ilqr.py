@@ -25,12 +25,17 @@ secant updates; coarse then fine identification), is decided by
 iteration reads: the model of the nominal -> backward pass -> line search ->
 regularisation schedule -> stopping rules, each a small function below.
 
-Stopping rules (checked in this order after every iteration; :class:`StopReason`):
-relative cost decrease <= rel_tol; max|k| <= k_tol (1 + max|U|); no trial accepted while
-the model promises |dV| <= rel_tol |J| (the noise floor of the black box); in all three
-the decrease, k and dV are first multiplied by 1 + reg (:func:`backward_pass`), as a
-heavily regularised step is small, and gains little, without being optimal; mu > mu_max
-(no descent found: stalled); max_iter; a stop requested through the progress meter.
+Stopping rules (checked in this order after every iteration; :class:`StopReason`): a
+local model that is not finite (the black box returned NaN or inf around the finite
+nominal: diverged, the last finite iterate kept); relative cost decrease <= rel_tol;
+max|k| <= k_tol (1 + max|U|); no trial accepted while the model promises
+|dV| <= rel_tol |J| (the noise floor of the black box); in all three the decrease, k and
+dV are first multiplied by 1 + reg (:func:`backward_pass`), as a heavily regularised step
+is small, and gains little, without being optimal; a minimum rule that holds while the
+cost is still the start's is ``STATIONARY``, not a convergence (the local model says the
+controls do not lower the cost there: a start where the controls touch nothing, or a
+start that is already a minimum); mu > mu_max (no descent found: stalled); max_iter; a
+stop requested through the progress meter.
 
 Regularisation schedule: mu falls by mu_factor after an accepted step and rises after a
 rejected one; with mu_raise_alpha > 0 a step accepted only at a size below it raises mu
@@ -95,6 +100,8 @@ class StopReason(enum.IntEnum):
     NOT_FINITE = 5  # initial cost not finite: the trajectory is not, or blew up (|x| > cost.BLOWUP)
     NOISE_FLOOR = 6  # expected decrease below rel_tol with no trial accepted
     INTERRUPTED = 7  # a stop was requested through the progress meter
+    STATIONARY = 8  # a minimum rule held before any step lowered the cost below the start's
+    MODEL_NOT_FINITE = 9  # the local model is not finite: the black box returned NaN/inf mid-solve
 
     @property
     def description(self) -> str:
@@ -102,7 +109,7 @@ class StopReason(enum.IntEnum):
 
     @property
     def verdict(self) -> str:
-        """converged | stalled | max_iter | diverged | interrupted | running."""
+        """converged | stationary | stalled | max_iter | diverged | interrupted | running."""
         return _VERDICTS[self]
 
 
@@ -115,6 +122,14 @@ _DESCRIPTIONS = {
     StopReason.NOT_FINITE: "initial trajectory not finite or beyond |x| = 1e8 (diverged)",
     StopReason.NOISE_FLOOR: "expected decrease below rel_tol (at the noise floor)",
     StopReason.INTERRUPTED: "interrupted (stop requested)",
+    StopReason.STATIONARY: (
+        "stationary start: no step lowered the cost below the start's before a minimum rule held "
+        "(the controls' local effect on the cost vanishes there, or the start is already a minimum)"
+    ),
+    StopReason.MODEL_NOT_FINITE: (
+        "the local model is not finite: the black box returned non-finite states around a finite "
+        "nominal (diverged); the last finite iterate is kept"
+    ),
 }
 _VERDICTS = {
     StopReason.RUNNING: "running",
@@ -125,6 +140,8 @@ _VERDICTS = {
     StopReason.NO_DESCENT: "stalled",
     StopReason.NOT_FINITE: "diverged",
     StopReason.INTERRUPTED: "interrupted",
+    StopReason.STATIONARY: "stationary",
+    StopReason.MODEL_NOT_FINITE: "diverged",
 }
 CONVERGED = (StopReason.COST_CHANGE, StopReason.SMALL_STEP, StopReason.NOISE_FLOOR)
 
@@ -360,13 +377,24 @@ def _minimum_tests(p: ILQRParams, s: ILQRState, ls: LineSearch, k, dV, ok, reg) 
     return small_dJ, small_k, floor
 
 
-def _stop_reason(p: ILQRParams, it, mu, model: ModelState, minimum: tuple, stop) -> jax.Array:
-    """The first rule that holds (:class:`StopReason`; RUNNING if none): minima only on a
-    trusted model, a stall only on a fine one (:mod:`mjx_surrogate.control.local_model`)."""
+def model_finite(model: ModelState) -> jax.Array:
+    """Whether the local model's A and B are finite (a black box that returned NaN or inf
+    in the identification's rollouts gives a model that is not)."""
+    return jnp.all(jnp.isfinite(model.A)) & jnp.all(jnp.isfinite(model.B))
+
+
+def _stop_reason(p: ILQRParams, it, mu, model: ModelState, minimum: tuple, moved, stop) -> jax.Array:
+    """The first rule that holds (:class:`StopReason`; RUNNING if none): a model that is not
+    finite first; minima only on a trusted model, and only once the cost has ``moved``
+    below the start's (else the start is stationary); a stall only on a fine model
+    (:mod:`mjx_surrogate.control.local_model`)."""
     small_dJ, small_k, floor = minimum
     trusted = local_model.trusted(model)
+    at_min = trusted & (small_dJ | small_k | floor)
     return jnp.select(
         [
+            ~model_finite(model),
+            at_min & ~moved,
             trusted & small_dJ,
             trusted & small_k,
             trusted & floor,
@@ -375,6 +403,8 @@ def _stop_reason(p: ILQRParams, it, mu, model: ModelState, minimum: tuple, stop)
             stop,
         ],
         [
+            StopReason.MODEL_NOT_FINITE,
+            StopReason.STATIONARY,
             StopReason.COST_CHANGE,
             StopReason.SMALL_STEP,
             StopReason.NOISE_FLOOR,
@@ -406,7 +436,8 @@ def _iteration(problem: Problem, p: ILQRParams, progress, s: ILQRState) -> ILQRS
     it = s.it + 1
     stop = progress_lib.poll(progress, it, ls.J, mu) if progress is not None else jnp.array(False)
     # judged on the model the step was taken on (a coarse one that handed over stops nothing)
-    reason = _stop_reason(p, it, mu, model, minimum, stop)
+    moved = ls.J < s.history[0]  # the cost is below the start's
+    reason = _stop_reason(p, it, mu, model, minimum, moved, stop)
     return ILQRState(
         X=ls.X,
         U=ls.U,

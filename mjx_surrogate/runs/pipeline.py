@@ -103,10 +103,24 @@ def solve_config(res, progress: ProgressMeter = NO_PROGRESS) -> ConfigSolve:
     return ConfigSolve(chunked.solve(system, task, U0, k_d2c, params, sid_params, "d2c", progress), U0, None)
 
 
-def gains_verdict(levels, closed_median, open_median) -> str:
-    """Whether the stored gains are to be used: "help" when the closed loop u = U + K dx
-    costs no more than the open loop (median over draws) at every noise level > 0, else
-    which levels they make worse."""
+NO_GAINS_VERDICT = ("stationary", "diverged")  # solves whose gains are not judged
+
+
+def gains_verdict(levels, closed_median, open_median, status: str | None = None) -> str:
+    """Whether the stored gains are to be used, from the median costs over draws at each
+    noise level > 0: "help" when the closed loop u = U + K dx costs no more than the open
+    loop at every level and less at one; "no effect" when it costs the same at every level
+    (to 1e-9: gains that do not act); "do not use" naming the levels it makes worse (a
+    closed loop that is not finite counts as worse); "not judged" where the open loop's
+    median is not finite, or for a solve (``status``) that made no progress or diverged."""
+    if status in NO_GAINS_VERDICT:
+        return f"not judged: the solve is {status}"
+    pairs = [(lv, float(c), float(o)) for lv, c, o in zip(levels, closed_median, open_median) if lv > 0]
+    bad = [lv for lv, _, o in pairs if not np.isfinite(o)]
+    if bad:
+        return f"not judged: the open-loop cost is not finite at noise level(s) {bad}"
+    if all(abs(c - o) <= 1e-9 * max(abs(o), 1e-300) for _, c, o in pairs):
+        return "no effect: the closed loop costs the same as the open loop at every noise level"
     worse = evaluation.levels_made_worse(levels, closed_median, open_median)
     if not worse:
         return "help"
@@ -179,10 +193,16 @@ def summary(
     """
     X_bb, cost = black_box_trajectory(system, task, result.U)
     reason = StopReason(int(result.stop_reason))
+    cost_solver = finite_or_none(result.cost)
+    status = verdict(reason, cost if cost is not None else np.inf)
+    source = "black box replay"
+    if cost is None and cost_solver is not None:  # the black box turned non-finite: keep the last finite iterate
+        X_bb, cost, source = result.X, cost_solver, "solver: the last finite iterate (its replay was not finite)"
     out = {
-        "status": verdict(reason, cost if cost is not None else np.inf),
+        "status": status,
         "cost": cost,
-        "cost_solver": finite_or_none(result.cost),
+        "cost_solver": cost_solver,
+        "cost_source": source,
         "iterations": int(result.iterations),
         "converged": bool(result.converged),
         "stop_reason": reason.description,
@@ -192,6 +212,11 @@ def summary(
             and np.all(np.asarray(result.U) <= np.asarray(task.u_max))
         ),
     }
+    if status == "diverged" and cost is not None:
+        last = int(result.iterations) - (reason == StopReason.MODEL_NOT_FINITE)
+        out["last_finite_iteration"] = last
+    if hint := status_hint(status, out):
+        out["hint"] = hint
     if getattr(system, "mj_model", None) is None:  # a function black box: no MuJoCo to replay on
         out["native_float64"], out["replay_gap"] = None, None
         return out, X_bb
@@ -212,6 +237,22 @@ def summary(
     out["native_float64"] = native
     out["replay_gap"] = finite_or_none((judged - cost) / abs(cost)) if judged is not None and cost else None
     return out, X_bb
+
+
+def status_hint(status: str, metrics: dict) -> str | None:
+    """What to try after a solve that made no progress or diverged (None otherwise)."""
+    if status == "stationary":
+        return (
+            "the local model says the controls do not lower the cost at the start (e.g. they touch "
+            "nothing the cost weighs yet): try several starts spread over the actuators' range "
+            "(--solver.n_starts 8 --solver.init_scale 1)"
+        )
+    if status == "diverged" and metrics.get("cost") is not None:
+        return (
+            f"the black box returned non-finite states after iteration {metrics.get('last_finite_iteration')}; "
+            "the controls and cost of that last finite iterate are kept"
+        )
+    return None
 
 
 class Optimum(NamedTuple):

@@ -91,15 +91,22 @@ def cost_vs_noise(
     title: str = "",
     xlabel: str = "control noise std (fraction of U_max: the actuator limit, else max |u*|)",
 ):
-    """Median and 10-90 % band of closed-loop / open-loop cost [L, N] against noise [L]."""
+    """Median and 10-90 % band of closed-loop / open-loop cost [L, N] against noise [L], over
+    the finite draws (a level without any is left out)."""
     fig, ax = plt.subplots(figsize=(5, 3.4))
     for name, c in costs.items():
-        c = np.asarray(c)
-        med = np.nanmedian(c, axis=1)
-        lo, hi = np.nanpercentile(c, 10, axis=1), np.nanpercentile(c, 90, axis=1)
+        c = np.asarray(c, float)
+        finite = np.isfinite(c)
+        q = np.full((3, c.shape[0]), np.nan)
+        for i in np.nonzero(finite.any(axis=1))[0]:
+            q[:, i] = np.percentile(c[i][finite[i]], [50, 10, 90])
+        med, lo, hi = q
         ax.plot(noise, med, marker="o", label=name)
         ax.fill_between(noise, lo, hi, alpha=0.2)
-    ax.set_yscale("log")
+    if any(np.isfinite(np.asarray(c, float)).any() for c in costs.values()):
+        ax.set_yscale("log")
+    else:
+        ax.text(0.5, 0.5, "no finite cost at any noise level", ha="center", transform=ax.transAxes)
     ax.set_xlabel(xlabel)
     ax.set_ylabel("cost J")
     ax.set_title(title, fontsize=10)

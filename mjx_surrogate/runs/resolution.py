@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 from typing import NamedTuple
 
 import jax
@@ -47,7 +48,7 @@ from mjx_surrogate.runs.experiment_kinds import (
     needs_of,
 )
 from mjx_surrogate.runs.extension_settings import settings_of
-from mjx_surrogate.runs.task_resolution import resolve_task
+from mjx_surrogate.runs.task_resolution import MAX_T, preset_fields, resolve_task
 from mjx_surrogate.tasks import Task
 
 
@@ -224,6 +225,41 @@ def check_memory(cfg: Config, system: System, T: int, n_samples: int) -> None:
         )
 
 
+def machine_memory() -> int:
+    """This machine's physical memory in bytes."""
+    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+
+
+def check_dense_memory(cfg: Config, system: System, T: int | None) -> None:
+    """Refuse a state so large that the solve's dense nx x nx arrays would not fit in this
+    machine's memory (before any is built): the task's Q and Q_f, the cost's Hessians
+    l_xx [T+1, nx, nx] and, for a full-order scheme, the LTV model's A [T, nx, nx]. With
+    ``T`` None (the preset's horizon not read yet) the bound is that of T = 1. Blamed on
+    the system where even T = 1 does not fit, else on ``task.T``; a horizon out of range
+    is left to the horizon's own check."""
+    if T is not None and not 1 <= T <= MAX_T:
+        return
+    full = not get_scheme(cfg.solver.sysid).reduced
+    arrays = lambda n: 2 + (n + 1) + (n if full else 0)  # noqa: E731  (nx x nx float64 arrays at T = n)
+    n = 1 if T is None else T
+    nx2, have = 8 * system.nx**2, machine_memory()
+    need = nx2 * arrays(n)
+    if need <= have:
+        return
+    what = f"the task's Q and Q_f, the cost's Hessians{', the LTV model' if full else ''}"
+    at = "at the shortest horizon, T = 1" if T is None else f"at T = {T}"
+    said = (
+        f"{system.name!r} has nx = {system.nx} states: its dense nx x nx arrays ({what}) need "
+        f"{'at least ' if T is None else ''}{need / 2**30:,.0f} GiB {at}, more than this machine's "
+        f"{have / 2**30:.0f} GiB"
+    )
+    if nx2 * arrays(1) > have:
+        field = "system.entry" if cfg.system.name == USER_FUNCTION else "system.name"
+        raise ConfigError(field, f"{said}; valid here: nx <= {int((have / (8 * arrays(1))) ** 0.5)}")
+    T_max = int((have / nx2 - 3) / (2 if full else 1))  # arrays(T_max) <= have / nx2
+    raise ConfigError("task.T", f"{said}; valid here: T <= {T_max} for this system")
+
+
 # ILQRParams field -> its SolverConfig field, where the names differ
 SOLVER_FIELD = {"refine_tol": "sysid_refine_tol"}
 
@@ -283,6 +319,9 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     pool = jax.local_devices() if local else jax.devices()
     mesh = sharding.device_mesh(cfg.parallel.devices, pool)
     system = build_system_from_config(cfg.system, mesh)
+    check_dense_memory(cfg, system, cfg.task.T)  # before the task's dense weights are built
+    if cfg.task.T is None:  # at the preset's horizon, before its weights are checked and copied
+        check_dense_memory(cfg, system, preset_fields(cfg.task, system).get("T"))
     tc, task = resolve_task(cfg.task, system)
     needs, kind = needs_of(cfg), get_experiment(cfg.experiment.kind)
     n_samples = _check_samples(cfg, system, int(tc.T), IDENTIFICATION in needs)

@@ -49,7 +49,7 @@ except ImportError:  # not POSIX: no lock, names are still unique within one pro
     fcntl = None
 
 # Run statuses (docs/results.md); the CLI's exit status follows them.
-SUCCESS = ("converged", "stalled", "max_iter", "completed")
+SUCCESS = ("converged", "stationary", "stalled", "max_iter", "completed")
 EXIT_CODES = {**{s: 0 for s in SUCCESS}, "diverged": 1, "failed": 1, "killed": 1, "interrupted": 130}
 
 
