@@ -19,6 +19,7 @@ from mjx_surrogate.identification import sysid, sysid_reduced
 from mjx_surrogate.linalg import ltv_relative_error
 from mjx_surrogate.runs import pipeline, plots
 from mjx_surrogate.runs.resolution import Resolved, solver_params
+from mjx_surrogate.runs.restart import hint_after_restart
 from mjx_surrogate.runs.results import Interrupted, Run
 from mjx_surrogate.systems.system import actuated_state_indices
 
@@ -109,10 +110,13 @@ def _d2c_stage(res: Resolved, sid_params) -> tuple[dict, dict]:
     ex, sc = cfg.experiment, cfg.solver
     title = f"D2C multi-start x{sc.n_starts}" if sc.n_starts > 1 else "D2C (LTV identification + iLQR)"
     with progress.meter(title, sc.max_iter, ex.progress) as pm:
-        timed, U0, costs = pipeline.solve_config(res, pm)
+        timed, U0, costs, restart = pipeline.solve_config(res, pm)
     result = timed.out
     extra = {} if costs is None else {"multistart_costs": np.asarray(costs).tolist()}
     m, X_bb = pipeline.summary(result, system, task, cfg.task.goal_tolerance, _names("d2c"))
+    if restart is not None:
+        extra["restart"] = restart
+        hint_after_restart(m, restart)
     m.update(
         extra,
         compile_s=timed.compile_s,

@@ -8,7 +8,7 @@ The public API, importable from here. Importing changes no global state; call
     cfg, system, task = ms.resolve(ms.Config(system=ms.SystemConfig(name="pendulum")))
     result = ms.solve_d2c(system, task, U0, jax.random.key(0))
     timed = ms.chunked.solve(system, task, U0, jax.random.key(0))  # host-driven, cacheable
-    timed, U0, _ = ms.solve_config(ms.resolve(cfg))  # exactly the command line's D2C solve
+    sol = ms.solve_config(ms.resolve(cfg))  # exactly the command line's D2C solve: sol.timed.out
 """
 
 from mjx_surrogate import progress

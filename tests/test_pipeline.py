@@ -74,3 +74,57 @@ def test_simulation_curve_counts_every_black_box_step(scheme, reuse, every):
     first = np.nonzero(h <= h[-1] * 1.01)[0][0]
     assert m["simulations_to_optimum"]["1%"] == curve[first]
     assert m["simulations_to_optimum"]["1%"] <= m["simulations_to_optimum"]["0.1%"] <= calls["n"]
+
+
+def _hidden_lever():
+    """x = [p, v, q]: q' = q + 0.1 u_1, v' = v + 0.1 u_0 q, p' = p + 0.1 v; the goal is on p
+    alone. From zero controls q stays 0, so neither control moves the cost to first order:
+    every local model says the start is stationary, while other starts reach the goal.
+    Host NumPy, counting its one-step simulations."""
+    from mjx_surrogate.systems.function import from_numpy
+    from mjx_surrogate.tasks import make_task
+
+    calls = {"n": 0}
+
+    def step(x, u):  # [N, 3], [N, 2] -> [N, 3]
+        calls["n"] += x.shape[0]
+        p, v, q = x.T
+        return np.stack([p + 0.1 * v, v + 0.1 * u[:, 0] * q, q + 0.1 * u[:, 1]], -1)
+
+    system = from_numpy(step, 3, 2, 0.1, name="hidden_lever", vectorized=True, u_min=-2.0, u_max=2.0)
+    Q_f = np.diag([100.0, 1.0, 0.0])
+    task = make_task(
+        np.zeros(3), np.array([1.0, 0.0, 0.0]), np.zeros((3, 3)), Q_f, 1e-3 * np.eye(2), 30, -2.0, 2.0
+    )
+    return system, task, calls
+
+
+def test_a_stationary_solve_is_restarted_from_spread_starts_with_their_budget_counted():
+    from mjx_surrogate.control import chunked
+    from mjx_surrogate.control.ilqr import StopReason
+    from mjx_surrogate.runs import restart
+
+    system, task, calls = _hidden_lever()
+    params = ILQRParams(max_iter=40)
+    sid = sysid.SysIdParams(sigma_x=1e-4, sigma_u=1e-4, n_samples=10)
+    U0 = jnp.zeros((30, 2))
+    first = chunked.solve(system, task, U0, jax.random.key(0), params, sid)
+    assert StopReason(int(first.out.stop_reason)) == StopReason.STATIONARY
+    calls["n"] = 0
+    kept, U0_kept, info = restart.restart_stationary(
+        system, task, first, U0, jax.random.key(1), params, sid, 4
+    )
+    assert info["simulated_steps"] == calls["n"] > 0  # every restart's black-box steps, counted
+    assert info["n_starts"] == 4 and len(info["costs"]) == len(info["statuses"]) == 4
+    assert info["kept"].startswith("restart") and float(kept.out.cost) == min(info["costs"])
+    assert float(kept.out.cost) < 0.01 * float(first.out.cost)  # 50 -> reached: a restart moved it
+    assert not np.allclose(U0_kept, 0.0)  # the kept solve's own start
+    # off: unchanged, nothing simulated
+    calls["n"] = 0
+    same = restart.restart_stationary(system, task, first, U0, jax.random.key(1), params, sid, 0)
+    assert same[0] is first and same[2] is None and calls["n"] == 0
+    # a solve that is not stationary is not restarted
+    moved = chunked.solve(system, task, U0_kept, jax.random.key(0), params, sid)
+    assert (
+        restart.restart_stationary(system, task, moved, U0_kept, jax.random.key(1), params, sid, 4)[2] is None
+    )

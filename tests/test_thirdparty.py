@@ -378,11 +378,12 @@ FINGER_SPIN += " --task.Q_diag 0 0 0 0 0 0 --task.Q_f_diag 0 0 100 0 0 1 --task.
 
 
 @pytest.mark.slow
-def test_a_finger_that_does_not_touch_the_spinner_is_stationary_and_the_hint_reaches_it(tmp_path, capsys):
+def test_a_finger_that_does_not_touch_the_spinner_is_stationary_and_restarts_reach_it(tmp_path, capsys):
     """dm_control's finger, the spinner's hinge to 1 rad, as a user writes it: from the hold
     start the finger touches nothing, every local model says the controls do not move the
-    cost, and the run says ``stationary`` (not ``converged``) with a hint, no gains verdict;
-    the hint's own settings then reach the goal."""
+    cost. With restarts off the run says ``stationary`` (not ``converged``) with a hint and
+    no gains verdict; by default it restarts from spread starts and reaches the goal, and
+    so do the hint's own settings."""
     from experiments import run as cli
 
     path = model_path("dm_control", "finger.xml")
@@ -390,18 +391,29 @@ def test_a_finger_that_does_not_touch_the_spinner_is_stationary_and_the_hint_rea
         pytest.skip("dm_control wheel not reachable")
     base = ["default", "--system.name", "mjcf", "--system.mjcf_path", path, *FINGER_SPIN.split()]
     base += ["--experiment.no-progress", "--experiment.no-video", "--out", str(tmp_path)]
-    assert cli.main(base + ["--experiment.name", "hold"]) == 0
-    (folder,) = glob.glob(str(tmp_path / "*_hold"))
-    m = json.load(open(os.path.join(folder, "metrics.json")))
+
+    def run(name, *flags):
+        assert cli.main(base + [*flags, "--experiment.name", name]) == 0
+        (folder,) = glob.glob(str(tmp_path / f"*_{name}"))
+        return json.load(open(os.path.join(folder, "metrics.json")))
+
+    m = run("off", "--solver.stationary_restarts", "0")
     assert m["status"] == m["d2c"]["status"] == "stationary" and m["d2c"]["iterations"] == 1
     assert m["d2c"]["cost"] == m["d2c"]["goal"]["goal_cost_start"] and not m["d2c"]["goal"]["reached"]
-    assert m["feedback"]["gains"] == "not judged: the solve is stationary"
+    assert m["feedback"]["gains"] == "not judged: the solve is stationary" and "restart" not in m["d2c"]
     hint = m["d2c"]["hint"]
     assert "hint: " + hint in capsys.readouterr().out
+    d2c = run("default")["d2c"]  # the documented defaults: 8 restarts, 100 iterations
+    restart = d2c["restart"]
+    assert (
+        restart["n_starts"] == 8 and restart["kept"].startswith("restart") and restart["simulated_steps"] > 0
+    )
+    assert (
+        d2c["goal"]["reached"]
+        and d2c["cost"] == min(restart["costs"]) < 0.02 * d2c["goal"]["goal_cost_start"]
+    )
     flags = hint[hint.index("(--") + 1 : hint.rindex(")")].split()
-    assert cli.main(base + flags + ["--solver.max_iter", "10", "--experiment.name", "hinted"]) == 0
-    (folder,) = glob.glob(str(tmp_path / "*_hinted"))
-    d2c = json.load(open(os.path.join(folder, "metrics.json")))["d2c"]
+    d2c = run("hinted", *flags, "--solver.max_iter", "10")["d2c"]  # reached within 5
     assert d2c["goal"]["reached"] and d2c["cost"] < 0.02 * d2c["goal"]["goal_cost_start"], d2c
 
 

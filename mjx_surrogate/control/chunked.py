@@ -112,7 +112,8 @@ def _result(state: ILQRState):
     results = ilqr_result(state)
     costs = jnp.where(jnp.isfinite(results.cost), results.cost, jnp.inf)
     i = jnp.argmin(costs)
-    return MultiStart(jax.tree.map(lambda a: a[i], results), results.cost, i)
+    best = jax.tree.map(lambda a: a[i], results)
+    return MultiStart(best, results.cost, i, results.iterations, results.stop_reason)
 
 
 def solve(

@@ -138,6 +138,8 @@ class MultiStart(NamedTuple):
     best: ILQRResult  # the solve with the lowest final cost
     costs: jax.Array  # [S] final cost of every start
     best_index: jax.Array
+    iterations: jax.Array  # [S] every start's iteration count (its black-box effort)
+    stop_reasons: jax.Array  # [S] every start's StopReason
 
 
 @system_jit(static_argnames=("system", "method"))
@@ -164,4 +166,5 @@ def solve_multistart(
     results = sharding.map_batch(solves, system.mesh, U0s, keys, rest=(task, params, sysid, progress))
     costs = jnp.where(jnp.isfinite(results.cost), results.cost, jnp.inf)
     i = jnp.argmin(costs)
-    return MultiStart(jax.tree.map(lambda a: a[i], results), results.cost, i)
+    best = jax.tree.map(lambda a: a[i], results)
+    return MultiStart(best, results.cost, i, results.iterations, results.stop_reason)

@@ -34,6 +34,19 @@ def simulation_curve(
     return T + np.concatenate([[0], np.cumsum(n_alphas * T + per)])
 
 
+def multistart_steps(iterations: np.ndarray, T: int, n_alphas: int, per_id, fine: bool) -> int:
+    """Black-box control steps of a multi-start solve, all its starts together
+    (``MultiStart.iterations`` [S]; ``per_id``: the pair of :func:`steps_per_identification`;
+    ``fine``: a coarse-then-fine scheme). The starts run in lockstep (``vmap``): each
+    simulates every iteration until the last start stops, and under ``vmap`` the
+    strategies' ``lax.cond`` runs both branches, so every iteration identifies (both models
+    with a coarse-then-fine scheme). Checked against a host black box's own call count
+    for the every-step scheme (``tests/test_pipeline.py``)."""
+    S, it = len(iterations), int(np.max(iterations))
+    per_iteration = n_alphas * T + per_id[0] + (per_id[1] if fine else 0)
+    return int(S * (T + it * per_iteration))
+
+
 def steps_per_identification(sysid: sid.SysIdParams, T: int, nu: int = 0) -> tuple[int, int]:
     """Control steps of one identification of the D2C solve's coarse and fine models
     (equal unless ``sysid.every`` > 1: then every k-th step first, every step near the end);

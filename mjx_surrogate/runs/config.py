@@ -176,6 +176,9 @@ class SolverConfig:
     init: Optional[Literal["zeros", "random", "u_ref", "hold"]] = None  # None: model_defaults.default_init
     init_scale: float = 0.1
     n_starts: int = 1
+    # a single start that ends stationary is solved again from this many starts spread over
+    # the actuators' range (pipeline.restart_stationary); 0: off
+    stationary_restarts: int = 8
 
 
 @dataclasses.dataclass(frozen=True)
@@ -676,7 +679,7 @@ def _check_solver(s: SolverConfig) -> None:
             raise ConfigError(f"solver.{field}", f"must be in (0, 1), got {v}")
     if s.n_samples is not None and s.n_samples < 1:
         raise ConfigError("solver.n_samples", f"must be >= 1 (or unset), got {s.n_samples}")
-    _at_least(0, {"solver.reuse_max": s.reuse_max})
+    _at_least(0, {"solver.reuse_max": s.reuse_max, "solver.stationary_restarts": s.stationary_restarts})
     _at_least(
         1, {"solver.max_iter": s.max_iter, "solver.n_alphas": s.n_alphas, "solver.n_starts": s.n_starts}
     )

@@ -28,6 +28,7 @@ from mjx_surrogate.control.ilqr import ILQRParams, ILQRResult, StopReason, verdi
 from mjx_surrogate.runs.model_defaults import half_ranges, hold_controls
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.runs.resolution import solver_params
+from mjx_surrogate.runs.restart import hint_after_restart, restart_stationary
 from mjx_surrogate.systems import System
 from mjx_surrogate.tasks import Task, goal_cost, has_terminal, trajectory_cost
 from mjx_surrogate.trajectory import open_loop
@@ -84,6 +85,7 @@ class ConfigSolve(NamedTuple):
     timed: "chunked.Timed"  # .out: ILQRResult (the best start's with several), compile_s, run_s
     U0: jax.Array  # [T, nu] the start of the returned solve
     costs: jax.Array | None  # [n_starts] every start's final cost, or None for one start
+    restart: dict | None = None  # what the restart of a stationary solve did (mjx_surrogate.runs.restart)
 
 
 def solve_config(res, progress: ProgressMeter = NO_PROGRESS) -> ConfigSolve:
@@ -100,7 +102,11 @@ def solve_config(res, progress: ProgressMeter = NO_PROGRESS) -> ConfigSolve:
         out = timed.out
         return ConfigSolve(timed._replace(out=out.best), U0s[int(out.best_index)], out.costs)
     U0 = start_controls(system, task, sc.init, sc.init_scale, k_init)
-    return ConfigSolve(chunked.solve(system, task, U0, k_d2c, params, sid_params, "d2c", progress), U0, None)
+    timed = chunked.solve(system, task, U0, k_d2c, params, sid_params, "d2c", progress)
+    key = jax.random.fold_in(k_d2c, 1)
+    n = sc.stationary_restarts
+    timed, U0, info = restart_stationary(system, task, timed, U0, key, params, sid_params, n, progress)
+    return ConfigSolve(timed, U0, None, info)
 
 
 NO_GAINS_VERDICT = ("stationary", "diverged")  # solves whose gains are not judged
@@ -259,6 +265,7 @@ class Optimum(NamedTuple):
     result: ILQRResult
     X: jax.Array  # [T+1, nx] the optimum's controls replayed on the black box
     metrics: dict
+    U0: jax.Array  # [T, nu] the start of the kept solve (a restart's, after a stationary one)
 
 
 def d2c_optimum(
@@ -271,12 +278,20 @@ def d2c_optimum(
     progress: ProgressMeter = NO_PROGRESS,
     goal_tolerance: float = 0.01,
     names: tuple[str, str, str] | None = None,
+    restarts: int = 0,
 ) -> Optimum:
     """Solve by D2C from U0 and summarise on the black box (``names``: :func:`summary`);
-    driven from the host (:mod:`mjx_surrogate.control.chunked`: cacheable programs)."""
-    result = chunked.solve(system, task, U0, key, params, sysid, "d2c", progress).out
-    metrics, X = summary(result, system, task, goal_tolerance, names)
-    return Optimum(result, X, metrics)
+    driven from the host (:mod:`mjx_surrogate.control.chunked`: cacheable programs). A
+    stationary solve is restarted from ``restarts`` spread starts (:mod:`.restart`)."""
+    timed = chunked.solve(system, task, U0, key, params, sysid, "d2c", progress)
+    timed, U0, info = restart_stationary(
+        system, task, timed, U0, jax.random.fold_in(key, 1), params, sysid, restarts, progress
+    )
+    metrics, X = summary(timed.out, system, task, goal_tolerance, names)
+    if info is not None:
+        metrics["restart"] = info
+        hint_after_restart(metrics, info)
+    return Optimum(timed.out, X, metrics, U0)
 
 
 def record_history(max_iter: int, T: int, nx: int) -> bool:
@@ -299,14 +314,16 @@ def optimum_stage(res, key: jax.Array):
         t0 = time.perf_counter()
         with progress.meter("D2C optimum", sc.max_iter, cfg.experiment.progress) as pm:
             names = ("U_star", "X_star", "K_star")
-            opt = d2c_optimum(system, task, U0, k_d2c, params, sid, pm, cfg.task.goal_tolerance, names)
+            opt = d2c_optimum(
+                system, task, U0, k_d2c, params, sid, pm, cfg.task.goal_tolerance, names, sc.stationary_restarts
+            )
         m = {**opt.metrics, "wall_s": time.perf_counter() - t0}
         m |= simulation_metrics(opt.result, task.T, sc.n_alphas, sid)
         arrays = {
             "X_star": opt.X,
             "U_star": opt.result.U,
             "K_star": opt.result.K,
-            "U0_star": U0,
+            "U0_star": opt.U0,
             "u_max": data.u_max(opt.result.U, task.u_min, task.u_max),
         }
         if record_trajectories:

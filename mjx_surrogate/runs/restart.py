@@ -1,0 +1,87 @@
+"""Restarts of a stationary solve: distinct starts spread over the actuators' range.
+
+A solve that ends ``stationary`` stopped at its start: every local model there says the
+controls do not change the cost (dm_control's finger, away from the spinner it should
+turn, touches nothing the cost weighs). Local models cannot see past that, but other
+starts can: the same solve from ``n`` starts, each the stationary start plus
+N(0, half range^2) per control (clipped to the limits; half range 1 where a control is
+unlimited), keeps the best; the first solve is kept where no restart does better.
+Every restart's black-box control steps are counted (as the batch runs them:
+:func:`mjx_surrogate.control.effort.multistart_steps`).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mjx_surrogate.control import chunked
+from mjx_surrogate.control.effort import multistart_steps, steps_per_identification
+from mjx_surrogate.control.ilqr import ILQRParams, StopReason
+from mjx_surrogate.identification import sysid as sid
+from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
+from mjx_surrogate.runs.model_defaults import half_ranges
+from mjx_surrogate.systems import System
+from mjx_surrogate.tasks import Task
+from mjx_surrogate.timing import Timed
+
+
+def spread_starts(task: Task, U0: jax.Array, key: jax.Array, n: int) -> jax.Array:
+    """[n, T, nu]: U0 [T, nu] plus N(0, half range^2) per control, clipped to the limits."""
+    lo, hi = np.asarray(task.u_min, float), np.asarray(task.u_max, float)
+    half = jnp.asarray(half_ranges(lo, hi), U0.dtype)
+    noise = half * jax.random.normal(key, (n, *U0.shape), U0.dtype)
+    return jnp.clip(U0[None] + noise, jnp.asarray(lo, U0.dtype), jnp.asarray(hi, U0.dtype))
+
+
+def restart_stationary(
+    system: System,
+    task: Task,
+    timed: Timed,
+    U0: jax.Array,
+    key: jax.Array,
+    params: ILQRParams,
+    sysid: sid.SysIdParams,
+    n: int,
+    progress: ProgressMeter = NO_PROGRESS,
+) -> tuple[Timed, jax.Array, dict | None]:
+    """(the solve to keep, its start, what the restart did or None): unchanged unless the
+    D2C solve ``timed.out`` from U0 ended stationary and ``n`` > 0; then the best of ``n``
+    restarts (:func:`spread_starts`, keys from ``key``) where it costs less."""
+    first = timed.out
+    if n == 0 or StopReason(int(first.stop_reason)) != StopReason.STATIONARY:
+        return timed, U0, None
+    k_starts, k_solve = jax.random.split(key)
+    U0s = spread_starts(task, U0, k_starts, n)
+    multi = chunked.solve(system, task, U0s, k_solve, params, sysid, "d2c", progress)
+    ms = multi.out
+    per_id = steps_per_identification(sysid, task.T, system.nu)
+    i, best = int(ms.best_index), float(ms.costs[int(ms.best_index)])
+    better = bool(np.isfinite(best) and best < float(first.cost))
+    statuses = [StopReason(int(r)).verdict for r in np.asarray(ms.stop_reasons)]
+    info = {
+        "why": "the first solve was stationary",
+        "n_starts": n,
+        "start_spread": "the stationary start + N(0, half range^2) per control, clipped",
+        "costs": [float(c) for c in np.asarray(ms.costs)],
+        "statuses": statuses,
+        "simulated_steps": multistart_steps(
+            np.asarray(ms.iterations), task.T, params.n_alphas, per_id, sid.fine_params(sysid) is not None
+        ),
+        "kept": f"restart {i}" if better else "the first solve (no restart cost less)",
+    }
+    total = Timed(ms.best if better else first, timed.compile_s + multi.compile_s, timed.run_s + multi.run_s)
+    return total, (U0s[i] if better else U0), info
+
+
+def hint_after_restart(metrics: dict, restart: dict | None) -> None:
+    """The hint of a solve still stationary after its restarts says so (in place)."""
+    if restart is None or metrics.get("status") != "stationary":
+        return
+    metrics["hint"] = (
+        f"{restart['n_starts']} restarts spread over the actuators' range did not move it either "
+        "(solver.stationary_restarts): within this horizon the controls do not reach what the cost "
+        "weighs; a longer horizon, a running cost that leads there, or more starts "
+        "(--solver.n_starts 32 --solver.init_scale 1)"
+    )
