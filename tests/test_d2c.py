@@ -138,3 +138,18 @@ def test_ltv_error_leaves_out_a0_where_the_start_is_given():
         p = SysIdParams(sigma_x=1e-6, sigma_u=1e-6, n_samples=20, perturb_x0=perturb_x0)
         err = ltv_error(s, X, U, K, jax.random.key(3), p, "finite_difference")
         assert err["max"] < 1e-6, (perturb_x0, err)
+
+
+def test_an_unknown_method_or_oracle_is_refused_not_solved_as_the_exact_oracle():
+    from mjx_surrogate.control import d2c
+
+    _, system, task = resolve(
+        Config(system=SystemConfig(name="pendulum"), task=TaskConfig(preset="pendulum_d2c"))
+    )
+    with pytest.raises(ValueError, match="'exakt': valid: d2c, exact, finite_difference"):
+        d2c.problem(system, task, SysIdParams(), "exakt")
+    for refused in (lambda: d2c.oracle_method("jacrev"), lambda: d2c.exact_linearize(system, "jacrev")):
+        with pytest.raises(ValueError, match="'jacrev': valid: jacfwd, finite_difference"):
+            refused()
+    assert d2c.problem(system, task, SysIdParams(), "exact").trial_rollouts is None  # the names still work
+    assert d2c.oracle_method("finite_difference") == "finite_difference"

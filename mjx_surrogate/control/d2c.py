@@ -37,12 +37,15 @@ from mjx_surrogate.systems.system_jit import system_jit
 from mjx_surrogate.tasks import Task, task_cost
 
 ORACLES = ("jacfwd", "finite_difference")
+METHODS = ("d2c", "exact", "finite_difference")  # problem()'s: D2C and the two oracles
 
 
 def exact_linearize(system: System, jacobians: str = "jacfwd") -> sid.LinearizeFn:
     """linearize(X, U, K, key) -> Jacobians through the system's differentiable step
     ("jacfwd": MJX, or a JAX function's own) or by coordinate central differences of the
     black-box step."""
+    if jacobians not in ORACLES:
+        raise ValueError(f"jacobians {jacobians!r}: valid: {', '.join(ORACLES)}")
     if jacobians == "finite_difference":
         return lambda X, U, K, key: sid.finite_difference_jacobians(system.step, X, U)
     jac = system.exact_jacobians_batch  # raises ConfigError for a black box without derivatives
@@ -61,8 +64,10 @@ def problem(system: System, task: Task, sysid: sid.SysIdParams, method: str) -> 
             fine = sid.ltv_linearize(system, fine_sysid)
     elif method == "finite_difference":
         step, linearize, closed = system.step, exact_linearize(system, method), system.closed_loop
-    else:
+    elif method == "exact":
         step, linearize, closed = system.exact_step, exact_linearize(system), None
+    else:
+        raise ValueError(f"method {method!r}: valid: {', '.join(METHODS)}")
     if system.mesh is not None:
         closed = sharded_trials(step, closed, system.mesh)
     cost = task_cost(task)
@@ -131,6 +136,8 @@ def solve_exact(
 
 def oracle_method(jacobians: str) -> str:
     """The :func:`problem` method of an oracle's ``jacobians`` ("jacfwd" or "finite_difference")."""
+    if jacobians not in ORACLES:
+        raise ValueError(f"jacobians {jacobians!r}: valid: {', '.join(ORACLES)}")
     return "exact" if jacobians == "jacfwd" else "finite_difference"
 
 
