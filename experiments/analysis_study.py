@@ -53,6 +53,19 @@ def _spread(P: np.ndarray) -> float:
     return float(np.nanmean(np.nanstd(P, axis=0))) if np.isfinite(P).any() else float("inf")
 
 
+def spread_interval(P: np.ndarray, key: jax.Array, n_boot: int = 1000) -> list[float]:
+    """A 90 % bootstrap interval of :func:`_spread` over the K data sets of P [K, T+1, nx]
+    (resampled with replacement; draws from ``key``). Each resample's std is taken with
+    ddof 1: a resample of the K predictions has E[s*^2 (ddof 1)] = the estimate's variance
+    (ddof 0), so the interval is centred on it (with ddof 0 it sits (K-1)/K low)."""
+    K = P.shape[0]
+    idx = np.asarray(jax.random.randint(key, (n_boot, K), 0, K))
+    if not np.isfinite(P).any():
+        return [float("inf"), float("inf")]
+    boot = np.array([np.nanmean(np.nanstd(P[i], axis=0, ddof=1)) for i in idx])
+    return [float(np.quantile(boot, 0.05)), float(np.quantile(boot, 0.95))]
+
+
 class _Study(NamedTuple):
     """What every stage of the study needs: the config, system and task, the optimum X_star
     [T+1, nx], U_star [T, nu], the libraries, the MLP's spec, a key per stage."""
@@ -93,6 +106,7 @@ def _convergence(s: _Study) -> tuple[dict, dict]:
     a = s.cfg.analysis
     conv, arrays = {}, {}
     x0, U1 = s.X_star[0][None], s.U_star[None]
+    scale = float(np.sqrt(np.mean(np.asarray(s.X_star) ** 2)))  # the RMS state along the optimum
     runs = [
         *(("SINDy", lv, j) for j, lv in enumerate(a.convergence_sindy_levels)),
         *(("MLP", lv, j) for j, lv in enumerate(a.convergence_mlp_levels)),
@@ -106,8 +120,11 @@ def _convergence(s: _Study) -> tuple[dict, dict]:
             P = np.stack(
                 [np.asarray(step_models.predict(step_models.time_invariant(f), x0, U1))[0] for f in steps]
             )
+            interval = spread_interval(P, jax.random.fold_in(k, 1))
             conv[f"{kind} {100 * level:g}%"] = {
                 "prediction_spread": _spread(P),
+                "relative_spread": _spread(P) / scale,  # of the RMS state along the optimum
+                "relative_spread_interval": [v / scale for v in interval],  # 90 %, over the data sets
                 **extra,
                 "final_state_spread": np.nanstd(P[:, -1], axis=0).tolist(),
             }

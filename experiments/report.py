@@ -7,7 +7,7 @@ import os
 import shutil
 
 from experiments import report_control, report_mpc, report_pde
-from experiments.report_rules import RULES, rules_table, theory_claim
+from experiments.report_rules import RULES, convergence_claim, rules_table, theory_claim
 from mjx_surrogate.runs.results import read_json, versions
 
 
@@ -258,11 +258,15 @@ def _analysis_sections(L: list, a: dict, fig) -> None:
     conv = a.get("convergence", {})
     for kind, files, caption in CONVERGENCE:
         rows = {k: v for k, v in conv.items() if k.startswith(kind)}
-        spreads = [v["prediction_spread"] for v in rows.values()]
-        held = (spreads[-1] > spreads[0]) if len(spreads) >= 2 else None
+        held = convergence_claim(rows)
         text = (
-            "Spread of the predicted trajectories across data sets (mean std): "
-            + ", ".join(f"{k}: {_f(v['prediction_spread'])}" for k, v in rows.items())
+            "Spread of the predicted trajectories across data sets (mean std; relative to the RMS "
+            "state along the optimum, with its 90 % bootstrap interval over the data sets): "
+            + ", ".join(
+                f"{k}: {_f(v['prediction_spread'])} ({_f(v.get('relative_spread'))}, "
+                f"[{', '.join(_f(b) for b in v.get('relative_spread_interval') or [None, None])}])"
+                for k, v in rows.items()
+            )
             + "."
         )
         figs = [fig("cartpole_analysis", f) for f in files]

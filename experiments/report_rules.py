@@ -51,7 +51,11 @@ RULES: dict[str, Rule] = {
     "convergence": Rule(
         "the paper's",
         "the spread across seeds grows with the perturbation level",
-        "the spread of the predicted trajectories at the highest level exceeds the lowest level's",
+        "the spread of the predicted trajectories across data sets (relative to the RMS state "
+        "along the optimum) at the highest level exceeds the lowest level's by at least "
+        "{min_effect_pct} % of the state, and their 90 % bootstrap intervals over the data sets "
+        "do not overlap",
+        (("min_effect", 0.01),),
     ),
     "ill_conditioning": Rule(
         "the paper's",
@@ -163,6 +167,19 @@ def theory_claim(findings: dict, name: str) -> tuple[bool | None, float | None, 
     top = 1 + t["rtol"] if "rtol" in t else t["factor"]
     bottom = 1 - t["rtol"] if "rtol" in t else 1 / t["factor"]
     return bool(bottom <= lo and hi <= top), lo, hi
+
+
+def convergence_claim(rows: dict) -> bool | None:
+    """The convergence rule on one model kind's rows (level order), each with
+    ``relative_spread`` and its ``relative_spread_interval``; None with fewer than two
+    levels or rows from before those were kept."""
+    rows = list(rows.values())
+    if len(rows) < 2 or any("relative_spread_interval" not in r for r in rows):
+        return None
+    lo, hi = rows[0], rows[-1]
+    effect = hi["relative_spread"] - lo["relative_spread"]
+    apart = hi["relative_spread_interval"][0] > lo["relative_spread_interval"][1]
+    return bool(effect >= RULES["convergence"].value("min_effect") and apart)
 
 
 def rules_table() -> list[str]:

@@ -129,3 +129,38 @@ def test_the_report_prints_one_theory_verdict_per_formula(tmp_path):
     verdicts = [ln for ln in part.splitlines() if ln.startswith("**Claim:**")]
     assert len(verdicts) == 4 and sum("**held**" in v for v in verdicts) == 1, verdicts
     assert "Cause: The printed formula keeps only the leading monomial" in part
+
+
+def _conv(lo_spread, lo_interval, hi_spread, hi_interval):
+    return {
+        "MLP 5%": {"relative_spread": lo_spread, "relative_spread_interval": lo_interval},
+        "MLP 25%": {"relative_spread": hi_spread, "relative_spread_interval": hi_interval},
+    }
+
+
+def test_the_convergence_rule_needs_an_effect_the_size_of_the_state_and_apart_intervals():
+    from experiments.report_rules import convergence_claim
+
+    assert convergence_claim(_conv(0.01, [0.005, 0.02], 0.2, [0.1, 0.3])) is True
+    # growing, with apart intervals, but by 0.4 % of the state: the old order-only rule held
+    assert convergence_claim(_conv(0.001, [0.0005, 0.002], 0.005, [0.003, 0.007])) is False
+    # a large effect whose intervals overlap: the data sets cannot tell the levels apart
+    assert convergence_claim(_conv(0.05, [0.01, 0.2], 0.2, [0.1, 0.3])) is False
+    assert convergence_claim(_conv(0.2, [0.1, 0.3], 0.01, [0.005, 0.02])) is False  # shrinking
+    assert (
+        convergence_claim({"MLP 5%": {"prediction_spread": 0.1}, "MLP 25%": {"prediction_spread": 1.0}})
+        is None
+    )
+
+
+def test_the_spread_interval_is_a_bootstrap_over_the_data_sets():
+    import jax
+    import numpy as np
+
+    from experiments.analysis_study import _spread, spread_interval
+
+    P = np.random.default_rng(0).normal(size=(5, 11, 3))
+    lo, hi = spread_interval(P, jax.random.key(0))
+    assert lo < _spread(P) < hi and spread_interval(P, jax.random.key(0)) == [lo, hi]
+    same = np.broadcast_to(P[:1], P.shape)  # five identical predictions: no spread at all
+    assert max(spread_interval(same, jax.random.key(0))) < 1e-12

@@ -209,6 +209,14 @@ def assert_each_kinds_outputs(out: str, meters: dict) -> None:
     quartic, cubic = m["ill_conditioning"]["SINDy quartic 5%"], m["ill_conditioning"]["SINDy cubic_trig 5%"]
     assert quartic["precision"] == "float64" and quartic["condition"] > cubic["condition"] > 1e3
     assert set(m["variance"]) >= {"SINDy cubic 5%", "SINDy quartic_trig 15%", "MLP 5% epoch 0"}
+    for row in m["convergence"].values():  # an effect relative to the state, with its interval
+        lo, hi = row["relative_spread_interval"]
+        assert 0 <= lo <= hi and row["relative_spread"] >= 0, row
+    for k, v in m["ill_conditioning"].items():  # the MLP's Gram apart from its null space
+        if k.startswith("MLP"):
+            assert v["null_space"] >= v["hidden_unit_symmetries"] > 0 and np.isfinite(
+                v["condition_of_the_rest"]
+            ), v
 
     # control: every surrogate controller run on the black box; none beats the optimum
     for name in ("cartpole_control", "pendulum_control"):
