@@ -58,10 +58,10 @@ def spread_interval(P: np.ndarray, key: jax.Array, n_boot: int = 1000) -> list[f
     (resampled with replacement; draws from ``key``). Each resample's std is taken with
     ddof 1: a resample of the K predictions has E[s*^2 (ddof 1)] = the estimate's variance
     (ddof 0), so the interval is centred on it (with ddof 0 it sits (K-1)/K low)."""
-    K = P.shape[0]
-    idx = np.asarray(jax.random.randint(key, (n_boot, K), 0, K))
     if not np.isfinite(P).any():
         return [float("inf"), float("inf")]
+    K = P.shape[0]
+    idx = np.asarray(jax.random.randint(key, (n_boot, K), 0, K))
     boot = np.array([np.nanmean(np.nanstd(P[i], axis=0, ddof=1)) for i in idx])
     return [float(np.quantile(boot, 0.05)), float(np.quantile(boot, 0.95))]
 
@@ -120,10 +120,10 @@ def _convergence(s: _Study) -> tuple[dict, dict]:
             P = np.stack(
                 [np.asarray(step_models.predict(step_models.time_invariant(f), x0, U1))[0] for f in steps]
             )
-            interval = spread_interval(P, jax.random.fold_in(k, 1))
+            spread, interval = _spread(P), spread_interval(P, jax.random.fold_in(k, 1))
             conv[f"{kind} {100 * level:g}%"] = {
-                "prediction_spread": _spread(P),
-                "relative_spread": _spread(P) / scale,  # of the RMS state along the optimum
+                "prediction_spread": spread,
+                "relative_spread": spread / scale,  # of the RMS state along the optimum
                 "relative_spread_interval": [v / scale for v in interval],  # 90 %, over the data sets
                 **extra,
                 "final_state_spread": np.nanstd(P[:, -1], axis=0).tolist(),

@@ -19,7 +19,6 @@ from mjx_surrogate.identification import sysid, sysid_reduced
 from mjx_surrogate.linalg import ltv_relative_error
 from mjx_surrogate.runs import pipeline, plots
 from mjx_surrogate.runs.resolution import Resolved, solver_params
-from mjx_surrogate.runs.restart import hint_after_restart
 from mjx_surrogate.runs.results import Interrupted, Run
 from mjx_surrogate.systems.system import actuated_state_indices
 
@@ -113,10 +112,7 @@ def _d2c_stage(res: Resolved, sid_params) -> tuple[dict, dict]:
         timed, U0, costs, restart = pipeline.solve_config(res, pm)
     result = timed.out
     extra = {} if costs is None else {"multistart_costs": np.asarray(costs).tolist()}
-    m, X_bb = pipeline.summary(result, system, task, cfg.task.goal_tolerance, _names("d2c"))
-    if restart is not None:
-        extra["restart"] = restart
-        hint_after_restart(m, restart)
+    m, X_bb = pipeline.summary(result, system, task, cfg.task.goal_tolerance, _names("d2c"), restart)
     m.update(
         extra,
         compile_s=timed.compile_s,
@@ -210,9 +206,8 @@ def _feedback_stage(res: Resolved, a_d2c: dict, k_noise, status: str) -> tuple[d
     )
     m["gains_scale"] = 1.0
     arrays = {"feedback_closed_costs": closed, "feedback_open_costs": opened}
-    if m["gains"].startswith(
-        "do not use"
-    ):  # back off: the largest scale of K that helps (evaluation.backed_off_feedback)
+    # back off: the largest scale of K that helps (evaluation.backed_off_feedback)
+    if m["gains"].startswith("do not use"):
         fb = backed_off_feedback(system, task, X, U, K, levels, k_noise, ex.n_noise_trials, (closed, opened))
         m["gains_scale"] = fb.scale
         if 0 < fb.scale < 1:

@@ -33,11 +33,11 @@ def condition(eigs: np.ndarray) -> float:
 
 
 def rank_and_condition(eigs: np.ndarray, rel: float) -> tuple[int, float]:
-    """The numerical rank (eigenvalues above ``rel`` lambda_max, eigs in descending order;
-    ``rel`` e.g. :func:`gram_rank_tolerance`)
-    and the condition number of that part, lambda_max / the smallest of them: the
-    conditioning of a Gram apart from its exact null space (an MLP's hidden-unit scaling
-    symmetries, or fewer data than parameters, make the whole Gram singular by construction)."""
+    """The numerical rank of a Gram (eigenvalues eigs, descending, above ``rel`` lambda_max;
+    ``rel`` e.g. :func:`gram_rank_tolerance`) and the condition number of that part,
+    lambda_max / the smallest of them: its conditioning apart from its exact null space (an
+    MLP's hidden-unit scaling symmetries, or fewer data than parameters, make the whole Gram
+    singular by construction)."""
     kept = eigs[eigs > rel * eigs[0]]
     return int(kept.size), float(kept[0] / kept[-1])
 

@@ -34,7 +34,7 @@ import numpy as np
 from mjx_surrogate import progress as progress_lib
 from mjx_surrogate import sharding
 from mjx_surrogate.control import d2c
-from mjx_surrogate.control.d2c import MultiStart, oracle_method, problem
+from mjx_surrogate.control.d2c import best_of, oracle_method, problem
 from mjx_surrogate.control.ilqr import ILQRParams, ILQRState, StopReason, ilqr_advance, ilqr_init, ilqr_result
 from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.systems import System
@@ -109,11 +109,7 @@ def advance(
 def _result(state: ILQRState):
     if state.X.ndim == 2:
         return ilqr_result(state)
-    results = ilqr_result(state)
-    costs = jnp.where(jnp.isfinite(results.cost), results.cost, jnp.inf)
-    i = jnp.argmin(costs)
-    best = jax.tree.map(lambda a: a[i], results)
-    return MultiStart(best, results.cost, i, results.iterations, results.stop_reason)
+    return best_of(ilqr_result(state))
 
 
 def solve(

@@ -149,6 +149,14 @@ class MultiStart(NamedTuple):
     stop_reasons: jax.Array  # [S] every start's StopReason
 
 
+def best_of(results: ILQRResult) -> MultiStart:
+    """The multi-start outcome of S solves' results (leading axis S): the lowest finite cost wins."""
+    costs = jnp.where(jnp.isfinite(results.cost), results.cost, jnp.inf)
+    i = jnp.argmin(costs)
+    best = jax.tree.map(lambda a: a[i], results)
+    return MultiStart(best, results.cost, i, results.iterations, results.stop_reason)
+
+
 @system_jit(static_argnames=("system", "method"))
 def solve_multistart(
     system: System,
@@ -171,7 +179,4 @@ def solve_multistart(
         return jax.vmap(one)(U0s, keys)
 
     results = sharding.map_batch(solves, system.mesh, U0s, keys, rest=(task, params, sysid, progress))
-    costs = jnp.where(jnp.isfinite(results.cost), results.cost, jnp.inf)
-    i = jnp.argmin(costs)
-    best = jax.tree.map(lambda a: a[i], results)
-    return MultiStart(best, results.cost, i, results.iterations, results.stop_reason)
+    return best_of(results)

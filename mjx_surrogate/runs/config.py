@@ -177,7 +177,7 @@ class SolverConfig:
     init_scale: float = 0.1
     n_starts: int = 1
     # a single start that ends stationary is solved again from this many starts spread over
-    # the actuators' range (pipeline.restart_stationary); 0: off
+    # the actuators' range (mjx_surrogate.runs.restart); 0: off
     stationary_restarts: int = 8
 
 

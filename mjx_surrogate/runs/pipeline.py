@@ -25,10 +25,10 @@ from mjx_surrogate.control.effort import simulation_curve, simulation_metrics, s
 from mjx_surrogate.analysis import evaluation
 from mjx_surrogate.analysis.evaluation import finite_or_none
 from mjx_surrogate.control.ilqr import ILQRParams, ILQRResult, StopReason, verdict
-from mjx_surrogate.runs.model_defaults import half_ranges, hold_controls
+from mjx_surrogate.runs.model_defaults import hold_controls
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.runs.resolution import solver_params
-from mjx_surrogate.runs.restart import hint_after_restart, restart_stationary
+from mjx_surrogate.runs.restart import restart_stationary, spread_starts
 from mjx_surrogate.systems import System
 from mjx_surrogate.tasks import Task, goal_cost, has_terminal, trajectory_cost
 from mjx_surrogate.trajectory import open_loop
@@ -69,10 +69,8 @@ def start_controls(
     U = jnp.broadcast_to(jnp.asarray(base, dtype), (task.T, system.nu))
     if n is None:
         return U
-    half = jnp.asarray(half_ranges(lo, hi), dtype)
-    noise = scale * half * jax.random.normal(key, (n, task.T, system.nu), dtype)
-    noise = noise.at[0].set(0.0)
-    return jnp.clip(U + noise, jnp.asarray(lo, dtype), jnp.asarray(hi, dtype))
+    first = jnp.clip(U, jnp.asarray(lo, dtype), jnp.asarray(hi, dtype))
+    return spread_starts(task, U, key, n, scale).at[0].set(first)
 
 
 def experiment_keys(seed: int) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
@@ -183,8 +181,10 @@ def summary(
     task: Task,
     goal_tolerance: float = 0.01,
     names: tuple[str, str, str] | None = None,
+    restart: dict | None = None,
 ) -> tuple[dict, jax.Array]:
-    """Metrics of a solve in the status vocabulary, judged on the black box.
+    """Metrics of a solve in the status vocabulary, judged on the black box (``restart``:
+    what :func:`~mjx_surrogate.runs.restart.restart_stationary` did before it, kept as is).
 
     ``cost`` is the cost of the solve's controls replayed on the black box (``cost_solver``
     the solver's own); ``status`` is the verdict of the stop reason (``diverged`` if the
@@ -221,6 +221,8 @@ def summary(
     if status == "diverged" and cost is not None:
         last = int(result.iterations) - (reason == StopReason.MODEL_NOT_FINITE)
         out["last_finite_iteration"] = last
+    if restart is not None:
+        out["restart"] = restart
     if hint := status_hint(status, out):
         out["hint"] = hint
     if getattr(system, "mj_model", None) is None:  # a function black box: no MuJoCo to replay on
@@ -246,7 +248,15 @@ def summary(
 
 
 def status_hint(status: str, metrics: dict) -> str | None:
-    """What to try after a solve that made no progress or diverged (None otherwise)."""
+    """What to try after a solve that made no progress (also after its restarts) or
+    diverged (None otherwise)."""
+    if status == "stationary" and (restart := metrics.get("restart")) is not None:
+        return (
+            f"{restart['n_starts']} restarts spread over the actuators' range did not move it either "
+            "(solver.stationary_restarts): within this horizon the controls do not reach what the cost "
+            "weighs; a longer horizon, a running cost that leads there, or more starts "
+            "(--solver.n_starts 32 --solver.init_scale 1)"
+        )
     if status == "stationary":
         return (
             "the local model says the controls do not lower the cost at the start (e.g. they touch "
@@ -287,10 +297,7 @@ def d2c_optimum(
     timed, U0, info = restart_stationary(
         system, task, timed, U0, jax.random.fold_in(key, 1), params, sysid, restarts, progress
     )
-    metrics, X = summary(timed.out, system, task, goal_tolerance, names)
-    if info is not None:
-        metrics["restart"] = info
-        hint_after_restart(metrics, info)
+    metrics, X = summary(timed.out, system, task, goal_tolerance, names, info)
     return Optimum(timed.out, X, metrics, U0)
 
 

@@ -27,11 +27,12 @@ from mjx_surrogate.tasks import Task
 from mjx_surrogate.timing import Timed
 
 
-def spread_starts(task: Task, U0: jax.Array, key: jax.Array, n: int) -> jax.Array:
-    """[n, T, nu]: U0 [T, nu] plus N(0, half range^2) per control, clipped to the limits."""
+def spread_starts(task: Task, U0: jax.Array, key: jax.Array, n: int, scale: float = 1.0) -> jax.Array:
+    """[n, T, nu]: U0 [T, nu] plus N(0, (scale half range)^2) per control (half range 1
+    where unlimited), clipped to the limits."""
     lo, hi = np.asarray(task.u_min, float), np.asarray(task.u_max, float)
     half = jnp.asarray(half_ranges(lo, hi), U0.dtype)
-    noise = half * jax.random.normal(key, (n, *U0.shape), U0.dtype)
+    noise = scale * half * jax.random.normal(key, (n, *U0.shape), U0.dtype)
     return jnp.clip(U0[None] + noise, jnp.asarray(lo, U0.dtype), jnp.asarray(hi, U0.dtype))
 
 
@@ -73,15 +74,3 @@ def restart_stationary(
     }
     total = Timed(ms.best if better else first, timed.compile_s + multi.compile_s, timed.run_s + multi.run_s)
     return total, (U0s[i] if better else U0), info
-
-
-def hint_after_restart(metrics: dict, restart: dict | None) -> None:
-    """The hint of a solve still stationary after its restarts says so (in place)."""
-    if restart is None or metrics.get("status") != "stationary":
-        return
-    metrics["hint"] = (
-        f"{restart['n_starts']} restarts spread over the actuators' range did not move it either "
-        "(solver.stationary_restarts): within this horizon the controls do not reach what the cost "
-        "weighs; a longer horizon, a running cost that leads there, or more starts "
-        "(--solver.n_starts 32 --solver.init_scale 1)"
-    )
