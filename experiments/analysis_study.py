@@ -19,7 +19,8 @@ from mjx_surrogate.analysis import spectra
 from mjx_surrogate.identification import data, step_models
 from mjx_surrogate.runs import pipeline, plots
 from mjx_surrogate.runs.config import Config
-from mjx_surrogate.runs.resolution import Resolved, analysis_library_specs
+from mjx_surrogate.runs.experiment_kinds import analysis_library_specs
+from mjx_surrogate.runs.resolution import Resolved
 from mjx_surrogate.runs.results import Run
 from mjx_surrogate.surrogates import mlp, sindy
 from mjx_surrogate.surrogates.registry import library_specs, mlp_spec

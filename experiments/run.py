@@ -24,7 +24,8 @@ import typing
 
 from experiments.summary import summary_line, summary_screen
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.runs.config import Config, PointGoal, from_dict, to_dict, validate_static
+from mjx_surrogate.runs.config import Config, PointGoal, from_dict, to_dict
+from mjx_surrogate.runs.validation import validate_static
 from mjx_surrogate.runtime import configure_runtime
 
 DEFAULT_PRESET = "default"

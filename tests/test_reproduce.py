@@ -14,9 +14,10 @@ from helpers import assert_png
 
 from experiments import reproduce
 from experiments.run import load_config
-from mjx_surrogate.runs.config import Config, from_dict, validate_static
+from mjx_surrogate.runs.config import Config, from_dict
 from mjx_surrogate.runs.resolution import resolve
 from mjx_surrogate.runs.results import load_run
+from mjx_surrogate.runs.validation import validate_static
 from mjx_surrogate.systems.plant import parse_plant, plant_label, plant_slug
 from mjx_surrogate.systems.registry import is_function_system
 from mjx_surrogate.tasks import trajectory_cost

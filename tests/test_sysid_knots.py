@@ -55,7 +55,8 @@ def test_knotted_central_differences_recover_jacobians_linear_in_t():
 
 def test_a_rollout_scheme_cannot_skip_steps():
     from mjx_surrogate.errors import ConfigError
-    from mjx_surrogate.runs.config import Config, SolverConfig, validate_static
+    from mjx_surrogate.runs.config import Config, SolverConfig
+    from mjx_surrogate.runs.validation import validate_static
 
     with pytest.raises(ConfigError, match="solver.sysid_every"):
         validate_static(Config(solver=SolverConfig(sysid="rollout", sysid_every=2)))

@@ -13,8 +13,8 @@ from __future__ import annotations
 import os
 from typing import Sequence, TypeVar
 
-from mjx_surrogate.runs.config import ParallelConfig
 from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.runs.config import ParallelConfig
 
 T = TypeVar("T")
 _STATE = {"initialized": False, "timeout_s": 300, "barriers": 0}

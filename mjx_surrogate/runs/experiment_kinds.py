@@ -14,6 +14,7 @@ import importlib
 from typing import Any, Callable, NamedTuple, Union
 
 from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.surrogates.registry import get_surrogate, library_specs
 
 # what resolve() checks for a kind before any compile
 IDENTIFICATION = "identification"  # solver.n_samples against nx + nu, the memory of a batch
@@ -24,8 +25,9 @@ NEEDS = (IDENTIFICATION, SURROGATES, LTV_BASELINE)
 
 class ExperimentKind(NamedTuple):
     """run: ``run(resolved, record, key) -> status`` or its ``"module:function"``.
-    needs: a subset of :data:`NEEDS`, or a function of the config giving one. validate(config, system): further checks of the
-    kind's own, raising ConfigError (after the needs, before any compile). writes: what
+    needs: a subset of :data:`NEEDS`, or a function of the config giving one.
+    validate(config, system): further checks of the kind's own, raising ConfigError
+    (after the needs, before any compile). writes: what
     the kind adds to the run folder, in words. settings: the kind's own settings' defaults
     (a frozen dataclass instance) or None."""
 
@@ -78,11 +80,22 @@ def _check_horizon(config, system) -> None:
         )
 
 
+def analysis_library_specs(cfg, system) -> dict:
+    """The libraries the analysis section names, each checked under its own field."""
+    a = cfg.analysis
+    out = library_specs(cfg, system, a.convergence_library, "analysis.convergence_library")
+    out |= library_specs(cfg, system, a.gram_libraries, "analysis.gram_libraries")
+    return out | library_specs(cfg, system, a.variance_libraries, "analysis.variance_libraries")
+
+
+def training_transitions(cfg) -> int:
+    """Transitions in the training split of section data (``cfg.task.T`` resolved)."""
+    d = cfg.data
+    return (d.n_traj - max(1, int(round(d.test_fraction * d.n_traj)))) * int(cfg.task.T)
+
+
 def _check_analysis(config, system) -> None:
     """The analyses fit SINDy and MLPs whatever ``surrogate.kinds`` says."""
-    from mjx_surrogate.runs.resolution import analysis_library_specs, training_transitions
-    from mjx_surrogate.surrogates.registry import get_surrogate
-
     analysis_library_specs(config, system)
     get_surrogate("mlp").validate(config, system, training_transitions(config))
 

@@ -17,15 +17,15 @@ import math
 from typing import Any
 
 from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.identification.sysid import SCHEMES
+from mjx_surrogate.runs.config import from_dict
+from mjx_surrogate.runs.experiment_kinds import EXPERIMENTS
+from mjx_surrogate.surrogates.registry import SURROGATES
 
 
 def declared() -> dict[str, Any]:
     """``"<section>.<name>"`` -> the settings' defaults, for every registered extension
     that declares settings."""
-    from mjx_surrogate.identification.sysid import SCHEMES
-    from mjx_surrogate.runs.experiment_kinds import EXPERIMENTS
-    from mjx_surrogate.surrogates.registry import SURROGATES
-
     out = {}
     for section, registry in (("solver", SCHEMES), ("surrogate", SURROGATES), ("experiment", EXPERIMENTS)):
         for name, entry in registry.items():
@@ -38,20 +38,22 @@ def _defaults(key: str) -> Any:
     found = declared()
     if key not in found:
         valid = ", ".join(found) or "none registered"
-        raise ConfigError(f"extensions.{key}", f"no registered extension declares settings here; valid: {valid}")
+        raise ConfigError(
+            f"extensions.{key}", f"no registered extension declares settings here; valid: {valid}"
+        )
     return found[key]
 
 
 def settings_from(defaults: Any, value: Any, field: str) -> Any:
     """The settings ``value`` (an instance, or a mapping of some fields) over ``defaults``,
     every field checked (type, finite numbers, the settings' ``check()``)."""
-    from mjx_surrogate.runs.config import from_dict
-
     cls = type(defaults)
     if isinstance(value, cls):
         value = dataclasses.asdict(value)
     if not isinstance(value, dict):
-        raise ConfigError(field, f"expected {cls.__name__} or a mapping of its fields, got {type(value).__name__}")
+        raise ConfigError(
+            field, f"expected {cls.__name__} or a mapping of its fields, got {type(value).__name__}"
+        )
     given = from_dict(cls, value, field)  # field names and types
     merged = dataclasses.replace(defaults, **{k: getattr(given, k) for k in value})
     for f in dataclasses.fields(merged):

@@ -11,13 +11,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from mjx_surrogate.runs.config import TaskConfig, check_finite
 from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.runs.config import TaskConfig, check_finite
 from mjx_surrogate.runs.model_defaults import control_weights
+from mjx_surrogate.runs.task_fields import (
+    MAX_T,
+    limits_field,
+    matrix_field,
+    preset_fields,
+    resolved_task_config,
+    state_field,
+)
 from mjx_surrogate.systems import task_presets
 from mjx_surrogate.systems.function import FunctionSystem
 from mjx_surrogate.systems.registry import preset_fits
-from mjx_surrogate.runs.task_resolution import MAX_T, _limits, _matrix, _state, preset_fields, resolved_task_config
 from mjx_surrogate.tasks import Task, make_task
 
 
@@ -50,17 +57,17 @@ def resolve_function_task(tc: TaskConfig, system: FunctionSystem) -> tuple[TaskC
     if not 1 <= T <= MAX_T:
         raise ConfigError("task.T", f"horizon must be an integer in [1, {MAX_T}], got {T}")
     labels = list(system.state_labels)
-    x0 = _state(tc, "x0", labels, base.get("x0"))
-    x_goal = _state(tc, "x_goal", labels, base.get("x_goal"))
+    x0 = state_field(tc, "x0", labels, base.get("x0"))
+    x_goal = state_field(tc, "x_goal", labels, base.get("x_goal"))
     for name, v in (("x0", x0), ("x_goal", x_goal)):
         if v is None:
             raise ConfigError(
                 f"task.{name}",
                 f"required with task.preset='custom' ({system.nx} numbers [{', '.join(labels)}])",
             )
-    u_min, u_max = _limits(tc, np.asarray(system.u_min), np.asarray(system.u_max), base)
-    Q, Q_f = _matrix(tc, base, "Q", system.nx), _matrix(tc, base, "Q_f", system.nx)
-    R = _matrix(tc, {"R": control_weights(u_min, u_max), **base} if custom else base, "R", system.nu)
+    u_min, u_max = limits_field(tc, np.asarray(system.u_min), np.asarray(system.u_max), base)
+    Q, Q_f = matrix_field(tc, base, "Q", system.nx), matrix_field(tc, base, "Q_f", system.nx)
+    R = matrix_field(tc, {"R": control_weights(u_min, u_max), **base} if custom else base, "R", system.nu)
     if tc.u_ref is not None:
         if len(tc.u_ref) != system.nu:
             raise ConfigError("task.u_ref", f"needs nu={system.nu} entries, got {len(tc.u_ref)}")

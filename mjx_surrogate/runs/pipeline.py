@@ -17,22 +17,22 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate import progress
-from mjx_surrogate.control import chunked
-from mjx_surrogate.identification import data
-from mjx_surrogate.runs import native_replay
-from mjx_surrogate.identification import sysid as sid
-from mjx_surrogate.control.effort import simulation_curve, simulation_metrics, steps_per_identification  # noqa: F401
 from mjx_surrogate.analysis import evaluation
 from mjx_surrogate.analysis.evaluation import finite_or_none
+from mjx_surrogate.control import chunked
+from mjx_surrogate.control.effort import simulation_curve, simulation_metrics, steps_per_identification  # noqa: F401
 from mjx_surrogate.control.ilqr import ILQRParams, ILQRResult, StopReason, verdict
-from mjx_surrogate.runs.model_defaults import hold_controls
+from mjx_surrogate.identification import data
+from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
+from mjx_surrogate.runs import native_replay
+from mjx_surrogate.runs.model_defaults import hold_controls
 from mjx_surrogate.runs.resolution import solver_params
 from mjx_surrogate.runs.restart import restart_stationary, spread_starts
 from mjx_surrogate.systems import System
+from mjx_surrogate.systems.system_jit import system_jit
 from mjx_surrogate.tasks import Task, goal_cost, has_terminal, trajectory_cost
 from mjx_surrogate.trajectory import open_loop
-from mjx_surrogate.systems.system_jit import system_jit
 
 
 def initial_controls(
@@ -202,8 +202,14 @@ def summary(
     cost_solver = finite_or_none(result.cost)
     status = verdict(reason, cost if cost is not None else np.inf)
     source = "black box replay"
-    if cost is None and cost_solver is not None:  # the black box turned non-finite: keep the last finite iterate
-        X_bb, cost, source = result.X, cost_solver, "solver: the last finite iterate (its replay was not finite)"
+    if (
+        cost is None and cost_solver is not None
+    ):  # the black box turned non-finite: keep the last finite iterate
+        X_bb, cost, source = (
+            result.X,
+            cost_solver,
+            "solver: the last finite iterate (its replay was not finite)",
+        )
     out = {
         "status": status,
         "cost": cost,
@@ -264,8 +270,9 @@ def status_hint(status: str, metrics: dict) -> str | None:
             "(--solver.n_starts 8 --solver.init_scale 1)"
         )
     if status == "diverged" and metrics.get("cost") is not None:
+        last = metrics.get("last_finite_iteration")
         return (
-            f"the black box returned non-finite states after iteration {metrics.get('last_finite_iteration')}; "
+            f"the black box returned non-finite states after iteration {last}; "
             "the controls and cost of that last finite iterate are kept"
         )
     return None
@@ -322,7 +329,16 @@ def optimum_stage(res, key: jax.Array):
         with progress.meter("D2C optimum", sc.max_iter, cfg.experiment.progress) as pm:
             names = ("U_star", "X_star", "K_star")
             opt = d2c_optimum(
-                system, task, U0, k_d2c, params, sid, pm, cfg.task.goal_tolerance, names, sc.stationary_restarts
+                system,
+                task,
+                U0,
+                k_d2c,
+                params,
+                sid,
+                pm,
+                cfg.task.goal_tolerance,
+                names,
+                sc.stationary_restarts,
             )
         m = {**opt.metrics, "wall_s": time.perf_counter() - t0}
         m |= simulation_metrics(opt.result, task.T, sc.n_alphas, sid)

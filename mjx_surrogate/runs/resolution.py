@@ -13,22 +13,34 @@ import numpy as np
 from jax.sharding import Mesh
 
 from mjx_surrogate import sharding
-from mjx_surrogate.runs.config import Config, SystemConfig, validate_static
+from mjx_surrogate.control.ilqr import ILQRParams
 from mjx_surrogate.cost import BLOWUP
 from mjx_surrogate.errors import ConfigError, describe
-from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.identification.sysid import SysIdParams, get_scheme
+from mjx_surrogate.runs.config import Config, SystemConfig
+from mjx_surrogate.runs.experiment_kinds import (
+    IDENTIFICATION,
+    LTV_BASELINE,
+    SURROGATES,
+    get_experiment,
+    needs_of,
+    training_transitions,
+)
+from mjx_surrogate.runs.extension_settings import settings_of
 from mjx_surrogate.runs.model_defaults import (
     USER_SYSTEMS,
+    default_hold_limits,
     default_init,
     default_n_samples,
     default_noise_floor,
-    default_hold_limits,
     default_perturb_x0,
     default_sigma,
     friction_sigma,
 )
-from mjx_surrogate.surrogates.registry import get_surrogate, library_specs
-from mjx_surrogate.identification.sysid import SysIdParams, get_scheme
+from mjx_surrogate.runs.task_fields import MAX_T, preset_fields
+from mjx_surrogate.runs.task_resolution import resolve_task
+from mjx_surrogate.runs.validation import validate_static
+from mjx_surrogate.surrogates.registry import get_surrogate
 from mjx_surrogate.systems import FunctionSystem, System, from_mjcf, make_system
 from mjx_surrogate.systems.entry import entry_builder, entry_source, load_entry, source_digest
 from mjx_surrogate.systems.plant import check_plant
@@ -40,15 +52,6 @@ from mjx_surrogate.systems.registry import (
     make_function_system,
 )
 from mjx_surrogate.systems.system import compile_mjcf
-from mjx_surrogate.runs.experiment_kinds import (
-    IDENTIFICATION,
-    LTV_BASELINE,
-    SURROGATES,
-    get_experiment,
-    needs_of,
-)
-from mjx_surrogate.runs.extension_settings import settings_of
-from mjx_surrogate.runs.task_resolution import MAX_T, preset_fields, resolve_task
 from mjx_surrogate.tasks import Task
 
 
@@ -400,14 +403,6 @@ def _check_samples(cfg: Config, system: System, T: int, identifies: bool) -> int
     return n_samples
 
 
-def analysis_library_specs(cfg: Config, system: System) -> dict:
-    """The libraries the analysis section names, each checked under its own field."""
-    a = cfg.analysis
-    out = library_specs(cfg, system, a.convergence_library, "analysis.convergence_library")
-    out |= library_specs(cfg, system, a.gram_libraries, "analysis.gram_libraries")
-    return out | library_specs(cfg, system, a.variance_libraries, "analysis.variance_libraries")
-
-
 def _resolve_mpc(cfg: Config, system: System, T: int, solver_samples: int):
     """Section mpc with its defaults filled (horizon and steps: the task's T; D2C-MPC's
     samples: nx + nu with a one-step scheme, else the solver's), checked against the
@@ -454,12 +449,6 @@ def plant_builder(cfg: Config, system: System):
     if cfg.system.name == USER_FUNCTION:
         return entry_builder(cfg.system.entry)
     return function_builder(cfg.system.name)
-
-
-def training_transitions(cfg: Config) -> int:
-    """Transitions in the training split of section data (``cfg.task.T`` resolved)."""
-    d = cfg.data
-    return (d.n_traj - max(1, int(round(d.test_fraction * d.n_traj)))) * int(cfg.task.T)
 
 
 def _check_surrogates(cfg: Config, system: System, ltv_baseline: bool) -> None:

@@ -11,36 +11,23 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from mjx_surrogate.runs.config import TaskConfig, check_finite
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.runs.model_defaults import HOLD_T, control_weights, hold_controls, hold_task
-from mjx_surrogate.systems import System, task_presets
+from mjx_surrogate.runs.config import TaskConfig, check_finite
+from mjx_surrogate.runs.function_task import resolve_function_task
+from mjx_surrogate.runs.model_defaults import control_weights, hold_controls, hold_task
+from mjx_surrogate.runs.task_fields import (
+    MAX_T,
+    MODEL_PRESETS,
+    limits_field,
+    matrix_field,
+    preset_fields,
+    resolved_task_config,
+    state_field,
+)
+from mjx_surrogate.systems import System
 from mjx_surrogate.systems.kinematics import make_points_fn, native_points_fn, point_ids
-from mjx_surrogate.systems.registry import preset_fits
 from mjx_surrogate.systems.system import state_labels
 from mjx_surrogate.tasks import Task, make_task
-
-MAX_T = 100_000
-
-
-MODEL_PRESETS = ("custom", "hold")  # built from the model itself, for every system
-
-
-def preset_fields(tc: TaskConfig, system: System) -> dict:
-    if tc.preset in MODEL_PRESETS:
-        return {"T": HOLD_T} if tc.preset == "hold" else {}
-    presets = task_presets()
-    if tc.preset not in presets:
-        valid = ", ".join(list(presets) + list(MODEL_PRESETS))
-        raise ConfigError("task.preset", f"unknown task {tc.preset!r}; valid: {valid}")
-    preset = presets[tc.preset]
-    if not preset_fits(preset, system.name):
-        raise ConfigError(
-            "task.preset",
-            f"{tc.preset!r} is a task for {preset.system!r}, "
-            f"not {system.name!r}; use a task of that system, 'hold' (keep the start) or 'custom'",
-        )
-    return {"state_error": "euclidean", **preset.build(system.nq, system.nv, system.nu)}
 
 
 def model_state(m: mujoco.MjModel, qpos, qvel=None, act=None) -> np.ndarray:
@@ -63,88 +50,11 @@ def keyframe(m: mujoco.MjModel, key: str, field: str) -> tuple[np.ndarray, np.nd
     return model_state(m, m.key_qpos[i], m.key_qvel[i], m.key_act[i]), np.array(m.key_ctrl[i], float)
 
 
-def _matrix(tc: TaskConfig, base: dict, name: str, n: int) -> np.ndarray:
-    full, diag = getattr(tc, name), getattr(tc, name + "_diag")
-    field = f"task.{name}_diag" if diag is not None else f"task.{name}"
-    if full is not None and diag is not None:
-        raise ConfigError(f"task.{name}_diag", f"give task.{name} or task.{name}_diag, not both")
-    if diag is not None:
-        check_finite(field, diag)
-        if len(diag) != n:
-            raise ConfigError(field, f"needs {n} entries, got {len(diag)}")
-        m = np.diag(np.asarray(diag, float))
-    elif full is not None:
-        check_finite(field, full)
-        try:
-            m = np.asarray(full, float)
-        except ValueError:
-            raise ConfigError(field, f"must be {n}x{n}; rows of unequal length") from None
-        if m.shape != (n, n):
-            raise ConfigError(field, f"must be {n}x{n}, got shape {m.shape}")
-    elif name in base:
-        m = np.asarray(base[name], float)
-    else:
-        raise ConfigError(field, f"required with task.preset='custom' ({n}x{n} or {name}_diag)")
-    d = np.diagonal(m)
-    if np.count_nonzero(m) == np.count_nonzero(d):  # diagonal (a PDE grid's weights): its eigenvalues
-        eig = np.sort(d)
-    else:
-        if not np.allclose(m, m.T, atol=1e-12 * max(1.0, np.abs(m).max())):
-            raise ConfigError(field, "must be symmetric")
-        eig = np.linalg.eigvalsh(m)
-    if name == "R" and eig.min() <= 0:
-        raise ConfigError(field, f"must be positive definite (smallest eigenvalue {eig.min():g})")
-    if eig.min() < -1e-9 * max(1.0, eig.max()):
-        raise ConfigError(field, f"must be positive semi-definite (eigenvalue {eig.min():g})")
-    return m
-
-
-def _state(tc: TaskConfig, name: str, labels: list[str], fallback) -> np.ndarray | None:
-    v = getattr(tc, name)
-    if v is None:
-        return None if fallback is None else np.asarray(fallback, float)
-    if len(v) != len(labels):
-        raise ConfigError(f"task.{name}", f"needs {len(labels)} entries [{', '.join(labels)}], got {len(v)}")
-    check_finite(f"task.{name}", v)
-    return np.asarray(v, float)
-
-
 def model_limits(m: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
     """The actuators' ctrlrange, +-inf where a control is not limited."""
     limited = m.actuator_ctrllimited.astype(bool)
     lo = np.where(limited, m.actuator_ctrlrange[:, 0], -np.inf)
     hi = np.where(limited, m.actuator_ctrlrange[:, 1], np.inf)
-    return lo, hi
-
-
-def _limits(tc: TaskConfig, lo_m: np.ndarray, hi_m: np.ndarray, base: dict):
-    """The task's control limits: the config's, else the preset's, else the system's, which
-    they may narrow but not widen."""
-    nu = len(lo_m)
-    out = []
-    for name, model_b, sign in (("u_min", lo_m, -1.0), ("u_max", hi_m, 1.0)):
-        b = getattr(tc, name)
-        b = base.get(name) if b is None else b  # the config's, else the preset's, else the model's
-        if b is None:
-            out.append(model_b)
-            continue
-        if len(b) != nu:
-            raise ConfigError(f"task.{name}", f"needs nu={nu} entries, got {len(b)}")
-        b = np.asarray(b, float)
-        if np.isnan(b).any():
-            raise ConfigError(f"task.{name}", "holds NaN; use a number or +-inf")
-        tol = 1e-9 * np.maximum(1.0, np.where(np.isfinite(model_b), np.abs(model_b), 0.0))
-        bad = np.flatnonzero(sign * (b - model_b) > tol)
-        if bad.size:
-            raise ConfigError(
-                f"task.{name}",
-                f"wider than the model's ctrlrange in channel(s) {bad.tolist()} "
-                f"({b[bad].tolist()} vs {model_b[bad].tolist()}); a task may only narrow the limits",
-            )
-        out.append(b)
-    lo, hi = out
-    if np.any(lo > hi):
-        raise ConfigError("task.u_min", "must be <= task.u_max in every channel")
     return lo, hi
 
 
@@ -173,20 +83,11 @@ def _points(system: System, tc: TaskConfig):
     return cache[ids]
 
 
-def _tolist(v):
-    if v is None:
-        return None
-    a = np.asarray(v, float)
-    return tuple(map(tuple, a.tolist())) if a.ndim == 2 else tuple(a.tolist())
-
-
 def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
     """Fill every task field (preset, keyframes, model) with shape and sign checks; returns
     the resolved TaskConfig (what config.json holds) and the Task. A function black box's
     task: :func:`mjx_surrogate.runs.function_task.resolve_function_task`."""
     if system.mj_model is None:
-        from mjx_surrogate.runs.function_task import resolve_function_task
-
         return resolve_function_task(tc, system)
     m = system.mj_model
     base = preset_fields(tc, system)
@@ -210,19 +111,21 @@ def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
             raise ConfigError("task.goal_keyframe", "give task.x_goal or task.goal_keyframe, not both")
     custom = tc.preset in MODEL_PRESETS
     qpos0 = model_state(m, m.qpos0)
-    x0 = _state(tc, "x0", labels, key_x0 if key_x0 is not None else base.get("x0", qpos0 if custom else None))
-    u_min, u_max = _limits(tc, *model_limits(m), base)
+    x0 = state_field(
+        tc, "x0", labels, key_x0 if key_x0 is not None else base.get("x0", qpos0 if custom else None)
+    )
+    u_min, u_max = limits_field(tc, *model_limits(m), base)
     if tc.preset == "hold":
         base = hold_task(m, x0, u_min, u_max)
     goal_default = key_goal if key_goal is not None else base.get("x_goal", x0 if tc.goals else None)
-    x_goal = _state(tc, "x_goal", labels, goal_default)
+    x_goal = state_field(tc, "x_goal", labels, goal_default)
     if x_goal is None:
         raise ConfigError(
             "task.x_goal", f"required with task.preset='custom' ({nx} numbers, a goal_keyframe or task.goals)"
         )
     zeros = {"Q": np.zeros((nx, nx)), "Q_f": np.zeros((nx, nx))} if (custom and tc.goals) else {}
-    Q, Q_f = _matrix(tc, {**zeros, **base}, "Q", nx), _matrix(tc, {**zeros, **base}, "Q_f", nx)
-    R = _matrix(tc, {"R": control_weights(u_min, u_max), **base} if custom else base, "R", nu)
+    Q, Q_f = matrix_field(tc, {**zeros, **base}, "Q", nx), matrix_field(tc, {**zeros, **base}, "Q_f", nx)
+    R = matrix_field(tc, {"R": control_weights(u_min, u_max), **base} if custom else base, "R", nu)
     if tc.u_ref is not None:
         if len(tc.u_ref) != nu:
             raise ConfigError("task.u_ref", f"needs nu={nu} entries, got {len(tc.u_ref)}")
@@ -256,25 +159,3 @@ def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
         quats=quats,
     )
     return resolved_task_config(tc, T, x0, x_goal, Q, Q_f, R, u_min, u_max, u_ref, state_error), task
-
-
-def resolved_task_config(tc, T, x0, x_goal, Q, Q_f, R, u_min, u_max, u_ref, state_error) -> TaskConfig:
-    """Every field filled: what config.json holds."""
-    limited = lambda b: None if np.all(np.isinf(b)) else _tolist(b)  # noqa: E731
-    return TaskConfig(
-        preset=tc.preset,
-        T=int(T),
-        x0=_tolist(x0),
-        x_goal=_tolist(x_goal),
-        Q=_tolist(Q),
-        Q_f=_tolist(Q_f),
-        R=_tolist(R),
-        u_min=limited(u_min),
-        u_max=limited(u_max),
-        x0_keyframe=tc.x0_keyframe,
-        goal_keyframe=tc.goal_keyframe,
-        u_ref=_tolist(u_ref),
-        state_error=state_error,
-        goals=tc.goals,
-        goal_tolerance=tc.goal_tolerance,
-    )
