@@ -315,7 +315,7 @@ def test_native_initial_rollout_is_one_host_call_equal_to_the_per_step_scan():
     Sim.__call__ = lambda self, *a: calls.append("rollout") or orig[0](self, *a)
     Sim.step = lambda self, *a: calls.append("step") or orig[1](self, *a)
     try:
-        X0 = jax.jit(lambda U: ilqr_init(prob, U, ILQRParams(max_iter=3), jax.random.key(0)).X)(U0)
+        X0 = jax.jit(lambda U: ilqr_init(prob, U, ILQRParams(max_iter=3), jax.random.key(0)).solver.X)(U0)
     finally:
         Sim.__call__, Sim.step = orig
     assert calls == []  # no one-step callback: the batched trial rollout did it

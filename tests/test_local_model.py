@@ -1,18 +1,21 @@
-"""The local model's strategies (``mjx_surrogate.control.local_model``): when the loop's model is
-identified, carried over by a secant update or kept; coarse models hand over to fine ones;
-minima are declared on trusted models only. The solver's state holds none of this."""
+"""The local model and its strategies (``mjx_surrogate.control.model_strategies``): when the
+loop's model is identified, carried over by a secant update or kept; coarse models hand over
+to fine ones; minima are declared on trusted models only. The solver's state holds none of
+this; a strategy of one's own plugs in through ``Problem.strategy``."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate.control import local_model as lm
-from mjx_surrogate.control.ilqr import ILQRParams, ILQRState, Problem
+from mjx_surrogate.control import model_strategies as ms
+from mjx_surrogate.control.ilqr import ILQRParams, ILQRState, Problem, ilqr_advance, ilqr_init, ilqr_result
 from mjx_surrogate.cost import Cost
 
 T, nx, nu = 4, 2, 1
 A_TRUE = jnp.broadcast_to(jnp.array([[1.0, 0.1], [0.0, 1.0]]), (T, nx, nx))
 B_TRUE = jnp.broadcast_to(jnp.array([[0.0], [0.1]]), (T, nx, nu))
+T_F, F_, Z_ = jnp.array(True), jnp.array(False), jnp.asarray(0)
 
 
 def coarse(X, U, K, key):
@@ -33,96 +36,124 @@ def nominal(scale: float = 0.0):
     return jnp.full((T + 1, nx), scale), jnp.full((T, nu), scale)
 
 
-def state(problem, **reuse):
-    m = lm.init_model(problem, *nominal())
-    return m._replace(reuse=m.reuse._replace(**reuse))
+def outcome(accepted=True, ratio=1.0, at_minimum=False, stalled=False, before=1.0, after=0.5):
+    return ms.StepOutcome(
+        jnp.array(accepted),
+        jnp.asarray(ratio),
+        jnp.array(at_minimum),
+        jnp.array(stalled),
+        jnp.asarray(before),
+        jnp.asarray(after),
+    )
 
 
-def model(problem, m, X, U):
-    return lm.model_for(problem, m, X, U, jnp.zeros((T, nu, nx)), jax.random.key(0), ())
+def make(problem, proposal, m=None, X_U=None):
+    m = (
+        lm.init_model(problem, ms.every_iteration(), *nominal(), jax.random.key(0), 3).model
+        if m is None
+        else m
+    )
+    X, U = nominal() if X_U is None else X_U
+    return lm.make_model(problem, m, proposal, X, U, jnp.zeros((T, nu, nx)), jax.random.key(0), ())
 
 
 def test_the_solver_state_holds_no_model_bookkeeping():
-    bookkeeping = {"fresh", "stale", "fine", "fine_model", "reuse_ok", "reused", "X_model", "U_model"}
-    assert not bookkeeping & set(ILQRState._fields)
-    assert "model" in ILQRState._fields
+    assert set(ILQRState._fields) == {
+        "X",
+        "U",
+        "K",
+        "k",
+        "cost",
+        "mu",
+        "iterations",
+        "stop_reason",
+        "cost_history",
+        "X_history",
+        "alpha_history",
+    }
+    from mjx_surrogate.control.ilqr import ILQRResult
+
+    shared = set(ILQRState._fields) & set(ILQRResult._fields)
+    assert shared == set(ILQRState._fields)  # the result names the state's fields as the state does
 
 
-def test_the_first_nominal_is_identified_and_a_minimum_may_be_declared_on_it():
+def test_every_iteration_identifies_when_the_nominal_moved_and_keeps_the_model_after_a_rejection():
+    s = ms.every_iteration()
+    st = s.init()
+    assert bool(s.propose(st, ms.no_proposal()).identify)  # the first nominal
+    st, report = s.update(st, ms.no_proposal(), outcome(accepted=False), ms.no_objection())
+    assert not bool(s.propose(st, ms.no_proposal()).identify) and bool(report.trusted)
+    st, _ = s.update(st, ms.no_proposal(), outcome(accepted=True), ms.no_objection())
+    assert bool(s.propose(st, ms.no_proposal()).identify)
+
+
+def test_the_proposal_is_carried_out_identify_carry_or_keep():
     p = make_problem()
-    m, how = model(p, lm.init_model(p, *nominal()), *nominal())
-    assert int(how) == 1
+    m, how = make(p, ms.Proposal(T_F, F_, F_))
+    assert int(how) == lm.How.IDENTIFIED
     np.testing.assert_array_equal(m.A, A_TRUE)
-    assert bool(lm.trusted(m))
-
-
-def test_a_step_that_passed_the_reuse_test_carries_the_model_over_by_a_secant_update():
-    p = make_problem()
-    m0 = state(p, fresh=jnp.array(True), ok=jnp.array(True))
-    m0 = m0._replace(A=A_TRUE, B=B_TRUE)
     X1, U1 = nominal(0.5)
-    m, how = model(p, m0, X1, U1)
-    assert int(how) == 0  # not identified
-    A_ref, B_ref = lm.secant_update(A_TRUE, B_TRUE, X1 - m0.X, U1 - m0.U)
-    np.testing.assert_allclose(m.A, A_ref, rtol=0, atol=0)
-    np.testing.assert_allclose(m.B, B_ref, rtol=0, atol=0)
-    assert bool(m.reuse.stale) and int(m.reuse.count) == 1
-    assert not bool(lm.trusted(m))  # no minimum on a carried-over model
-    np.testing.assert_array_equal(m.X, X1)  # the model now belongs to the new nominal
+    carried, how = make(p, ms.Proposal(F_, T_F, F_), m, (X1, U1))
+    A_ref, B_ref = lm.secant_update(A_TRUE, B_TRUE, X1 - m.X, U1 - m.U)
+    assert int(how) == lm.How.KEPT
+    np.testing.assert_allclose(carried.A, A_ref, rtol=0, atol=0)
+    np.testing.assert_allclose(carried.B, B_ref, rtol=0, atol=0)
+    np.testing.assert_array_equal(carried.X, X1)  # the model now belongs to the new nominal
+    kept, how = make(p, ms.Proposal(F_, F_, F_), m._replace(A=3.0 * A_TRUE))
+    assert int(how) == lm.How.KEPT
+    np.testing.assert_array_equal(kept.A, 3.0 * A_TRUE)
 
 
-def test_a_step_rejected_on_a_carried_model_is_retried_on_an_identified_one():
-    p = make_problem()
-    m0 = state(p, fresh=jnp.array(False), stale=jnp.array(True), count=jnp.asarray(2))
-    m, how = model(p, m0, *nominal())
-    assert int(how) == 1 and not bool(m.reuse.stale) and int(m.reuse.count) == 0
-
-
-def test_a_rejected_step_on_an_identified_model_keeps_it():
-    p = make_problem()
-    m0 = state(p, fresh=jnp.array(False))._replace(A=3.0 * A_TRUE)
-    m, how = model(p, m0, *nominal())
-    assert int(how) == 0
-    np.testing.assert_array_equal(m.A, 3.0 * A_TRUE)
+def test_reuse_carries_the_model_over_after_a_passed_step_and_distrusts_it():
+    s = ms.chain(ms.every_iteration(), ms.secant_reuse(0.2, 2))
+    st = s.init()
+    p = s.propose(st, ms.no_proposal())
+    st, r = s.update(st, p, outcome(ratio=1.1), ms.no_objection())
+    assert bool(p.identify) and bool(r.trusted)  # the first model is identified
+    p = s.propose(st, ms.no_proposal())
+    assert not bool(p.identify) and bool(p.carry)  # passed: carried over
+    st, r = s.update(st, p, outcome(ratio=1.1), ms.no_objection())
+    assert not bool(r.trusted) and int(st[1].count) == 1  # no minimum on a carried-over model
+    st_rejected, _ = s.update(st, s.propose(st, ms.no_proposal()), outcome(accepted=False), ms.no_objection())
+    p = s.propose(st_rejected, ms.no_proposal())
+    assert bool(p.identify) and not bool(p.carry)  # rejected on a carried model: identified afresh
 
 
 def test_the_reuse_test_and_its_limit():
-    p = make_problem()
-    params = ILQRParams(reuse_tol=0.2, reuse_max=2)
-    m = state(p, count=jnp.asarray(1))
+    s = ms.secant_reuse(0.2, 2)
+    carry = ms.Proposal(F_, T_F, F_)
 
-    def after(ratio, count=1, accepted=True, at_minimum=False):
-        o = lm.StepOutcome(
-            jnp.array(accepted), jnp.asarray(ratio), jnp.array(at_minimum), jnp.array(False), jnp.array(False)
-        )
-        return lm.after_step(params, m._replace(reuse=m.reuse._replace(count=jnp.asarray(count))), o)[0].reuse
+    def ok(ratio, count=0, accepted=True, at_minimum=False):
+        st = ms.ReuseState(F_, F_, jnp.asarray(count))
+        return bool(s.update(st, carry, outcome(accepted, ratio, at_minimum), ms.no_objection())[0].ok)
 
-    assert bool(after(1.1).ok) and bool(after(1.1).fresh)
-    assert not bool(after(1.3).ok)  # the model's promise missed by more than reuse_tol
-    assert not bool(after(1.1, count=2).ok)  # reuse_max carried-over models in a row
-    assert not bool(after(1.1, at_minimum=True).ok)
-    r = after(1.0, accepted=False)
-    assert not bool(r.ok) and not bool(r.fresh)
+    assert ok(1.1)
+    assert not ok(1.3)  # the model's promise missed by more than tol
+    assert not ok(1.1, count=1)  # max_reuse carried-over models in a row (this one is the 2nd)
+    assert not ok(1.1, at_minimum=True)
+    assert not ok(1.0, accepted=False)
 
 
 def test_a_coarse_model_hands_over_to_the_fine_one_and_only_that_is_trusted():
     p = make_problem(with_fine=True)
-    m, how = model(p, lm.init_model(p, *nominal()), *nominal())
-    assert int(how) == 1 and not bool(lm.is_fine(m)) and not bool(lm.trusted(m))
+    s = ms.chain(ms.every_iteration(), ms.coarse_then_fine(0.05, has_fine=True))
+    st = s.init()
+    prop = s.propose(st, ms.no_proposal())
+    m, how = make(p, prop)
+    assert int(how) == lm.How.IDENTIFIED
     np.testing.assert_array_equal(m.A, A_TRUE)  # the coarse model
-    o = lm.StepOutcome(
-        jnp.array(True), jnp.asarray(1.0), jnp.array(False), jnp.array(False), jnp.array(False)
-    )
-    m_go_on, handover = lm.after_step(ILQRParams(), m, o)
-    assert not bool(handover) and not bool(m_go_on.refine.fine)
-    for reason in range(3):  # a minimum, a small gain or a stall on the coarse model
-        flags = [jnp.array(i == reason) for i in range(3)]
-        o = lm.StepOutcome(jnp.array(True), jnp.asarray(1.0), *flags)
-        m_next, handover = lm.after_step(ILQRParams(), m, o)
-        assert bool(handover) and bool(m_next.refine.fine)
-    m_fine, how = model(p, m_next._replace(reuse=m_next.reuse._replace(fresh=jnp.array(False))), *nominal())
-    assert int(how) == 2 and bool(lm.trusted(m_fine))  # identified again, by the fine model
+    go_on, r = s.update(st, prop, outcome(before=1.0, after=0.5), ms.no_objection())
+    assert not bool(r.handover) and not bool(r.trusted) and not bool(r.fine) and not bool(go_on[1].fine)
+    for o in (outcome(at_minimum=True), outcome(stalled=True), outcome(before=1.0, after=0.96)):
+        st_next, r = s.update(st, prop, o, ms.no_objection())  # a minimum, a stall, a small gain
+        assert bool(r.handover) and bool(st_next[1].fine)
+    rejected = st_next[0]._replace(fresh=F_)  # even on the same nominal, the fine model is identified
+    prop = s.propose((rejected, st_next[1]), ms.no_proposal())
+    m_fine, how = make(p, prop)
+    assert int(how) == lm.How.IDENTIFIED_FINE
     np.testing.assert_array_equal(m_fine.A, 2.0 * A_TRUE)
+    _, r = s.update((rejected, st_next[1]), prop, outcome(), ms.no_objection())
+    assert bool(r.trusted) and bool(r.fine) and not bool(r.handover)
 
 
 def test_the_model_for_a_reduced_problem_carries_its_basis():
@@ -130,10 +161,48 @@ def test_the_model_for_a_reduced_problem_carries_its_basis():
     V = jnp.broadcast_to(jnp.array([[1.0], [0.0]]), (T + 1, nx, r))
     lin = lambda X, U, K, key: (jnp.ones((T, r, r)), jnp.ones((T, r, nu)), V)  # noqa: E731
     p = make_problem()._replace(linearize=lin, model_rank=r)
-    m0 = lm.init_model(p, *nominal())
+    m0 = lm.init_model(p, ms.every_iteration(), *nominal(), jax.random.key(0), 3).model
     assert m0.A.shape == (T, r, r) and m0.V.shape == (T + 1, nx, r)
-    m, _ = model(p, m0, *nominal())
+    m, _ = make(p, ms.Proposal(T_F, F_, F_), m0)
     np.testing.assert_array_equal(m.V, V)
+
+
+def test_a_strategy_of_ones_own_plugs_in_through_the_problem():
+    """A strategy that identifies only every other iteration (its own state: a counter), on
+    a linear system: the loop identifies where it says, and the minimum is the same."""
+
+    def every_other() -> ms.ModelStrategy:
+        def propose(n, p):
+            return p._replace(identify=(n % 2) == 0)
+
+        def update(n, p, o, r):
+            return n + 1, r
+
+        return ms.ModelStrategy(lambda: jnp.asarray(0), propose, update)
+
+    A = jnp.array([[1.0, 0.1], [0.0, 1.0]])
+    B = jnp.array([[0.0], [0.1]])
+    step = lambda x, u: A @ x + B @ u  # noqa: E731
+    lin = lambda X, U, K, key: (jnp.broadcast_to(A, (T, nx, nx)), jnp.broadcast_to(B, (T, nx, nu)))  # noqa: E731
+    cost = Cost(lambda x, u: jnp.sum(x**2) + jnp.sum(u**2), lambda x: 10.0 * jnp.sum(x**2))
+    lim = jnp.full(nu, 100.0)
+    base = Problem(step, lin, cost, jnp.array([1.0, 0.0]), -lim, lim)
+    params = ILQRParams(max_iter=6, rel_tol=0.0, k_tol=0.0)
+    U0 = jnp.zeros((T, nu))
+    own = ilqr_result(
+        ilqr_advance(
+            base._replace(strategy=every_other()),
+            ilqr_init(base._replace(strategy=every_other()), U0, params, jax.random.key(0)),
+            params,
+        )
+    )
+    default = ilqr_result(ilqr_advance(base, ilqr_init(base, U0, params, jax.random.key(0)), params))
+    n = int(own.iterations)
+    np.testing.assert_array_equal(np.asarray(own.identified)[:n], [1 - i % 2 for i in range(n)])
+    accepted = np.asarray(default.alpha_history)[: int(default.iterations)] > 0
+    want = np.r_[True, accepted[:-1]]  # the default identifies where the nominal moved
+    np.testing.assert_array_equal(np.asarray(default.identified)[: int(default.iterations)] == 1, want)
+    np.testing.assert_allclose(float(own.cost), float(default.cost), rtol=1e-9)
 
 
 def test_the_first_models_zero_expansion_has_the_cost_derivatives_shapes_and_dtypes():

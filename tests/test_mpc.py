@@ -308,14 +308,14 @@ def test_a_replan_starts_from_the_cheaper_of_the_previous_policy_and_its_control
     x = np.array([1.0, 0.0])
     prob = problem(_linear(), _task(x), SID, "d2c")
     plan = mpc.Plan(jnp.asarray(U), jnp.asarray(X), jnp.asarray(K))
-    start = mpc.warm_start(prob, plan, ILQRParams(), jax.random.key(0))
+    start = mpc.warm_start(prob, plan, ILQRParams(), jax.random.key(0)).solver
     np.testing.assert_allclose(np.asarray(start.U), _numpy_policy(x, X, U, K), atol=1e-12)
     wild = plan._replace(K=jnp.asarray(-1e3 * K))  # a policy far costlier than its controls
-    start = mpc.warm_start(prob, wild, ILQRParams(), jax.random.key(0))
+    start = mpc.warm_start(prob, wild, ILQRParams(), jax.random.key(0)).solver
     np.testing.assert_allclose(np.asarray(start.U), U, atol=1e-12)
     blown = mpc.Plan(jnp.full((H, 1), 1e300), jnp.asarray(X), jnp.asarray(K))  # both rollouts overflow
-    blown_start = mpc.warm_start(prob, blown, ILQRParams(), jax.random.key(0))
-    assert not np.isfinite(float(blown_start.J)) and np.all(np.asarray(blown_start.U) == 1e300)
+    blown_start = mpc.warm_start(prob, blown, ILQRParams(), jax.random.key(0)).solver
+    assert not np.isfinite(float(blown_start.cost)) and np.all(np.asarray(blown_start.U) == 1e300)
     x_next = x
     for t in range(H):  # the nominal is the controls' own rollout
         x_next = A @ x_next + B @ U[t]

@@ -71,6 +71,80 @@ def test_the_library_imports_only_downward():
     assert not upward, upward
 
 
+def _module_graph(package: str) -> dict[str, set[str]]:
+    """module -> the package's modules it imports: at module level, inside functions and
+    under TYPE_CHECKING alike; ``from P import m`` counts as importing module P.m."""
+    base = os.path.join(ROOT, package)
+    paths = {}
+    for path in glob.glob(os.path.join(base, "**", "*.py"), recursive=True):
+        rel = os.path.relpath(path, ROOT)[:-3].replace(os.sep, ".")
+        paths[rel.removesuffix(".__init__")] = path
+    graph = {}
+    for name, path in paths.items():
+        here = name if path.endswith("__init__.py") else name.rpartition(".")[0]
+        edges = set()
+        for node in ast.walk(ast.parse(open(path).read())):
+            if isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                parts = here.split(".")
+                mod = node.module or ""
+                if node.level:
+                    mod = ".".join(parts[: len(parts) - node.level + 1] + ([mod] if mod else []))
+                targets = [f"{mod}.{a.name}" if f"{mod}.{a.name}" in paths else mod for a in node.names]
+            else:
+                continue
+            edges |= {t for t in targets if t in paths and t != name}
+        graph[name] = edges
+    return graph
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components with more than one module (Tarjan)."""
+    index, low, stack, on, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_the_cycle_finder_finds_a_circle_of_local_imports():
+    graph = {"p.a": {"p.b"}, "p.b": {"p.c"}, "p.c": {"p.a"}, "p.d": {"p.a"}}
+    assert _cycles(graph) == [["p.a", "p.b", "p.c"]]
+    assert _cycles({"p.a": {"p.b"}, "p.b": set()}) == []
+
+
+@pytest.mark.parametrize("package", ["mjx_surrogate", "experiments", "benchmarks"])
+def test_no_package_has_an_internal_import_cycle(package):
+    graph = _module_graph(package)
+    assert len(graph) > 5  # the files were read
+    if package == "mjx_surrogate":
+        assert sum(map(len, graph.values())) > 100  # and their imports
+    assert _cycles(graph) == []
+
+
 def test_every_subpackage_is_a_layer():
     for entry in os.scandir(os.path.join(ROOT, "mjx_surrogate")):
         if entry.is_dir() and os.path.exists(os.path.join(entry.path, "__init__.py")):

@@ -35,14 +35,21 @@ from mjx_surrogate import progress as progress_lib
 from mjx_surrogate import sharding
 from mjx_surrogate.control import d2c
 from mjx_surrogate.control.d2c import best_of, oracle_method, problem
-from mjx_surrogate.control.ilqr import ILQRParams, ILQRState, StopReason, ilqr_advance, ilqr_init, ilqr_result
+from mjx_surrogate.control.ilqr import (
+    ILQRParams,
+    SolveState,
+    StopReason,
+    ilqr_advance,
+    ilqr_init,
+    ilqr_result,
+)
 from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.systems import System
 from mjx_surrogate.tasks import Task
 from mjx_surrogate.timing import Timed, compile_then_run
 
 
-def _init_one(system, task, U0, key, params, sysid, method) -> ILQRState:
+def _init_one(system, task, U0, key, params, sysid, method) -> SolveState:
     return ilqr_init(problem(system, task, sysid, method), U0, params, key)
 
 
@@ -55,7 +62,7 @@ def start(
     params: ILQRParams,
     sysid: sid.SysIdParams,
     method: str,
-) -> tuple[ILQRState, jax.Array]:
+) -> tuple[SolveState, jax.Array]:
     """The state before the first iteration and its :func:`_summary`; U0 [S, T, nu] gives S
     states (batch axis first)."""
     if U0.ndim == 2:
@@ -71,28 +78,29 @@ def start(
     return state, _summary(state)
 
 
-def _summary(state: ILQRState) -> jax.Array:
+def _summary(state: SolveState) -> jax.Array:
     """[4]: any solve running, the most iterations done, the lowest cost, the lowest mu."""
-    J = jnp.where(jnp.isfinite(state.J), state.J, jnp.inf)
-    running = jnp.any(state.reason == StopReason.RUNNING)
-    it = jnp.max(state.it).astype(J.dtype)
-    return jnp.stack([running.astype(J.dtype), it, jnp.min(J), jnp.min(state.mu)])
+    s = state.solver
+    J = jnp.where(jnp.isfinite(s.cost), s.cost, jnp.inf)
+    running = jnp.any(s.stop_reason == StopReason.RUNNING)
+    it = jnp.max(s.iterations).astype(J.dtype)
+    return jnp.stack([running.astype(J.dtype), it, jnp.min(J), jnp.min(s.mu)])
 
 
 @functools.partial(jax.jit, static_argnames=("system", "method"), donate_argnames=("state",))
 def advance(
     system: System,
     task: Task,
-    state: ILQRState,
+    state: SolveState,
     until: jax.Array,
     stop: jax.Array,
     params: ILQRParams,
     sysid: sid.SysIdParams,
     method: str,
-) -> tuple[ILQRState, jax.Array]:
+) -> tuple[SolveState, jax.Array]:
     """Iterate every running solve until it stops or has done ``until`` iterations (``stop``:
     mark them interrupted instead); returns the new state and its :func:`_summary`."""
-    if state.X.ndim == 2:
+    if state.solver.X.ndim == 2:
         new = ilqr_advance(problem(system, task, sysid, method), state, params, until, stop)
         return new, _summary(new)
     single = system.on_one_device()
@@ -106,8 +114,8 @@ def advance(
 
 
 @jax.jit
-def _result(state: ILQRState):
-    if state.X.ndim == 2:
+def _result(state: SolveState):
+    if state.solver.X.ndim == 2:
         return ilqr_result(state)
     return best_of(ilqr_result(state))
 

@@ -1,15 +1,7 @@
 """Iterative LQR on any one-step map, as one ``lax.while_loop`` (paper, Preliminaries).
 
-The solver sees only functions:
-
-* ``step(x[nx], u[nu]) -> x_next[nx]``: the (black-box) dynamics, used by the forward pass;
-* ``linearize(X[T+1, nx], U[T, nu], K[T, nu, nx], key) -> (A[T, nx, nx], B[T, nx, nu])``:
-  the local LTV model of the nominal (exact Jacobians, LTV least squares, a surrogate...);
-  or, with ``Problem.model_rank`` r, a reduced model (A[T, r, r], B[T, r, nu], V[T+1, nx,
-  r]) in the coordinates alpha_t = V_t' (x_t - x_bar_t) (:mod:`mjx_surrogate.identification.sysid_reduced`):
-  the backward pass then runs on the cost's derivatives projected on V_t, and the gains
-  K_t V_t' act on the full state;
-* ``cost``: :class:`Cost`, running ``l(x, u)`` and terminal ``l_f(x)``.
+The solver sees only functions and fixed data: :class:`~mjx_surrogate.control.problem.Problem`
+(the dynamics ``step``, the local model ``linearize``, the cost).
 
 Backward pass: :func:`mjx_surrogate.control.riccati.backward_pass` (the Riccati sweep on the LTV
 model, box-constrained k, regularisation mu).
@@ -20,10 +12,12 @@ when its cost is finite and (J - J_alpha) / (-(alpha dV1 + alpha^2 dV2)) > accep
 the best accepted trial wins.
 
 When the model is identified, and when it is carried over instead (model reuse with
-secant updates; coarse then fine identification), is decided by
-:mod:`mjx_surrogate.control.local_model`, which owns that state (``ILQRState.model``). One
-iteration reads: the model of the nominal -> backward pass -> line search ->
-regularisation schedule -> stopping rules, each a small function below.
+secant updates; coarse then fine identification), is decided by a model strategy
+(:mod:`mjx_surrogate.control.model_strategies`, ``init``/``propose``/``update``); the model
+and the strategies' states travel beside the solver's state (:class:`SolveState`), not in
+it. One iteration reads: the strategy's proposal -> the model of the nominal -> backward
+pass -> line search -> regularisation schedule -> the strategy's update -> stopping rules,
+each a small function below.
 
 Stopping rules (checked in this order after every iteration; :class:`StopReason`): a
 local model that is not finite (the black box returned NaN or inf around the finite
@@ -56,7 +50,7 @@ kept in JAX's persistent compilation cache (:mod:`mjx_surrogate.control.chunked`
 from __future__ import annotations
 
 import enum
-from typing import Callable, NamedTuple
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -64,15 +58,19 @@ from flax import struct
 
 from mjx_surrogate import progress as progress_lib
 from mjx_surrogate.control import local_model
-from mjx_surrogate.control.local_model import ModelState, full_gains, reduced_expansion, secant_update  # noqa: F401
+from mjx_surrogate.control.local_model import LocalModel, ModelState, full_gains, reduced_expansion
+from mjx_surrogate.control.model_strategies import (
+    ModelReport,
+    ModelStrategy,
+    StepOutcome,
+    default_strategy,
+    no_objection,
+    no_proposal,
+)
+from mjx_surrogate.control.problem import ClosedLoopFn, LinearizeFn, Problem, StepFn
 from mjx_surrogate.control.riccati import backward_pass, cost_derivatives, tvlqr_gains
 from mjx_surrogate.cost import Cost, trajectory_cost
 from mjx_surrogate.trajectory import feedback_rollout, feedback_rollouts
-
-StepFn = Callable[[jax.Array, jax.Array], jax.Array]
-LinearizeFn = Callable[[jax.Array, jax.Array, jax.Array, jax.Array], tuple[jax.Array, jax.Array]]
-# (x0, X_bar, U_bar, k, K, alphas [A], lo, hi) -> (X [A, T+1, nx], U [A, T, nu])
-ClosedLoopFn = Callable[..., tuple[jax.Array, jax.Array]]
 
 __all__ = [
     "Cost",
@@ -80,6 +78,7 @@ __all__ = [
     "ILQRResult",
     "ILQRState",
     "Problem",
+    "SolveState",
     "StopReason",
     "ilqr",
     "ilqr_advance",
@@ -169,6 +168,7 @@ class ILQRParams:
     accept_ratio: float = 1e-4
     alpha_factor: float = 0.5  # the line search's step sizes: alpha_factor ** (0 .. n_alphas - 1)
     mu_raise_alpha: float = 0.0  # an accepted step size below this raises mu as a rejection does
+    # the default model strategy's settings (model_strategies.default_strategy)
     reuse_tol: float = 0.0  # reuse the model when |actual/expected decrease - 1| <= this
     reuse_max: int = 0  # at most this many iterations in a row on a reused model
     refine_tol: float = 0.0  # with linearize_fine: switch to it once a step gains <= this
@@ -213,44 +213,37 @@ def closed_loop(
     return feedback_rollout(step, x0, X_bar, U_bar, K, alpha * k, lo, hi)
 
 
-class Problem(NamedTuple):
-    """What the solver sees: functions (module docstring) and the fixed data of one problem.
-    x0 [nx]; u_min, u_max [nu]. ``trial_rollouts`` replaces the default line-search
-    forward pass (``closed_loop`` over ``step``, vmapped over the step sizes) with one call
-    for all step sizes: the native backend makes one host call per iteration with it instead
-    of one per time step. ``linearize_fine``: the every-step model a coarse one hands over to.
-    ``model_rank``: None for a full-order model, r for a reduced one (module docstring)."""
-
-    step: StepFn
-    linearize: LinearizeFn
-    cost: Cost
-    x0: jax.Array
-    u_min: jax.Array
-    u_max: jax.Array
-    trial_rollouts: ClosedLoopFn | None = None
-    linearize_fine: LinearizeFn | None = None
-    model_rank: int | None = None
-
-
 class ILQRState(NamedTuple):
-    """The loop's carry: nominal X [T+1, nx], U [T, nu], gains K [T, nu, nx], k [T, nu],
-    cost J, regularisation mu, iteration count and stop reason, the history, and the local
-    model with its strategies' state (:class:`~mjx_surrogate.control.local_model.ModelState`)."""
+    """The solver's own state (named as :class:`ILQRResult`'s fields): nominal X [T+1, nx],
+    U [T, nu], gains K [T, nu, nx], k [T, nu], cost, regularisation mu, iterations done,
+    stop reason, and the history."""
 
     X: jax.Array
     U: jax.Array
     K: jax.Array
     k: jax.Array
-    J: jax.Array
+    cost: jax.Array
     mu: jax.Array
-    it: jax.Array
-    reason: jax.Array
-    key: jax.Array
-    history: jax.Array  # [max_iter+1] cost after each iteration
+    iterations: jax.Array
+    stop_reason: jax.Array
+    cost_history: jax.Array  # [max_iter+1] cost after each iteration
     X_history: jax.Array
-    alphas: jax.Array  # [max_iter] accepted step sizes
-    identified: jax.Array  # [max_iter] int8
+    alpha_history: jax.Array  # [max_iter] accepted step sizes
+
+
+class SolveState(NamedTuple):
+    """The loop's carry: the solver's state and, beside it, the local model's
+    (:class:`~mjx_surrogate.control.local_model.ModelState`)."""
+
+    solver: ILQRState
     model: ModelState
+
+
+def strategy_of(problem: Problem, params: ILQRParams) -> ModelStrategy:
+    """The problem's model strategy, else the default chain with the solver's settings."""
+    if problem.strategy is not None:
+        return problem.strategy
+    return default_strategy(params, problem.linearize_fine is not None)
 
 
 def ilqr_init(
@@ -260,7 +253,7 @@ def ilqr_init(
     key: jax.Array,
     X_ref: jax.Array | None = None,
     K_ref: jax.Array | None = None,
-) -> ILQRState:
+) -> SolveState:
     """The state before the first iteration: U0 [T, nu] clipped to the limits and rolled out.
     With a policy's X_ref [T+1, nx] and gains K_ref [T, nu, nx] (a receding horizon's previous
     plan), the rollout is closed-loop, u_t = clip(U0_t + K_ref_t (x_t - X_ref_t)), and its
@@ -292,22 +285,21 @@ def ilqr_init(
         if params.record_trajectories
         else jnp.zeros((0,), dtype)
     )
-    return ILQRState(
+    solver = ILQRState(
         X=X0,
         U=U0,
         K=zeros_K,
         k=jnp.zeros((T, nu), dtype),
-        J=J0,
+        cost=J0,
         mu=jnp.asarray(params.mu_init, dtype),
-        it=jnp.asarray(0),
-        reason=jnp.where(jnp.isfinite(J0), StopReason.RUNNING, StopReason.NOT_FINITE),
-        key=key,
-        history=jnp.full((n_hist,), jnp.nan, dtype).at[0].set(J0),
+        iterations=jnp.asarray(0),
+        stop_reason=jnp.where(jnp.isfinite(J0), StopReason.RUNNING, StopReason.NOT_FINITE),
+        cost_history=jnp.full((n_hist,), jnp.nan, dtype).at[0].set(J0),
         X_history=X_hist,
-        alphas=jnp.zeros((params.max_iter,), dtype),
-        identified=jnp.zeros((params.max_iter,), jnp.int8),
-        model=local_model.init_model(problem, X0, U0),
+        alpha_history=jnp.zeros((params.max_iter,), dtype),
     )
+    model = local_model.init_model(problem, strategy_of(problem, params), X0, U0, key, params.max_iter)
+    return SolveState(solver, model)
 
 
 class LineSearch(NamedTuple):
@@ -338,15 +330,15 @@ def _line_search(problem: Problem, p: ILQRParams, s: ILQRState, k, K, dV, ok) ->
         Xa, Ua = problem.trial_rollouts(x0, s.X, s.U, k, K, alphas, u_min, u_max)
     Ja = jax.vmap(trajectory_cost, in_axes=(None, 0, 0))(problem.cost, Xa, Ua)
     expected = -(alphas * dV[0] + alphas**2 * dV[1])
-    ratio = (s.J - Ja) / jnp.where(expected > 0, expected, jnp.inf)
-    accept = ok & jnp.isfinite(Ja) & (Ja < s.J) & (ratio > p.accept_ratio)
+    ratio = (s.cost - Ja) / jnp.where(expected > 0, expected, jnp.inf)
+    accept = ok & jnp.isfinite(Ja) & (Ja < s.cost) & (ratio > p.accept_ratio)
     any_acc = jnp.any(accept)
     best = jnp.argmin(jnp.where(accept, Ja, jnp.inf))
     return LineSearch(
         accepted=any_acc,
         X=jnp.where(any_acc, Xa[best], s.X),
         U=jnp.where(any_acc, Ua[best], s.U),
-        J=jnp.where(any_acc, Ja[best], s.J),
+        J=jnp.where(any_acc, Ja[best], s.cost),
         alpha=jnp.where(any_acc, alphas[best], 0.0),
         ratio=ratio[best],
     )
@@ -371,34 +363,30 @@ def _minimum_tests(p: ILQRParams, s: ILQRState, ls: LineSearch, k, dV, ok, reg) 
     box / the LTV estimate)."""
     unreg = 1.0 + reg
     scale_u = 1.0 + jnp.max(jnp.abs(s.U))
-    small_dJ = ls.accepted & (unreg * (s.J - ls.J) <= p.rel_tol * jnp.abs(s.J))
+    small_dJ = ls.accepted & (unreg * (s.cost - ls.J) <= p.rel_tol * jnp.abs(s.cost))
     small_k = ok & (unreg * jnp.max(jnp.abs(k)) < p.k_tol * scale_u)
-    floor = ok & ~ls.accepted & (unreg * jnp.abs(dV[0] + dV[1]) <= p.rel_tol * jnp.abs(s.J))
+    floor = ok & ~ls.accepted & (unreg * jnp.abs(dV[0] + dV[1]) <= p.rel_tol * jnp.abs(s.cost))
     return small_dJ, small_k, floor
 
 
-def model_finite(model: ModelState) -> jax.Array:
-    """Whether the local model's A and B are finite (a black box that returned NaN or inf
-    in the identification's rollouts gives a model that is not)."""
-    return jnp.all(jnp.isfinite(model.A)) & jnp.all(jnp.isfinite(model.B))
-
-
-def _stop_reason(p: ILQRParams, it, mu, model: ModelState, minimum: tuple, moved, stop) -> jax.Array:
+def _stop_reason(
+    p: ILQRParams, it, mu, model: LocalModel, report: ModelReport, minimum: tuple, moved, stop
+) -> jax.Array:
     """The first rule that holds (:class:`StopReason`; RUNNING if none): a model that is not
-    finite first; minima only on a trusted model, and only once the cost has ``moved``
-    below the start's (else the start is stationary); a stall only on a fine model
-    (:mod:`mjx_surrogate.control.local_model`)."""
+    finite first; minima only on a model the strategies trust, and only once the cost has
+    ``moved`` below the start's (else the start is stationary); a stall only on a fine model
+    (:mod:`mjx_surrogate.control.model_strategies`)."""
     small_dJ, small_k, floor = minimum
-    trusted = local_model.trusted(model)
+    trusted = report.trusted
     at_min = trusted & (small_dJ | small_k | floor)
     return jnp.select(
         [
-            ~model_finite(model),
+            ~local_model.model_finite(model),
             at_min & ~moved,
             trusted & small_dJ,
             trusted & small_k,
             trusted & floor,
-            local_model.is_fine(model) & (mu > p.mu_max),
+            report.fine & (mu > p.mu_max),
             it >= p.max_iter,
             stop,
         ],
@@ -416,12 +404,15 @@ def _stop_reason(p: ILQRParams, it, mu, model: ModelState, minimum: tuple, moved
     )
 
 
-def _iteration(problem: Problem, p: ILQRParams, progress, s: ILQRState) -> ILQRState:
-    """One iLQR iteration: the model of the nominal, backward pass, line search,
-    regularisation schedule, stopping rules."""
-    key, sub = jax.random.split(s.key)
+def _iteration(problem: Problem, p: ILQRParams, progress, state: SolveState) -> SolveState:
+    """One iLQR iteration: the strategy's proposal, the model of the nominal, backward pass,
+    line search, regularisation schedule, the strategy's update, stopping rules."""
+    s, m = state.solver, state.model
+    strategy = strategy_of(problem, p)
+    key, sub = jax.random.split(m.key)
     derivs = cost_derivatives(problem.cost, s.X, s.U)
-    model, how = local_model.model_for(problem, s.model, s.X, s.U, s.K, sub, derivs)
+    proposal = strategy.propose(m.strategy, no_proposal())
+    model, how = local_model.make_model(problem, m.model, proposal, s.X, s.U, s.K, sub, derivs)
     expansion = reduced_expansion(derivs, model.V)
     k, K, dV, ok, reg = backward_pass(model.A, model.B, *expansion, s.U, problem.u_min, problem.u_max, s.mu)
     K = full_gains(K, model.V)
@@ -429,68 +420,67 @@ def _iteration(problem: Problem, p: ILQRParams, progress, s: ILQRState) -> ILQRS
     mu = _schedule(p, s.mu, ls)
     minimum = _minimum_tests(p, s, ls, k, dV, ok, reg)
     at_min = minimum[0] | minimum[1] | minimum[2]
-    gain_small = ls.accepted & (s.J - ls.J <= p.refine_tol * jnp.abs(s.J))
-    outcome = local_model.StepOutcome(ls.accepted, ls.ratio, at_min, gain_small, mu > p.mu_max)
-    after, handover = local_model.after_step(p, model, outcome)
-    mu = jnp.where(handover, jnp.asarray(p.mu_init, mu.dtype), mu)  # a new model, a new schedule
-    it = s.it + 1
+    outcome = StepOutcome(ls.accepted, ls.ratio, at_min, mu > p.mu_max, s.cost, ls.J)
+    strategies, report = strategy.update(m.strategy, proposal, outcome, no_objection())
+    mu = jnp.where(report.handover, jnp.asarray(p.mu_init, mu.dtype), mu)  # a new model, a new schedule
+    it = s.iterations + 1
     stop = progress_lib.poll(progress, it, ls.J, mu) if progress is not None else jnp.array(False)
     # judged on the model the step was taken on (a coarse one that handed over stops nothing)
-    moved = ls.J < s.history[0]  # the cost is below the start's
-    reason = _stop_reason(p, it, mu, model, minimum, moved, stop)
-    return ILQRState(
+    moved = ls.J < s.cost_history[0]  # the cost is below the start's
+    reason = _stop_reason(p, it, mu, model, report, minimum, moved, stop)
+    solver = ILQRState(
         X=ls.X,
         U=ls.U,
         K=jnp.where(ls.accepted, K, s.K),
         k=jnp.where(ls.accepted, k, s.k),
-        J=ls.J,
+        cost=ls.J,
         mu=mu,
-        it=it,
-        reason=reason,
-        key=key,
-        history=s.history.at[it].set(ls.J),
+        iterations=it,
+        stop_reason=reason,
+        cost_history=s.cost_history.at[it].set(ls.J),
         X_history=s.X_history.at[it].set(ls.X) if p.record_trajectories else s.X_history,
-        alphas=s.alphas.at[it - 1].set(ls.alpha),
-        identified=s.identified.at[it - 1].set(how),
-        model=after,
+        alpha_history=s.alpha_history.at[it - 1].set(ls.alpha),
     )
+    return SolveState(solver, ModelState(model, strategies, key, m.identified.at[it - 1].set(how)))
 
 
 def ilqr_advance(
     problem: Problem,
-    state: ILQRState,
+    state: SolveState,
     params: ILQRParams,
     until: jax.Array | int | None = None,
     stop: jax.Array | bool = False,
     progress: progress_lib.ProgressMeter | None = None,
-) -> ILQRState:
+) -> SolveState:
     """Iterate while the solve runs and fewer than ``until`` iterations are done (None:
     max_iter). ``stop`` True marks a running solve interrupted and iterates no more.
     ``progress``, if given, is polled from inside the loop once per iteration (a host
     callback); a host that drives the loop itself reports between calls instead."""
     until = params.max_iter if until is None else until
-    interrupted = jnp.asarray(stop) & (state.reason == StopReason.RUNNING)
-    state = state._replace(reason=jnp.where(interrupted, StopReason.INTERRUPTED, state.reason))
+    s = state.solver
+    interrupted = jnp.asarray(stop) & (s.stop_reason == StopReason.RUNNING)
+    s = s._replace(stop_reason=jnp.where(interrupted, StopReason.INTERRUPTED, s.stop_reason))
     state = jax.lax.while_loop(
-        lambda s: (s.reason == StopReason.RUNNING) & (s.it < until),
-        lambda s: _iteration(problem, params, progress, s),
-        state,
+        lambda c: (c.solver.stop_reason == StopReason.RUNNING) & (c.solver.iterations < until),
+        lambda c: _iteration(problem, params, progress, c),
+        state._replace(solver=s),
     )
-    finished = (state.reason != StopReason.RUNNING) & (state.it > 0)
-    K = jax.lax.cond(finished, lambda: final_gains(problem, state, params), lambda: state.K)
-    return state._replace(K=K)
+    s = state.solver
+    finished = (s.stop_reason != StopReason.RUNNING) & (s.iterations > 0)
+    K = jax.lax.cond(finished, lambda: final_gains(problem, state, params), lambda: s.K)
+    return state._replace(solver=s._replace(K=K))
 
 
-def final_gains(problem: Problem, s: ILQRState, p: ILQRParams) -> jax.Array:
+def final_gains(problem: Problem, state: SolveState, p: ILQRParams) -> jax.Array:
     """The feedback gains K [T, nu, nx] of a finished solve: TVLQR on the last model and
-    the cost's expansion at the same nominal (``s.model``'s X, U: the final one unless
+    the cost's expansion at the same nominal (the model's X, U: the final one unless
     the last step was accepted), with the least regularisation, 0 or else mu_min mu_factor^j up
     to mu_max, that makes every Q_uu positive definite (the solve's gains if none does).
     Not the last iteration's gains: mu B'B pushes those towards -(B'B)^-1 B'A, gains that
     cancel the dynamics: after a stall (mu past mu_max) a closed loop with them cost about
     twice the open loop under 1 % control noise (UR5e, dm_control humanoid)."""
 
-    m = s.model
+    s, m = state.solver, state.model.model
 
     def gains(c):  # the loop holds the one call site, so the sweep is compiled once
         mu = jnp.where(c[0] < 0, 0.0, jnp.maximum(c[0] * p.mu_factor, p.mu_min))
@@ -503,24 +493,24 @@ def final_gains(problem: Problem, s: ILQRState, p: ILQRParams) -> jax.Array:
     return jnp.where(ok, K, s.K)
 
 
-def ilqr_result(state: ILQRState) -> ILQRResult:
+def ilqr_result(state: SolveState) -> ILQRResult:
     """The result of a solve's state (its best iterate; ``stop_reason`` RUNNING if unfinished)."""
-    s = state
-    converged = jnp.isin(s.reason, jnp.asarray([int(r) for r in CONVERGED]))
+    s = state.solver
+    converged = jnp.isin(s.stop_reason, jnp.asarray([int(r) for r in CONVERGED]))
     return ILQRResult(
         X=s.X,
         U=s.U,
         K=s.K,
         k=s.k,
-        cost=s.J,
-        cost_history=s.history,
-        iterations=s.it,
-        stop_reason=s.reason,
+        cost=s.cost,
+        cost_history=s.cost_history,
+        iterations=s.iterations,
+        stop_reason=s.stop_reason,
         converged=converged,
         mu=s.mu,
         X_history=s.X_history,
-        alpha_history=s.alphas,
-        identified=s.identified,
+        alpha_history=s.alpha_history,
+        identified=state.model.identified,
     )
 
 

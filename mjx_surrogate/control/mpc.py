@@ -179,7 +179,8 @@ def warm_start(prob: Problem, plan: Plan, params: ILQRParams, key: jax.Array):
     changed since, e.g. refitted online)."""
     policy = ilqr_init(prob, plan.U, params, key, plan.X, plan.K)
     controls = ilqr_init(prob, plan.U, params, key)
-    better = jnp.isfinite(policy.J) & (policy.J <= controls.J)  # a blown-up policy's U may be NaN
+    J_policy, J_controls = policy.solver.cost, controls.solver.cost
+    better = jnp.isfinite(J_policy) & (J_policy <= J_controls)  # a blown-up policy's U may be NaN
     return jax.tree.map(lambda a, b: jnp.where(better, a, b), policy, controls)
 
 
