@@ -130,3 +130,17 @@ def test_the_mpc_page_runs_as_written():
     assert episode.X.shape == (81, 2) and episode.U.shape == (80, 1)
     assert (sysid.n_samples, sysid.design) == (3, "orthogonal")
     assert np.all(np.abs(np.asarray(episode.X[-1])) < 1e-3)  # at rest upright (theta = 0)
+
+
+def test_the_changelog_leads_with_the_released_version_and_keeps_nothing_unreleased():
+    """CHANGELOG.md's first section is the package's version (pyproject.toml and
+    ``__version__`` agree) and no "Unreleased" section sits among the releases."""
+    import mjx_surrogate
+
+    text = open(os.path.join(ROOT, "CHANGELOG.md")).read()
+    sections = re.findall(r"^## (.+)$", text, flags=re.M)
+    assert sections and not any("unreleased" in s.lower() for s in sections[1:]), sections
+    latest = next(s for s in sections if "unreleased" not in s.lower())
+    project = open(os.path.join(ROOT, "pyproject.toml")).read()
+    (pyproject,) = re.findall(r'^version = "([^"]+)"', project, re.M)
+    assert latest.split()[0] == pyproject == mjx_surrogate.__version__, (latest, pyproject)
