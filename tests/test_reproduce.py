@@ -62,7 +62,6 @@ IN_SUITE = (
     "cartpole_analysis",
     "theory",
     "cartpole_control",
-    "pendulum_control",
     "cartpole_horizon",
     "swimmer15_d2c",
     "burgers_ro_d2c",
@@ -220,7 +219,7 @@ def assert_each_kinds_outputs(out: str, meters: dict) -> None:
             ), v
 
     # control: every surrogate controller run on the black box; none beats the optimum
-    for name in ("cartpole_control", "pendulum_control"):
+    for name in ("cartpole_control",):  # pendulum_control: the same kind, left to the full run
         folder, m = _metrics(out, name)
         rows = m["surrogate_rows"]
         assert {r["model"] for r in rows} >= {"MLP"} and len(rows) == 2, rows
