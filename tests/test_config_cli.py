@@ -225,20 +225,32 @@ def test_runs_never_overwrite(tmp_path):
 
 
 def test_every_ilqr_parameter_is_a_solver_field_with_its_default_and_reaches_it():
-    """One definition: each ILQRParams field is a SolverConfig field (renamed only as
-    SOLVER_FIELD says) with the same default, and a changed value reaches the solver."""
+    """One definition: each ILQRParams field is a SolverConfig field of the same name (no
+    rename table) with the same default, and a changed value reaches the solver; the
+    model strategy's settings come from the config's extension settings."""
+    from mjx_surrogate.control import model_strategies as mst
     from mjx_surrogate.control.ilqr import ILQRParams
-    from mjx_surrogate.runs.resolution import SOLVER_FIELD, solver_params
+    from mjx_surrogate.runs.resolution import solver_params
 
-    names = [f.name for f in dataclasses.fields(ILQRParams) if f.name != "record_trajectories"]
-    fields = {n: SOLVER_FIELD.get(n, n) for n in names}
+    own_fields = ("record_trajectories", "model_strategy_settings")
+    names = [f.name for f in dataclasses.fields(ILQRParams) if f.name not in own_fields]
     default, own = SolverConfig(), ILQRParams()
-    assert {n: getattr(default, f) for n, f in fields.items()} == {n: getattr(own, n) for n in names}
-    changed = {
-        f: getattr(default, f) + 1 if isinstance(getattr(default, f), int) else 0.375 for f in fields.values()
-    }
-    params, _ = solver_params(Config(solver=SolverConfig(**changed)))
-    assert {n: getattr(params, n) for n in names} == {n: changed[f] for n, f in fields.items()}
+    assert {n: getattr(default, n) for n in names} == {n: getattr(own, n) for n in names}
+    mst.register_model_strategy(
+        "every_iteration_only", mst.StrategyKind(lambda p, f, s: mst.every_iteration())
+    )
+    try:
+        changed = {}
+        for n in names:
+            v = getattr(default, n)
+            changed[n] = (
+                "every_iteration_only" if isinstance(v, str) else v + 1 if isinstance(v, int) else 0.375
+            )
+        params, _ = solver_params(Config(solver=SolverConfig(**changed)))
+        assert {n: getattr(params, n) for n in names} == changed
+        assert params.model_strategy_settings is None  # the strategy declares none
+    finally:
+        mst.MODEL_STRATEGIES.pop("every_iteration_only")
 
 
 def test_the_summary_accounts_for_the_wall_time():

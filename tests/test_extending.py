@@ -19,6 +19,7 @@ import pytest
 
 import mjx_surrogate as ms
 from experiments import run as cli
+from mjx_surrogate.control import model_strategies
 from mjx_surrogate.identification import sysid
 from mjx_surrogate.runs import experiment_kinds
 from mjx_surrogate.runs.results import load_run
@@ -45,6 +46,7 @@ def doc(tmp_path_factory):
     module = doc_module(tmp_path_factory.mktemp("doc"))
     yield module
     sysid.SCHEMES.pop("coordinate")
+    model_strategies.MODEL_STRATEGIES.pop("periodic")
     ms.surrogates.SURROGATES.pop("affine")
     experiment_kinds.EXPERIMENTS.pop("random_controls")
     registry._SYSTEMS.pop("tilted_pendulum")
@@ -54,7 +56,9 @@ def doc(tmp_path_factory):
 
 def test_the_page_registers_each_kind_of_extension(doc):
     declared = ms.runs.extension_settings.declared()
-    assert {"solver.coordinate", "surrogate.affine", "experiment.random_controls"} <= set(declared)
+    assert {"solver.coordinate", "solver.periodic", "surrogate.affine", "experiment.random_controls"} <= set(
+        declared
+    )
     assert declared["solver.coordinate"] == doc.CoordinateSettings(step=1e-4)
     assert "tilted_pendulum" in registry._SYSTEMS and "tilted_up" in registry._TASKS
 
@@ -146,6 +150,15 @@ def test_a_scheme_setting_reaches_its_linearize_from_the_command_line(doc):
             ["--experiment.random_controls.n", "x"],
             "error: --experiment.random_controls.n: expects an integer",
         ),
+        (
+            ["--solver.model_strategy", "periodic", "--solver.periodic.period", "0"],
+            "error: solver.periodic.period: must be >= 1, got 0",
+        ),
+        (
+            ["--solver.periodic.period", "2"],
+            "error: solver.periodic: settings of 'periodic', which this config",
+        ),
+        (["--solver.model_strategy", "nope"], "error: solver.model_strategy: unknown model strategy 'nope'"),
     ],
 )
 def test_bad_extension_settings_exit_2_naming_the_field(tmp_path, capsys, args, message):
@@ -216,3 +229,28 @@ def test_help_lists_the_settings_of_registered_extensions(doc, capsys):
         cli.parse_args(["smoke_d2c", "--help"])
     out = " ".join(capsys.readouterr().out.split())
     assert "--solver.coordinate.{step}" in out and "--experiment.random_controls.{n,scale}" in out
+
+
+def test_a_registered_model_strategy_with_its_setting_runs_from_the_command_line(tmp_path):
+    """The page's periodic strategy: the run identifies exactly at every period-th
+    iteration, its setting reaches the strategy, and the solve ends on the default's
+    optimum (the pendulum's D2C preset, small)."""
+    base = ["smoke_d2c", "--out", str(tmp_path), "--experiment.exact-oracle", "False"]
+
+    def run(name, *flags):
+        assert cli.main(base + ["--experiment.name", name, *flags]) == 0
+        (path,) = glob.glob(str(tmp_path / f"*_{name}"))
+        return load_run(path)
+
+    m, arrays = run("periodic", "--solver.model_strategy", "periodic", "--solver.periodic.period", "3")
+    n = m["d2c"]["iterations"]
+    ident = np.asarray(arrays["d2c_identified"])[:n]
+    np.testing.assert_array_equal(ident != 0, np.arange(n) % 3 == 0)
+    default, _ = run("default")
+    assert m["status"] in ("converged", "max_iter") and default["status"] == "converged"
+    assert m["d2c"]["cost"] == pytest.approx(default["d2c"]["cost"], rel=1e-2)
+    with open(glob.glob(str(tmp_path / "*_periodic"))[0] + "/config.json") as f:
+        cfg = json.load(f)
+    assert cfg["solver"]["model_strategy"] == "periodic" and cfg["extensions"] == {
+        "solver.periodic": {"period": 3}
+    }

@@ -43,7 +43,7 @@ def test_simulation_curve_counts_every_black_box_step(scheme, reuse, every):
         k_tol=0.0,
         reuse_tol=0.5,
         reuse_max=reuse,
-        refine_tol=0.05,
+        sysid_refine_tol=0.05,
     )
     inf = jnp.full(1, jnp.inf)
     res = ilqr(

@@ -316,7 +316,7 @@ def assert_every_optimum_replays_natively(out):
                 assert J == pytest.approx(reported, rel=1e-2), (folder, row["model"], row["level"])
                 surrogate_checked += 1
     assert checked >= 5, checked  # the optimum of every predict, analysis and control run
-    assert surrogate_checked >= 2, surrogate_checked
+    assert surrogate_checked >= 1, surrogate_checked  # cartpole_control: its finite replays
 
 
 def test_an_experiments_folders_are_its_own(tmp_path):

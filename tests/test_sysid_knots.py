@@ -95,7 +95,7 @@ def test_coarse_then_fine_ends_on_every_step_models_at_the_full_schemes_optimum(
         u_min=-inf, u_max=inf, u_ref=jnp.zeros(1), targets=z, weights=jnp.zeros(0),
         final_weights=jnp.zeros(0), T=T,
     )  # fmt: skip
-    params = ILQRParams(max_iter=300, rel_tol=1e-10, refine_tol=refine_tol)
+    params = ILQRParams(max_iter=300, rel_tol=1e-10, sysid_refine_tol=refine_tol)
     p1 = sysid.SysIdParams(sigma_x=1e-5, sigma_u=1e-5, scheme="forward_difference", n_samples=3)
     p4 = p1.replace(every=4)
     full = solve_d2c(system, task, jnp.zeros((T, 1)), jax.random.key(0), params, p1)

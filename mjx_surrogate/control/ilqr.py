@@ -50,7 +50,7 @@ kept in JAX's persistent compilation cache (:mod:`mjx_surrogate.control.chunked`
 from __future__ import annotations
 
 import enum
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -63,7 +63,7 @@ from mjx_surrogate.control.model_strategies import (
     ModelReport,
     ModelStrategy,
     StepOutcome,
-    default_strategy,
+    get_model_strategy,
     no_objection,
     no_proposal,
 )
@@ -171,10 +171,13 @@ class ILQRParams:
     # the default model strategy's settings (model_strategies.default_strategy)
     reuse_tol: float = 0.0  # reuse the model when |actual/expected decrease - 1| <= this
     reuse_max: int = 0  # at most this many iterations in a row on a reused model
-    refine_tol: float = 0.0  # with linearize_fine: switch to it once a step gains <= this
+    sysid_refine_tol: float = 0.0  # with linearize_fine: switch to it once a step gains <= this
     max_iter: int = struct.field(pytree_node=False, default=100)
     n_alphas: int = struct.field(pytree_node=False, default=8)
     record_trajectories: bool = struct.field(pytree_node=False, default=False)
+    # a registered model strategy (model_strategies.MODEL_STRATEGIES) and its own settings
+    model_strategy: str = struct.field(pytree_node=False, default="default")
+    model_strategy_settings: Any = struct.field(pytree_node=False, default=None)
 
 
 class ILQRResult(NamedTuple):
@@ -240,10 +243,12 @@ class SolveState(NamedTuple):
 
 
 def strategy_of(problem: Problem, params: ILQRParams) -> ModelStrategy:
-    """The problem's model strategy, else the default chain with the solver's settings."""
+    """The problem's model strategy, else the registered one ``params.model_strategy``
+    names (``"default"``: the default chain with the solver's settings)."""
     if problem.strategy is not None:
         return problem.strategy
-    return default_strategy(params, problem.linearize_fine is not None)
+    kind = get_model_strategy(params.model_strategy)
+    return kind.make(params, problem.linearize_fine is not None, params.model_strategy_settings)
 
 
 def ilqr_init(

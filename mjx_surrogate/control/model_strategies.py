@@ -22,7 +22,9 @@ A strategy (:class:`ModelStrategy`) has its own state and settings and three pur
   most ``refine_tol`` |J|), then with ``linearize_fine``; no minimum or stall on a coarse model.
 
 The loop's default (:func:`default_strategy`) chains the three with the solver's settings,
-traced, so changing them never recompiles.
+traced, so changing them never recompiles. Strategies are registered by name
+(:func:`register_model_strategy`; ``solver.model_strategy`` in a config, ``"default"`` the
+chain above), each bringing its own settings (``--solver.<name>.<field>``).
 """
 
 from __future__ import annotations
@@ -31,6 +33,8 @@ from typing import Any, Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
+
+from mjx_surrogate.errors import ConfigError
 
 
 class Proposal(NamedTuple):
@@ -176,10 +180,50 @@ def coarse_then_fine(refine_tol, has_fine: bool) -> ModelStrategy:
 
 def default_strategy(params, has_fine: bool) -> ModelStrategy:
     """Every iteration, secant reuse and coarse then fine with the solver's settings
-    (``ILQRParams.reuse_tol``, ``reuse_max``, ``refine_tol``); with both reuse settings 0
+    (``ILQRParams.reuse_tol``, ``reuse_max``, ``sysid_refine_tol``); with both reuse settings 0
     and no fine model, a model is identified at every iteration."""
     return chain(
         every_iteration(),
         secant_reuse(params.reuse_tol, params.reuse_max),
-        coarse_then_fine(params.refine_tol, has_fine),
+        coarse_then_fine(params.sysid_refine_tol, has_fine),
     )
+
+
+class StrategyKind(NamedTuple):
+    """A registered model strategy: ``make(params, has_fine, settings) -> ModelStrategy``
+    (``params``: the solver's ``ILQRParams``; ``has_fine``: the problem has a
+    ``linearize_fine``; ``settings``: the config's values of ``settings``, the strategy's
+    own defaults, a frozen dataclass, or None), and what it does, in words."""
+
+    make: Callable[[Any, bool, Any], ModelStrategy]
+    settings: Any = None
+    description: str = ""
+
+
+MODEL_STRATEGIES: dict[str, StrategyKind] = {}
+
+
+def register_model_strategy(name: str, kind: StrategyKind) -> None:
+    """Add ``kind`` under ``name`` (then valid as ``solver.model_strategy``). Its settings
+    share the ``solver.<name>`` section with the identification schemes', so a name of a
+    registered scheme is refused."""
+    from mjx_surrogate.identification.sysid import SCHEMES
+
+    if name in SCHEMES:
+        raise ValueError(f"{name!r} names an identification scheme; give the strategy another name")
+    MODEL_STRATEGIES[name] = kind
+
+
+def get_model_strategy(name: str, field: str = "solver.model_strategy") -> StrategyKind:
+    if name not in MODEL_STRATEGIES:
+        raise ConfigError(field, f"unknown model strategy {name!r}; valid: {', '.join(MODEL_STRATEGIES)}")
+    return MODEL_STRATEGIES[name]
+
+
+register_model_strategy(
+    "default",
+    StrategyKind(
+        lambda params, has_fine, settings: default_strategy(params, has_fine),
+        description="identify where the nominal moved; secant reuse and coarse then fine where set",
+    ),
+)

@@ -143,7 +143,10 @@ class SolverConfig:
     instead of lowering it: a trust region on the step (``mjx_surrogate.control.ilqr``); 0: off.
     reuse_tol, reuse_max: after an accepted step whose actual decrease was within reuse_tol
     of the model's promise, carry the model over (secant update) instead of identifying,
-    at most reuse_max iterations in a row (``mjx_surrogate.control.local_model``); 0: always identify.
+    at most reuse_max iterations in a row (``mjx_surrogate.control.model_strategies``); 0: always identify.
+    model_strategy: when the model is identified: "default" (every iteration where the
+    nominal moved, with the reuse and coarse-then-fine settings above) or a strategy
+    registered with ``mjx_surrogate.control.model_strategies.register_model_strategy``.
     """
 
     # (defaults: the solver's own ILQRParams, one source of truth)
@@ -161,9 +164,11 @@ class SolverConfig:
     sysid: str = "central_difference"  # a registered scheme (mjx_surrogate.identification.sysid.SCHEMES)
     sysid_every: int = 1  # one-step schemes: identify every k-th step, interpolate between
     sysid_design: Literal["gaussian", "orthogonal"] = "gaussian"  # one-step perturbations
-    sysid_refine_tol: float = _ILQR.refine_tol  # sysid_every > 1: every step once a step gains <= this
+    sysid_refine_tol: float = _ILQR.sysid_refine_tol  # sysid_every > 1: every step once a step gains <= this
     reuse_tol: float = _ILQR.reuse_tol  # carry the model over when |ratio - 1| <= this
     reuse_max: int = _ILQR.reuse_max  # ... at most this many iterations in a row
+    # when the model is identified: a registered strategy (control.model_strategies)
+    model_strategy: str = _ILQR.model_strategy
     n_samples: Optional[int] = None  # None: max(20, 2 (nx + nu)); reduced: min(nx, max(16, 4 nu))
     sigma_x: Optional[float] = None  # None: model_defaults.default_sigma
     sigma_u: Optional[float] = None

@@ -1,6 +1,6 @@
 """Settings an extension brings with it (docs/extending.md).
 
-An identification scheme, a surrogate kind or an experiment kind may declare ``settings``:
+An identification scheme, a model strategy, a surrogate kind or an experiment kind may declare ``settings``:
 a frozen dataclass instance holding its defaults. A config keeps the values given in
 ``Config.extensions`` under ``"<section>.<name>"``: ``solver.<scheme>``,
 ``surrogate.<kind>`` or ``experiment.<kind>``, each a dataclass instance or a mapping of
@@ -16,6 +16,7 @@ import dataclasses
 import math
 from typing import Any
 
+from mjx_surrogate.control.model_strategies import MODEL_STRATEGIES
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.identification.sysid import SCHEMES
 from mjx_surrogate.runs.config import from_dict
@@ -27,7 +28,13 @@ def declared() -> dict[str, Any]:
     """``"<section>.<name>"`` -> the settings' defaults, for every registered extension
     that declares settings."""
     out = {}
-    for section, registry in (("solver", SCHEMES), ("surrogate", SURROGATES), ("experiment", EXPERIMENTS)):
+    registries = (
+        ("solver", SCHEMES),
+        ("solver", MODEL_STRATEGIES),
+        ("surrogate", SURROGATES),
+        ("experiment", EXPERIMENTS),
+    )
+    for section, registry in registries:
         for name, entry in registry.items():
             if getattr(entry, "settings", None) is not None:
                 out[f"{section}.{name}"] = entry.settings
@@ -84,7 +91,7 @@ def check_extensions(config: Any) -> None:
         section, _, name = key.partition(".")
         settings_from(_defaults(key), value, key)
         chosen = {
-            "solver": (config.solver.sysid,),
+            "solver": (config.solver.sysid, config.solver.model_strategy),
             "surrogate": config.surrogate.kinds,
             "experiment": (config.experiment.kind,),
         }[section]

@@ -14,6 +14,7 @@ from jax.sharding import Mesh
 
 from mjx_surrogate import sharding
 from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.control.model_strategies import get_model_strategy
 from mjx_surrogate.cost import BLOWUP
 from mjx_surrogate.errors import ConfigError, describe
 from mjx_surrogate.identification.sysid import SysIdParams, get_scheme
@@ -263,21 +264,19 @@ def check_dense_memory(cfg: Config, system: System, T: int | None) -> None:
     raise ConfigError("task.T", f"{said}; valid here: T <= {T_max} for this system")
 
 
-# ILQRParams field -> its SolverConfig field, where the names differ
-SOLVER_FIELD = {"refine_tol": "sysid_refine_tol"}
-
-
 def solver_params(cfg: Config, record_trajectories: bool = False):
-    """SolverConfig -> (ILQRParams, SysIdParams). Every ILQRParams field but
-    ``record_trajectories`` is a SolverConfig field (:data:`SOLVER_FIELD` where renamed)."""
+    """SolverConfig -> (ILQRParams, SysIdParams). Every ILQRParams field is a SolverConfig
+    field of the same name but ``record_trajectories`` and the model strategy's settings
+    (from the config's extension settings, where the strategy declares any)."""
     s = cfg.solver
+    own = ("record_trajectories", "model_strategy_settings")
+    strategy = get_model_strategy(s.model_strategy)
     ilqr = ILQRParams(
         record_trajectories=record_trajectories,
-        **{
-            f.name: getattr(s, SOLVER_FIELD.get(f.name, f.name))
-            for f in dataclasses.fields(ILQRParams)
-            if f.name != "record_trajectories"
-        },
+        model_strategy_settings=(
+            settings_of(cfg, "solver", s.model_strategy) if strategy.settings is not None else None
+        ),
+        **{f.name: getattr(s, f.name) for f in dataclasses.fields(ILQRParams) if f.name not in own},
     )
     n = s.n_samples or SysIdParams().n_samples  # resolve() sets it from nx + nu
     sx = SysIdParams().sigma_x if s.sigma_x is None else s.sigma_x  # resolve() sets both

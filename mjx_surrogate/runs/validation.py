@@ -10,6 +10,7 @@ import math
 import re
 import typing
 
+from mjx_surrogate.control.model_strategies import get_model_strategy
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.identification.sysid import SCHEMES, SysIdParams, get_scheme
 from mjx_surrogate.runs.config import (
@@ -325,6 +326,7 @@ def _check_registered(cfg: Config) -> None:
     get_experiment(cfg.experiment.kind)
 
     scheme = get_scheme(cfg.solver.sysid, "solver.sysid")
+    get_model_strategy(cfg.solver.model_strategy, "solver.model_strategy")
     if cfg.solver.sysid_every < 1:
         raise ConfigError("solver.sysid_every", f"must be >= 1, got {cfg.solver.sysid_every}")
     if cfg.solver.sysid_every > 1 and not scheme.one_step:
