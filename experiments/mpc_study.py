@@ -26,114 +26,19 @@ import numpy as np
 from mjx_surrogate import progress
 from mjx_surrogate.analysis.closed_loop import cause_text, closed_loop_verdict, table
 from mjx_surrogate.analysis.evaluation import finite_or_none
-from mjx_surrogate.control import mpc, mpc_online, mpc_sampling
+from mjx_surrogate.control.planners import PLANNERS, PlannerContext, get_planner
 from mjx_surrogate.identification import data
 from mjx_surrogate.runs import pipeline, plots
-from mjx_surrogate.runs.config import MPC_CONTROLLERS
 from mjx_surrogate.runs.resolution import Resolved, mpc_params, plant_builder
 from mjx_surrogate.runs.results import Run
 from mjx_surrogate.surrogates import FitContext, fit_all
-from mjx_surrogate.surrogates.mlp import MLPModel
-from mjx_surrogate.surrogates.registry import mlp_spec
-from mjx_surrogate.surrogates.sindy import SindyModel
 from mjx_surrogate.systems.plant import make_plant, parse_plant, plant_label, plant_slug
 from mjx_surrogate.tasks import trajectory_cost
-from mjx_surrogate.trajectory import open_loop
 
-ITERATIVE = ("d2c", "oracle", "surrogates")  # the iLQR planners
 DEFAULT_SAMPLES = 64  # sampling MPCs' samples per replan when D2C-MPC did not run
 
 
-def _planners(controller, res, optimum, plan_task, U0, samples, fit):
-    """{label: episode(plant, key, noise, meter) -> MPCResult} of one controller (the meter
-    counts the episode's control steps and can stop it, :func:`mpc.episode`)."""
-    cfg, system, task = res
-    m = cfg.mpc
-    params, sysid = mpc_params(cfg)
-    N = m.steps
-    if controller in ("d2c", "oracle"):
-        name = "d2c" if controller == "d2c" else cfg.experiment.oracle
-        one = lambda plant, k, w, pm: mpc.receding_horizon(  # noqa: E731
-            system, plan_task, U0, k, N, params, sysid, w, name, plant, pm
-        )
-        return {"D2C-MPC" if controller == "d2c" else f"oracle MPC ({name})": one}
-    if controller == "tvlqr":
-        X, U, K = (jnp.asarray(optimum[k]) for k in ("X_star", "U_star", "K_star"))
-        ref = (X[: N + 1], U[:N], K[:N])
-        return {"TVLQR tracking": lambda plant, k, w, pm: mpc.tracking(plant, task, *ref, k, w)}
-    if controller == "surrogates":
-        models, train = fit()
-        out = {
-            f"{label} MPC": (
-                lambda model: (
-                    lambda plant, k, w, pm: mpc.surrogate_mpc(
-                        model, plant, plan_task, U0, k, N, params, w, pm
-                    )
-                )
-            )(model)
-            for label, model in models.items()
-        }
-        for label, model in models.items():  # refitted online (mpc.refit_weight, refit_updates)
-            if m.refit_weight > 0 and isinstance(model, SindyModel):
-                out[f"{label} MPC refitted online"] = (
-                    lambda model: (
-                        lambda plant, k, w, pm: mpc_online.refitted_sindy_mpc(
-                            model, train, plant, plan_task, U0, k, N, params, w, m.refit_weight, pm
-                        )
-                    )
-                )(model)
-            elif m.refit_weight > 0 and m.refit_updates > 0 and isinstance(model, MLPModel):
-                spec = mlp_spec(cfg)
-                out[f"{label} MPC refitted online"] = (
-                    lambda model: (
-                        lambda plant, k, w, pm: mpc_online.refitted_mlp_mpc(
-                            model,
-                            train,
-                            plant,
-                            plan_task,
-                            U0,
-                            k,
-                            N,
-                            spec,
-                            m.refit_updates,
-                            params,
-                            w,
-                            m.refit_weight,
-                            pm,
-                        )
-                    )
-                )(model)
-        return out
-    first = trajectory_cost(plan_task, *open_loop(system.step, task.x0, U0, plan_task.u_min, plan_task.u_max))
-    lam = m.mppi_temperature * float(first) if controller == "mppi" else None
-    label = "MPPI" if controller == "mppi" else "predictive sampling"
-    one = lambda plant, k, w, pm: mpc_sampling.sampling_mpc(  # noqa: E731
-        system, plan_task, U0, k, N, m.sampling_sigma, samples, lam, w, plant, m.sampling_knots, pm
-    )
-    knots = f", {m.sampling_knots} knots" if m.sampling_knots else ""
-    return {f"{label} (S={samples}{knots})": one}
-
-
-def _calls(controller, result, res, samples) -> float | None:
-    """Black-box control steps per control step (median over episodes), the plant's own
-    step not counted; None where not counted (the oracles' Jacobians)."""
-    cfg, system, _ = res
-    m = cfg.mpc
-    if controller == "d2c":
-        params, sysid = mpc_params(cfg)
-        per_episode = [
-            mpc.black_box_steps(
-                jax.tree.map(lambda a: a[e], result), m.horizon, params.n_alphas, sysid
-            ).mean()
-            for e in range(m.n_episodes)
-        ]
-        return float(np.median(per_episode))
-    if controller in ("predictive_sampling", "mppi"):
-        return float(mpc_sampling.black_box_steps(samples, m.horizon, controller == "mppi"))
-    return 0.0 if controller in ("tvlqr", "surrogates") else None
-
-
-def _controller(controller, res, record, plants, optimum, plan_task, U0, samples, key, fit) -> list[dict]:
+def _controller(controller: str, context: PlannerContext, res, record, plants, key) -> list[dict]:
     """Every episode batch of one controller: a stage per planner, plant and noise level
     (``mpc/<controller>/<tag>``), so that a stop or a failure keeps the conditions finished
     before it and a resumed run reuses them. Returns their rows."""
@@ -143,7 +48,7 @@ def _controller(controller, res, record, plants, optimum, plan_task, U0, samples
     rows = []
     with progress.steps(f"MPC {controller}", 1 + len(conditions), cfg.experiment.progress) as meter:
         meter.advance("fit the surrogates" if controller == "surrogates" else "set up")
-        planners = _planners(controller, res, optimum, plan_task, U0, samples, fit)
+        planners = get_planner(controller).episodes(context)
         meter.extend(len(conditions) * (len(planners) - 1))
         for label, one in planners.items():
             for pi, (name, plant) in enumerate(plants.items()):
@@ -159,7 +64,7 @@ def _controller(controller, res, record, plants, optimum, plan_task, U0, samples
                     episodes = _Episodes(controller, label, name, noise, ci, tag, error_here)
 
                     def compute(e=episodes, batch=batch):
-                        return _condition(res, e, batch, compiled, optimum, samples, fit, key)
+                        return _condition(res, context, e, batch, compiled, key)
 
                     row, _ = record.stage(f"mpc/{controller}/{tag}", compute)
                     rows.append(row)
@@ -180,7 +85,7 @@ class _Episodes(NamedTuple):
     one_step_error: bool
 
 
-def _condition(res, e: _Episodes, batch, compiled: dict, optimum, samples, fit, key) -> tuple[dict, dict]:
+def _condition(res, context: PlannerContext, e: _Episodes, batch, compiled: dict, key) -> tuple[dict, dict]:
     """The row and arrays of one condition's ``mpc.n_episodes`` episodes, run as one batch
     (compiled once per planner and plant, the compile timed apart)."""
     cfg, _, task = res
@@ -199,19 +104,20 @@ def _condition(res, e: _Episodes, batch, compiled: dict, optimum, samples, fit, 
         run_s = time.perf_counter() - t0
     if progress.stop_requested():  # the batch skipped its remaining steps: nothing to keep
         raise progress.Stopped(f"during {e.label}'s episodes")
-    row, X, U = _row(res, e, r, run_s, samples)
+    row, X, U = _row(res, e, r, run_s, context)
     row["compile_s"] = compile_s
-    models = fit()[0] if e.controller == "surrogates" else {}
+    models = context.fit()[0] if e.controller == "surrogates" else {}
     model = models.get(e.label.removesuffix(" MPC"))  # not the refitted ones
     if model is not None and e.one_step_error:
-        row["closed_loop_one_step_error"] = _one_step_error(model, X[0], U[0], optimum)
+        row["closed_loop_one_step_error"] = _one_step_error(model, X[0], U[0], context.optimum)
     row["arrays"] = {"X": f"{e.tag}_X", "U": f"{e.tag}_U"}
     return row, {f"{e.tag}_X": X, f"{e.tag}_U": U}
 
 
-def _row(res, e: _Episodes, r, run_s: float, samples) -> tuple[dict, np.ndarray, np.ndarray]:
+def _row(res, e: _Episodes, r, run_s: float, context: PlannerContext) -> tuple[dict, np.ndarray, np.ndarray]:
     cfg, system, task = res
     m = cfg.mpc
+    kind = get_planner(e.controller)
     X, U = np.asarray(r.X), np.asarray(r.U)
     costs = np.asarray(r.cost, dtype=float)
     goals = [pipeline.goal_test(task, x, cfg.task.goal_tolerance) for x in X]
@@ -224,8 +130,8 @@ def _row(res, e: _Episodes, r, run_s: float, samples) -> tuple[dict, np.ndarray,
         "cost_median": finite_or_none(np.median(costs)),
         "goal_reached": sum(g["reached"] for g in goals) / len(goals),
         "final_goal_cost_median": finite_or_none(np.median([g["goal_cost_final"] or np.inf for g in goals])),
-        "black_box_steps_per_control_step": _calls(e.controller, r, res, samples),
-        "iterations_per_replan": float(np.mean(r.iterations)) if e.controller in ITERATIVE else None,
+        "black_box_steps_per_control_step": kind.black_box_steps(context, r),
+        "iterations_per_replan": float(np.mean(r.iterations)) if kind.iterative else None,
         "compute_per_step_s": per_step,
         "real_time_factor": float(system.dt) / per_step,
     }
@@ -284,19 +190,21 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         )
         return {label: jax.tree.map(np.asarray, f.model) for label, f in fitted.items()}, train
 
-    rows, samples = [], m.samples or DEFAULT_SAMPLES
+    rows = []
+    params, sysid = mpc_params(cfg)
+    context = PlannerContext(
+        cfg, system, task, plan_task, optimum, U0, params, sysid, m.samples or DEFAULT_SAMPLES, fit
+    )
     # the oracle follows experiment.exact_oracle (off for a user's MJCF: minutes of compile)
-    chosen = [
-        c for c in MPC_CONTROLLERS if c in m.controllers and (c != "oracle" or cfg.experiment.exact_oracle)
-    ]
+    chosen = [c for c in PLANNERS if c in m.controllers and (c != "oracle" or cfg.experiment.exact_oracle)]
     if "oracle" in m.controllers and "oracle" not in chosen:
         record.set("mpc_skipped", {"oracle": "experiment.exact_oracle is off"})
     for c in chosen:
-        done = _controller(c, res, record, plants, optimum, plan_task, U0, samples, k_mpc, fit)
+        done = _controller(c, context, res, record, plants, k_mpc)
         rows += done
         if c == "d2c" and m.samples is None:  # the sampling MPCs get D2C-MPC's budget
             calls = np.median([r["black_box_steps_per_control_step"] for r in done])
-            samples = max(2, int(round(calls / H)))
+            context = context._replace(samples=max(2, int(round(calls / H))))
     record.set("mpc_rows", rows)
     N = m.steps  # the offline optimum's cost over an episode's steps: what "works" is judged on
     offline = float(trajectory_cost(task, X_star[: N + 1], U_star[:N])) if N <= task.T else None

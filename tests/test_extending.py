@@ -19,7 +19,7 @@ import pytest
 
 import mjx_surrogate as ms
 from experiments import run as cli
-from mjx_surrogate.control import model_strategies
+from mjx_surrogate.control import model_strategies, planners
 from mjx_surrogate.identification import sysid
 from mjx_surrogate.runs import experiment_kinds
 from mjx_surrogate.runs.results import load_run
@@ -47,6 +47,7 @@ def doc(tmp_path_factory):
     yield module
     sysid.SCHEMES.pop("coordinate")
     model_strategies.MODEL_STRATEGIES.pop("periodic")
+    planners.PLANNERS.pop("open_loop")
     ms.surrogates.SURROGATES.pop("affine")
     experiment_kinds.EXPERIMENTS.pop("random_controls")
     registry._SYSTEMS.pop("tilted_pendulum")
@@ -254,3 +255,25 @@ def test_a_registered_model_strategy_with_its_setting_runs_from_the_command_line
     assert cfg["solver"]["model_strategy"] == "periodic" and cfg["extensions"] == {
         "solver.periodic": {"period": 3}
     }
+
+
+def test_a_registered_planner_runs_beside_d2c_mpc_from_the_command_line(tmp_path):
+    """The page's open-loop planner in an MPC run: its row sits in the table and the
+    verdict's input, and its episodes apply the first plan as it stands (the offline
+    optimum's controls, the last one repeated past its end)."""
+    argv = ["smoke_mpc", "--out", str(tmp_path), "--mpc.controllers", "open_loop", "tvlqr"]
+    argv += ["--experiment.exact-oracle", "False"]
+    assert cli.main(argv) == 0
+    (path,) = glob.glob(str(tmp_path / "*smoke_mpc"))
+    metrics, arrays = load_run(path)
+    rows = [r for r in metrics["mpc_rows"] if r["controller"] == "open loop"]
+    assert len(rows) == len(metrics["mpc_conditions"])
+    assert all(r["black_box_steps_per_control_step"] == 0 for r in rows)
+    assert rows[0]["iterations_per_replan"] is None
+    with open(f"{path}/config.json") as f:
+        H = json.load(f)["mpc"]["horizon"]
+    U_star = np.asarray(arrays["U_star"])
+    U0 = np.concatenate([U_star, np.repeat(U_star[-1:], max(0, H - len(U_star)), axis=0)])[:H]
+    U = np.asarray(arrays[rows[0]["arrays"]["U"]])  # [episodes, N, nu]
+    want = U0[np.minimum(np.arange(U.shape[1]), H - 1)]  # the plan shifted, its last row repeated
+    np.testing.assert_allclose(U, np.broadcast_to(want, U.shape), rtol=0, atol=1e-12)

@@ -299,6 +299,7 @@ class AnalysisConfig:
     theory_mc_trials: int = 400
 
 
+# the built-in planners (mjx_surrogate.control.planners), in the order a study runs them
 MPC_CONTROLLERS = ("d2c", "oracle", "tvlqr", "surrogates", "predictive_sampling", "mppi")
 
 

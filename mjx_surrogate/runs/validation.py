@@ -11,10 +11,10 @@ import re
 import typing
 
 from mjx_surrogate.control.model_strategies import get_model_strategy
+from mjx_surrogate.control.planners import PLANNERS, get_planner
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.identification.sysid import SCHEMES, SysIdParams, get_scheme
 from mjx_surrogate.runs.config import (
-    MPC_CONTROLLERS,
     AnalysisConfig,
     Config,
     DataConfig,
@@ -74,12 +74,9 @@ def _check_parallel(pc: ParallelConfig) -> None:
 
 def _check_mpc(m: MPCConfig) -> None:
     if not m.controllers:
-        raise ConfigError("mpc.controllers", f"give one or more of {', '.join(MPC_CONTROLLERS)}")
+        raise ConfigError("mpc.controllers", f"give one or more of {', '.join(PLANNERS)}")
     for i, c in enumerate(m.controllers):
-        if c not in MPC_CONTROLLERS:
-            raise ConfigError(
-                f"mpc.controllers[{i}]", f"unknown controller {c!r}; valid: {', '.join(MPC_CONTROLLERS)}"
-            )
+        get_planner(c, f"mpc.controllers[{i}]")
     if len(set(m.controllers)) < len(m.controllers):
         raise ConfigError("mpc.controllers", "names a controller twice")
     for field in ("horizon", "steps", "max_iter", "n_episodes"):

@@ -1,0 +1,184 @@
+"""Receding-horizon planners by name: what ``mpc.controllers`` selects (docs/mpc.md).
+
+A planner kind (:class:`PlannerKind`) turns the study's context (:class:`PlannerContext`:
+the system, the offline task and its horizon-H copy, the offline optimum, the first plan,
+the solver's settings) into its episodes, ``{label: episode(plant, key, noise, meter) ->
+MPCResult}``, one per planner it stands for (the surrogates' kind: one per fitted model),
+and counts its black-box steps per control step. Every episode runs the same loop,
+:func:`mjx_surrogate.control.mpc.episode`. Built in, in the order a study runs them:
+``d2c``, ``oracle``, ``tvlqr``, ``surrogates``, ``predictive_sampling``, ``mppi``; a new
+planner is one function plus :func:`register_planner`.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mjx_surrogate.control import mpc, mpc_online, mpc_sampling
+from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.identification.sysid import SysIdParams
+from mjx_surrogate.surrogates.mlp import MLPModel
+from mjx_surrogate.surrogates.registry import mlp_spec
+from mjx_surrogate.surrogates.sindy import SindyModel
+from mjx_surrogate.tasks import Task, trajectory_cost
+from mjx_surrogate.trajectory import open_loop
+
+
+class PlannerContext(NamedTuple):
+    """What a planner is built from: the resolved config (its ``mpc`` section), the system
+    planned on, the offline ``task`` and ``plan_task`` (its horizon-H copy), the offline
+    ``optimum`` (``X_star`` [T+1, nx], ``U_star`` [T, nu], ``K_star`` [T, nu, nx]), the first
+    plan U0 [H, nu], the replans' solver settings, the sampling planners' samples per replan,
+    and ``fit() -> ({label: surrogate model}, training transitions)`` (fitted once)."""
+
+    config: Any
+    system: Any
+    task: Task
+    plan_task: Task
+    optimum: dict
+    U0: jax.Array
+    params: ILQRParams
+    sysid: SysIdParams
+    samples: int
+    fit: Callable[[], tuple[dict, Any]]
+
+
+Episode = Callable[..., mpc.MPCResult]  # (plant, key, process_noise, meter) -> MPCResult
+
+
+class PlannerKind(NamedTuple):
+    """``episodes(context) -> {label: Episode}``; ``black_box_steps(context, result)``:
+    black-box control steps per control step of one condition's episodes [E, ...] (the
+    plant's own step not counted), None where not counted; ``iterative``: it reports
+    iterations per replan."""
+
+    episodes: Callable[[PlannerContext], dict[str, Episode]]
+    black_box_steps: Callable[[PlannerContext, mpc.MPCResult], float | None]
+    iterative: bool = False
+    description: str = ""
+
+
+PLANNERS: dict[str, PlannerKind] = {}
+
+
+def register_planner(name: str, kind: PlannerKind) -> None:
+    """Add ``kind`` under ``name`` (then valid in ``mpc.controllers``)."""
+    PLANNERS[name] = kind
+
+
+def get_planner(name: str, field: str = "mpc.controllers") -> PlannerKind:
+    if name not in PLANNERS:
+        raise ConfigError(field, f"unknown controller {name!r}; valid: {', '.join(PLANNERS)}")
+    return PLANNERS[name]
+
+
+def _replanning(name: str):
+    """D2C-MPC (``name`` "d2c") or an oracle's MPC on the black box."""
+
+    def episodes(c: PlannerContext) -> dict[str, Episode]:
+        method = "d2c" if name == "d2c" else c.config.experiment.oracle
+        N = c.config.mpc.steps
+
+        def one(plant, k, w, pm):
+            return mpc.receding_horizon(
+                c.system, c.plan_task, c.U0, k, N, c.params, c.sysid, w, method, plant, pm
+            )
+
+        return {"D2C-MPC" if name == "d2c" else f"oracle MPC ({method})": one}
+
+    return episodes
+
+
+def _d2c_steps(c: PlannerContext, result: mpc.MPCResult) -> float:
+    """The median over episodes of each episode's mean steps per control step."""
+    m = c.config.mpc
+    per_episode = [
+        mpc.black_box_steps(
+            jax.tree.map(lambda a: a[e], result), m.horizon, c.params.n_alphas, c.sysid
+        ).mean()
+        for e in range(m.n_episodes)
+    ]
+    return float(np.median(per_episode))
+
+
+def _tracking(c: PlannerContext) -> dict[str, Episode]:
+    N = c.config.mpc.steps
+    X, U, K = (jnp.asarray(c.optimum[k]) for k in ("X_star", "U_star", "K_star"))
+    ref = (X[: N + 1], U[:N], K[:N])
+    return {"TVLQR tracking": lambda plant, k, w, pm: mpc.tracking(plant, c.task, *ref, k, w)}
+
+
+def _surrogates(c: PlannerContext) -> dict[str, Episode]:
+    """MPC on each fitted surrogate, and where ``mpc.refit_weight`` > 0 the same refitted
+    online (SINDy; MLPs with ``mpc.refit_updates`` > 0)."""
+    m, N, params = c.config.mpc, c.config.mpc.steps, c.params
+    models, train = c.fit()
+
+    def on_model(model):
+        return lambda plant, k, w, pm: mpc.surrogate_mpc(model, plant, c.plan_task, c.U0, k, N, params, w, pm)
+
+    def refitted_sindy(model):
+        return lambda plant, k, w, pm: mpc_online.refitted_sindy_mpc(
+            model, train, plant, c.plan_task, c.U0, k, N, params, w, m.refit_weight, pm
+        )
+
+    def refitted_mlp(model, spec):
+        return lambda plant, k, w, pm: mpc_online.refitted_mlp_mpc(
+            model, train, plant, c.plan_task, c.U0, k, N, spec, m.refit_updates, params, w, m.refit_weight, pm
+        )
+
+    out = {f"{label} MPC": on_model(model) for label, model in models.items()}
+    for label, model in models.items():
+        if m.refit_weight > 0 and isinstance(model, SindyModel):
+            out[f"{label} MPC refitted online"] = refitted_sindy(model)
+        elif m.refit_weight > 0 and m.refit_updates > 0 and isinstance(model, MLPModel):
+            out[f"{label} MPC refitted online"] = refitted_mlp(model, mlp_spec(c.config))
+    return out
+
+
+def _sampling(mppi: bool):
+    """Predictive sampling, or MPPI at ``mpc.mppi_temperature`` times the first plan's cost."""
+
+    def episodes(c: PlannerContext) -> dict[str, Episode]:
+        m, task, plan_task = c.config.mpc, c.task, c.plan_task
+        first = trajectory_cost(
+            plan_task, *open_loop(c.system.step, task.x0, c.U0, plan_task.u_min, plan_task.u_max)
+        )
+        lam = m.mppi_temperature * float(first) if mppi else None
+        S, N = c.samples, m.steps
+
+        def one(plant, k, w, pm):
+            return mpc_sampling.sampling_mpc(
+                c.system, plan_task, c.U0, k, N, m.sampling_sigma, S, lam, w, plant, m.sampling_knots, pm
+            )
+
+        knots = f", {m.sampling_knots} knots" if m.sampling_knots else ""
+        return {f"{'MPPI' if mppi else 'predictive sampling'} (S={S}{knots})": one}
+
+    return episodes
+
+
+def _sampling_steps(mppi: bool):
+    return lambda c, result: float(mpc_sampling.black_box_steps(c.samples, c.config.mpc.horizon, mppi))
+
+
+for _name, _kind in {
+    "d2c": PlannerKind(_replanning("d2c"), _d2c_steps, True, "iLQR on LTV models identified at every replan"),
+    "oracle": PlannerKind(
+        _replanning("oracle"), lambda c, r: None, True, "iLQR on the oracle's Jacobians (experiment.oracle)"
+    ),
+    "tvlqr": PlannerKind(_tracking, lambda c, r: 0.0, False, "TVLQR tracking of the offline optimum"),
+    "surrogates": PlannerKind(_surrogates, lambda c, r: 0.0, True, "iLQR on each global surrogate"),
+    "predictive_sampling": PlannerKind(
+        _sampling(False), _sampling_steps(False), False, "the best of S sampled plans"
+    ),
+    "mppi": PlannerKind(
+        _sampling(True), _sampling_steps(True), False, "the samples' exponentially weighted mean"
+    ),
+}.items():
+    register_planner(_name, _kind)
