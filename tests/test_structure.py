@@ -145,6 +145,14 @@ def test_no_package_has_an_internal_import_cycle(package):
     assert _cycles(graph) == []
 
 
+def test_no_object_of_the_package_is_written_through_its_dict():
+    """Caches are explicit (``System.built``), not attributes injected into a frozen
+    dataclass's ``__dict__``."""
+    for path in glob.glob(os.path.join(ROOT, "mjx_surrogate", "**", "*.py"), recursive=True):
+        text = open(path).read()
+        assert "__dict__" not in text, path
+
+
 def test_every_subpackage_is_a_layer():
     for entry in os.scandir(os.path.join(ROOT, "mjx_surrogate")):
         if entry.is_dir() and os.path.exists(os.path.join(entry.path, "__init__.py")):

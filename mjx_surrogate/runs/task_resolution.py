@@ -76,7 +76,7 @@ def _points(system: System, tc: TaskConfig):
     if not tc.goals:
         return None
     ids = tuple(point_ids(system.mj_model, tc.goals))
-    cache = system.__dict__.setdefault("_points_fns", {})  # one function per goal set
+    cache = system.once("points_fns", dict)  # one function per goal set
     if ids not in cache:  # native kinematics with a native simulator: nothing to compile
         make = native_points_fn if system.backend == "native" else make_points_fn
         cache[ids] = make(system.mj_model, list(ids))

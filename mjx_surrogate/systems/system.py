@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import functools
 import os
 from typing import Callable
 
@@ -34,6 +33,9 @@ class System:
         call (native backend: one host call instead of one per time step), or None.
       mesh: the devices that batched work on this system is spread over
         (:mod:`mjx_surrogate.sharding`); None: one device.
+      built: what the system builds once, on first use, by name (the native simulator, the
+        MJX physics and the oracle's exported programs, the joint limits, point-goal
+        functions per goal set): an explicit cache of this object, never compared or hashed.
     """
 
     name: str
@@ -46,6 +48,13 @@ class System:
     rollout: Callable[[jax.Array, jax.Array], jax.Array]
     closed_loop: Callable | None = None  # batched line-search rollout (ilqr.ClosedLoopFn)
     mesh: Mesh | None = None
+    built: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
+
+    def once(self, name: str, build: Callable[[], object]):
+        """``built[name]``, made by ``build()`` the first time it is asked for."""
+        if name not in self.built:
+            self.built[name] = build()
+        return self.built[name]
 
     @property
     def nq(self) -> int:
@@ -83,12 +92,12 @@ class System:
         """(angle, angular velocity) state indices of every hinge joint."""
         return tuple(hinge_state_indices(self.mj_model))
 
-    @functools.cached_property
+    @property
     def state_limits(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(lower [nx], upper [nx]): the range of each limited hinge or slide joint's qpos,
         -inf / +inf elsewhere; None if the model limits no such joint. At a limit the
         one-step map has a kink (the limit's constraint switches on)."""
-        return joint_limits(self.mj_model)
+        return self.once("state_limits", lambda: joint_limits(self.mj_model))
 
     @property
     def compiler_options(self) -> dict | None:
@@ -97,25 +106,30 @@ class System:
         (measured in docs/performance.md, "Compile times"). None (XLA's defaults) on MJX."""
         return {"xla_backend_optimization_level": 1} if self.backend == "native" else None
 
-    @functools.cached_property
+    @property
     def mjx_step(self):
         """Differentiable MJX step (the exact-Jacobian oracle), whatever the backend; on one
         device its calls and vmaps run exported programs (:mod:`exported_step`), so that a
         native system's oracle is not traced again by later runs."""
         physics = lambda: self._mjx_physics  # noqa: E731
-        return self._exported(lambda: physics().step, lambda: physics().step_batch, "step")
+        return self.once(
+            "mjx_step", lambda: self._exported(lambda: physics().step, lambda: physics().step_batch, "step")
+        )
 
-    @functools.cached_property
+    @property
     def _mjx_physics(self) -> backend_mjx.MjxPhysics:
         """The MJX step, its batch and its Jacobians, built on first use."""
-        return backend_mjx.make_mjx_physics(self.mj_model, self.substeps)
+        return self.once("mjx_physics", lambda: backend_mjx.make_mjx_physics(self.mj_model, self.substeps))
 
-    @functools.cached_property
+    @property
     def native(self) -> backend_native.NativeSimulator:
         """Host-side native simulator (replay, references), whatever the backend."""
-        return backend_native.NativeSimulator(self.mj_model, self.substeps, self.native_threads)
+        return self.once(
+            "native",
+            lambda: backend_native.NativeSimulator(self.mj_model, self.substeps, self.native_threads),
+        )
 
-    @functools.cached_property
+    @property
     def mjx_jacobians(self):
         """``(x[nx], u[nu]) -> (A [nx, nx], B [nx, nu])``, the exact oracle's Jacobians
         (:attr:`backend_mjx.MjxPhysics.jacobians_batch`), exported as :attr:`mjx_step` is."""
@@ -124,7 +138,10 @@ class System:
             A, B = self._mjx_physics.jacobians_batch(x[None], u[None])
             return A[0], B[0]
 
-        return self._exported(lambda: one, lambda: self._mjx_physics.jacobians_batch, "jacobians")
+        return self.once(
+            "mjx_jacobians",
+            lambda: self._exported(lambda: one, lambda: self._mjx_physics.jacobians_batch, "jacobians"),
+        )
 
     @property
     def mjx_jacobians_batch(self):
@@ -157,11 +174,10 @@ class System:
         computation that is itself spread over the mesh, e.g. one of many solves)."""
         if self.mesh is None:
             return self
-        single = dataclasses.replace(self, mesh=None)
-        for shared in ("native", "mjx_step", "mjx_jacobians", "_mjx_physics"):
-            if shared in self.__dict__:
-                single.__dict__[shared] = self.__dict__[shared]
-        return single
+        shared = ("native", "mjx_step", "mjx_jacobians", "mjx_physics")  # what it built so far
+        return dataclasses.replace(
+            self, mesh=None, built={k: v for k, v in self.built.items() if k in shared}
+        )
 
     def __repr__(self) -> str:
         return (
@@ -266,13 +282,11 @@ def build_system(
     closed = backend_native.make_native_closed_loop(sim) if backend == "native" else None
     if backend == "native":
         mesh = sharding.one_device_per_process(mesh)
-    system = System(name, exact_xml, model, substeps, backend, threads, step, rollout, closed, mesh)
     if backend == "native":
-        system.__dict__["native"] = sim  # share the one pool
-    else:
-        system.__dict__["mjx_step"] = plain  # differentiable; the same numbers as step
-        system.__dict__["_mjx_physics"] = physics  # its Jacobians: the mjx_jacobians property
-    return system
+        built = {"native": sim}  # one pool
+    else:  # the step's own physics: differentiable, the same numbers as step, its Jacobians
+        built = {"mjx_step": plain, "mjx_physics": physics}
+    return System(name, exact_xml, model, substeps, backend, threads, step, rollout, closed, mesh, built)
 
 
 def hinge_state_indices(m: mujoco.MjModel) -> list[tuple[int, int]]:
