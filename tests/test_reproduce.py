@@ -52,7 +52,7 @@ FIGURES = {
 
 
 # The suite's 10-minute budget on 2 cores holds every kind of study and of system, not all 17
-# experiments (the 7 left out took about 90 s): MJCF models run natively (the pendulum, the
+# experiments (the 8 left out took about 100 s): MJCF models run natively (the pendulum, the
 # cartpole, the 15-link swimmer), a PDE (Burgers) and a function system (Lorenz). The other
 # presets differ from these in their system and settings only: their quick configurations
 # resolve below, their systems are solved in their own tests (the closed loop on MJCF
