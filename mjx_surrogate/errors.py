@@ -9,6 +9,14 @@ class ConfigError(ValueError):
         super().__init__(f"{field}: {message}")
 
 
+def registered(registry: dict, name: str, field: str, what: str):
+    """``registry[name]``, or a ConfigError naming ``field`` and the registered names
+    (``what``: the kind of thing the registry holds, e.g. "identification scheme")."""
+    if name not in registry:
+        raise ConfigError(field, f"unknown {what} {name!r}; valid: {', '.join(registry)}")
+    return registry[name]
+
+
 def describe(exc: BaseException) -> str:
     """``Type: message`` of an exception. An exception raised inside a host callback (a
     user's black box) reaches the caller as a runtime error holding the whole traceback;

@@ -34,7 +34,7 @@ from typing import Any, Callable, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.errors import registered
 
 
 class Proposal(NamedTuple):
@@ -215,9 +215,7 @@ def register_model_strategy(name: str, kind: StrategyKind) -> None:
 
 
 def get_model_strategy(name: str, field: str = "solver.model_strategy") -> StrategyKind:
-    if name not in MODEL_STRATEGIES:
-        raise ConfigError(field, f"unknown model strategy {name!r}; valid: {', '.join(MODEL_STRATEGIES)}")
-    return MODEL_STRATEGIES[name]
+    return registered(MODEL_STRATEGIES, name, field, "model strategy")
 
 
 register_model_strategy(

@@ -20,7 +20,7 @@ import numpy as np
 
 from mjx_surrogate.control import mpc, mpc_online, mpc_sampling
 from mjx_surrogate.control.ilqr import ILQRParams
-from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.errors import registered
 from mjx_surrogate.identification.sysid import SysIdParams
 from mjx_surrogate.surrogates.mlp import MLPModel
 from mjx_surrogate.surrogates.registry import mlp_spec
@@ -72,9 +72,7 @@ def register_planner(name: str, kind: PlannerKind) -> None:
 
 
 def get_planner(name: str, field: str = "mpc.controllers") -> PlannerKind:
-    if name not in PLANNERS:
-        raise ConfigError(field, f"unknown controller {name!r}; valid: {', '.join(PLANNERS)}")
-    return PLANNERS[name]
+    return registered(PLANNERS, name, field, "controller")
 
 
 def _replanning(name: str):

@@ -37,7 +37,7 @@ from flax import struct
 from jax.sharding import Mesh
 
 from mjx_surrogate import sharding
-from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.errors import registered
 from mjx_surrogate.identification import sysid_knots, sysid_significance
 from mjx_surrogate.linalg import spd_solve, unit_diagonal
 from mjx_surrogate.trajectory import feedback_rollout
@@ -359,9 +359,7 @@ def register_scheme(name: str, scheme: IdentificationScheme) -> None:
 
 
 def get_scheme(name: str, field: str = "solver.sysid") -> IdentificationScheme:
-    if name not in SCHEMES:
-        raise ConfigError(field, f"unknown identification scheme {name!r}; valid: {', '.join(SCHEMES)}")
-    return SCHEMES[name]
+    return registered(SCHEMES, name, field, "identification scheme")
 
 
 def _mesh(system) -> Mesh | None:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import importlib
 from typing import Any, Callable, NamedTuple, Union
 
-from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.errors import ConfigError, registered
 from mjx_surrogate.surrogates.registry import get_surrogate, library_specs
 
 # what resolve() checks for a kind before any compile
@@ -51,9 +51,7 @@ def register_experiment(name: str, kind: ExperimentKind) -> None:
 
 
 def get_experiment(name: str, field: str = "experiment.kind") -> ExperimentKind:
-    if name not in EXPERIMENTS:
-        raise ConfigError(field, f"unknown experiment kind {name!r}; valid: {', '.join(EXPERIMENTS)}")
-    return EXPERIMENTS[name]
+    return registered(EXPERIMENTS, name, field, "experiment kind")
 
 
 def needs_of(config) -> frozenset:

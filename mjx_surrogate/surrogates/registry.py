@@ -15,7 +15,7 @@ from typing import Any, Callable, NamedTuple, Protocol
 import jax
 import jax.numpy as jnp
 
-from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.errors import ConfigError, registered
 
 
 class Surrogate(Protocol):
@@ -59,9 +59,7 @@ def register_surrogate(name: str, kind: SurrogateKind) -> None:
 
 
 def get_surrogate(name: str, field: str = "surrogate.kinds") -> SurrogateKind:
-    if name not in SURROGATES:
-        raise ConfigError(field, f"unknown surrogate kind {name!r}; valid: {', '.join(SURROGATES)}")
-    return SURROGATES[name]
+    return registered(SURROGATES, name, field, "surrogate kind")
 
 
 def fit_all(ctx: FitContext, train, test, key: jax.Array, meter=None) -> dict[str, Fitted]:
