@@ -15,7 +15,7 @@ from mjx_surrogate.cost import Cost
 T, nx, nu = 4, 2, 1
 A_TRUE = jnp.broadcast_to(jnp.array([[1.0, 0.1], [0.0, 1.0]]), (T, nx, nx))
 B_TRUE = jnp.broadcast_to(jnp.array([[0.0], [0.1]]), (T, nx, nu))
-T_F, F_, Z_ = jnp.array(True), jnp.array(False), jnp.asarray(0)
+TRUE, FALSE = jnp.array(True), jnp.array(False)
 
 
 def coarse(X, U, K, key):
@@ -89,17 +89,17 @@ def test_every_iteration_identifies_when_the_nominal_moved_and_keeps_the_model_a
 
 def test_the_proposal_is_carried_out_identify_carry_or_keep():
     p = make_problem()
-    m, how = make(p, ms.Proposal(T_F, F_, F_))
+    m, how = make(p, ms.Proposal(TRUE, FALSE, FALSE))
     assert int(how) == lm.How.IDENTIFIED
     np.testing.assert_array_equal(m.A, A_TRUE)
     X1, U1 = nominal(0.5)
-    carried, how = make(p, ms.Proposal(F_, T_F, F_), m, (X1, U1))
+    carried, how = make(p, ms.Proposal(FALSE, TRUE, FALSE), m, (X1, U1))
     A_ref, B_ref = lm.secant_update(A_TRUE, B_TRUE, X1 - m.X, U1 - m.U)
     assert int(how) == lm.How.KEPT
     np.testing.assert_allclose(carried.A, A_ref, rtol=0, atol=0)
     np.testing.assert_allclose(carried.B, B_ref, rtol=0, atol=0)
     np.testing.assert_array_equal(carried.X, X1)  # the model now belongs to the new nominal
-    kept, how = make(p, ms.Proposal(F_, F_, F_), m._replace(A=3.0 * A_TRUE))
+    kept, how = make(p, ms.Proposal(FALSE, FALSE, FALSE), m._replace(A=3.0 * A_TRUE))
     assert int(how) == lm.How.KEPT
     np.testing.assert_array_equal(kept.A, 3.0 * A_TRUE)
 
@@ -121,10 +121,10 @@ def test_reuse_carries_the_model_over_after_a_passed_step_and_distrusts_it():
 
 def test_the_reuse_test_and_its_limit():
     s = ms.secant_reuse(0.2, 2)
-    carry = ms.Proposal(F_, T_F, F_)
+    carry = ms.Proposal(FALSE, TRUE, FALSE)
 
     def ok(ratio, count=0, accepted=True, at_minimum=False):
-        st = ms.ReuseState(F_, F_, jnp.asarray(count))
+        st = ms.ReuseState(FALSE, FALSE, jnp.asarray(count))
         return bool(s.update(st, carry, outcome(accepted, ratio, at_minimum), ms.no_objection())[0].ok)
 
     assert ok(1.1)
@@ -147,7 +147,7 @@ def test_a_coarse_model_hands_over_to_the_fine_one_and_only_that_is_trusted():
     for o in (outcome(at_minimum=True), outcome(stalled=True), outcome(before=1.0, after=0.96)):
         st_next, r = s.update(st, prop, o, ms.no_objection())  # a minimum, a stall, a small gain
         assert bool(r.handover) and bool(st_next[1].fine)
-    rejected = st_next[0]._replace(fresh=F_)  # even on the same nominal, the fine model is identified
+    rejected = st_next[0]._replace(fresh=FALSE)  # even on the same nominal, the fine model is identified
     prop = s.propose((rejected, st_next[1]), ms.no_proposal())
     m_fine, how = make(p, prop)
     assert int(how) == lm.How.IDENTIFIED_FINE
@@ -163,7 +163,7 @@ def test_the_model_for_a_reduced_problem_carries_its_basis():
     p = make_problem()._replace(linearize=lin, model_rank=r)
     m0 = lm.init_model(p, ms.every_iteration(), *nominal(), jax.random.key(0), 3).model
     assert m0.A.shape == (T, r, r) and m0.V.shape == (T + 1, nx, r)
-    m, _ = make(p, ms.Proposal(T_F, F_, F_), m0)
+    m, _ = make(p, ms.Proposal(TRUE, FALSE, FALSE), m0)
     np.testing.assert_array_equal(m.V, V)
 
 

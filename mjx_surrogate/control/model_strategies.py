@@ -35,6 +35,7 @@ import jax
 import jax.numpy as jnp
 
 from mjx_surrogate.errors import registered
+from mjx_surrogate.identification.sysid import SCHEMES
 
 
 class Proposal(NamedTuple):
@@ -207,8 +208,6 @@ def register_model_strategy(name: str, kind: StrategyKind) -> None:
     """Add ``kind`` under ``name`` (then valid as ``solver.model_strategy``). Its settings
     share the ``solver.<name>`` section with the identification schemes', so a name of a
     registered scheme is refused."""
-    from mjx_surrogate.identification.sysid import SCHEMES
-
     if name in SCHEMES:
         raise ValueError(f"{name!r} names an identification scheme; give the strategy another name")
     MODEL_STRATEGIES[name] = kind
