@@ -20,6 +20,7 @@ CONFIG = dataclasses.replace(
         horizon=20,
         steps=40,
         max_iter=5,
+        horizon_end="receding",  # every plan H ahead, as measured in docs/mpc.md
         process_noise=(0.0, 0.01),
         plants=("model", "mass=1.1"),
         refit_weight=10.0,

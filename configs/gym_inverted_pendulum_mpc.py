@@ -41,6 +41,7 @@ CONFIG = Config(
         horizon=30,
         steps=100,
         max_iter=5,
+        horizon_end="receding",  # every plan H ahead, as measured in docs/mpc.md
         process_noise=(0.0, 0.01, 0.03),
         plants=("model", "mass=1.5"),
         n_episodes=4,

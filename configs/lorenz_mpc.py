@@ -16,5 +16,11 @@ CONFIG = preset(
     experiment={"kind": "mpc"},
     data={"n_traj": 3, "test_fraction": 1 / 3},
     surrogate={"sindy.libraries": ("poly2", "poly3"), "mlp.epochs": 100},
-    mpc={"horizon": 10, "steps": 500, "process_noise": (0.0, 0.1, 0.5), "plants": ("model", "sigma=13")},
+    mpc={
+        "horizon": 10,
+        "horizon_end": "receding",  # SINDy-MPC's loop: every plan 10 steps ahead
+        "steps": 500,
+        "process_noise": (0.0, 0.1, 0.5),
+        "plants": ("model", "sigma=13"),
+    },
 )

@@ -18,6 +18,7 @@ CONFIG = preset(
         "horizon": 30,
         "steps": 60,
         "max_iter": 5,
+        "horizon_end": "receding",  # a regulation task: every plan H ahead, as measured in docs/mpc.md
         "process_noise": (0.0, 0.02, 0.05),
         "plants": ("model", "mass=1.5", "length=1.2,damping=2"),
         "refit_weight": 10.0,

@@ -13,6 +13,7 @@ CONFIG = derive(
     mpc={
         "horizon": 5,
         "steps": 6,
+        "horizon_end": "auto",  # the default: every plan ends at the task's end (step 8) or 5 ahead
         "max_iter": 2,
         "process_noise": (0.0, 0.01),
         "plants": ("mass=1.2,length=1.1,damping=2",),

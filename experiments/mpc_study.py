@@ -171,7 +171,8 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     U0 = jnp.concatenate([U_star, jnp.repeat(U_star[-1:], max(0, H - task.T), axis=0)])[:H]
     if m.first_plan == "zeros":
         U0 = jnp.zeros_like(U0)
-    plan_task = task.replace(T=H)
+    plan_task = task.replace(T=H, deadline=task.T if m.horizon_end == "task" else None)
+    record.set("mpc_horizon_end", {"mode": m.horizon_end, "why": horizon_end_text(m, task.T)})
     plants = _plants(res, record)
     record.set(
         "mpc_conditions",
@@ -211,13 +212,25 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     verdict = closed_loop_verdict(rows, finite_or_none(offline))
     record.set("mpc_verdict", verdict | {"cause": cause_text(rows)})
     _figures(record, res, rows, X_star)
-    record.folder.write_text("mpc_table.md", table(rows, float(system.dt), record.metrics["mpc_verdict"]))
+    text = table(rows, float(system.dt), record.metrics["mpc_verdict"], horizon_end_text(m, task.T))
+    record.folder.write_text("mpc_table.md", text)
     if cfg.experiment.video and system.mj_model is not None:  # episode 0 of the hardest condition
         last = f"_{len(m.plants) * len(m.process_noise) - 1}_X"
         clips = {r["controller"]: r["arrays"]["X"] for r in rows if r["arrays"]["X"].endswith(last)}
         record.set("mpc_video_order", list(clips))
         record.video("mpc_episodes.mp4", list(clips.values()), float(system.dt), labels=list(clips))
     return m_d2c["status"]
+
+
+def horizon_end_text(m, T: int) -> str:
+    """Where the episodes' plans end (mpc.horizon_end, resolved), in one sentence."""
+    if m.horizon_end == "task":
+        return (
+            f"every plan ends at the task's end (step {T}) or {m.horizon} steps ahead, whichever "
+            "comes first: the terminal cost stays where the task puts it"
+        )
+    why = f"the episodes run {m.steps} steps, past the task's {T}" if m.steps > T else "as configured"
+    return f"every plan ends {m.horizon} steps ahead, its terminal cost moving with it ({why})"
 
 
 def _figures(record, res, rows, X_star) -> None:

@@ -21,16 +21,26 @@ class Cost(NamedTuple):
     """running(x[nx], u[nu]) -> scalar; terminal(x[nx]) -> scalar.
 
     derivatives(X [T+1, nx], U [T, nu]) -> (l_x, l_u, l_xx, l_uu, l_ux, V_x, V_xx), the
-    shapes of :func:`mjx_surrogate.control.riccati.cost_derivatives`; None: exact, by autodiff."""
+    shapes of :func:`mjx_surrogate.control.riccati.cost_derivatives`; None: exact, by autodiff.
+    timed: the running cost depends on the stage, ``running(x, u, t)`` with t the stage
+    index (an int32 scalar, 0 .. T-1), as a horizon that ends before its last stage does
+    (:func:`mjx_surrogate.tasks.at_step`)."""
 
-    running: Callable[[jax.Array, jax.Array], jax.Array]
+    running: Callable[..., jax.Array]
     terminal: Callable[[jax.Array], jax.Array]
     derivatives: Callable | None = None
+    timed: bool = False
+
+
+def stage_inputs(cost: Cost, X: jax.Array, U: jax.Array) -> tuple:
+    """The running cost's arguments at every stage, stacked: (X[:-1], U), and the stage
+    indices [T] for a timed cost."""
+    return (X[:-1], U, jnp.arange(U.shape[0], dtype=jnp.int32)) if cost.timed else (X[:-1], U)
 
 
 def trajectory_cost(cost: Cost, X: jax.Array, U: jax.Array) -> jax.Array:
     """J of X [T+1, nx], U [T, nu]; +inf if X is not finite or blew up (|x| > BLOWUP)."""
-    J = jax.vmap(cost.running)(X[:-1], U).sum() + cost.terminal(X[-1])
+    J = jax.vmap(cost.running)(*stage_inputs(cost, X, U)).sum() + cost.terminal(X[-1])
     bad = ~jnp.all(jnp.isfinite(X)) | (jnp.max(jnp.abs(X)) > BLOWUP) | ~jnp.isfinite(J)
     return jnp.where(bad, jnp.inf, J)
 

@@ -8,6 +8,12 @@ geodesic form (hinge angles wrapped to (-pi, pi], each quaternion block replaced
     l_f(x)  = 1/2 e' Q_f e + sum_k 1/2 w_f,k |p_k(x) - p_k*|^2
     J = sum_{t<T} l(x_t, u_t) + l_f(x_T)
 
+A task that ends within its horizon (``end`` = E < T: an MPC plan near the end of a
+finite-time task, :func:`at_step`) keeps its terminal cost at the task's end and only the
+control effort after it:
+
+    J_E = sum_{t<E} l(x_t, u_t) + l_f(x_E) + sum_{E<=t<T} 1/2 (u_t - u_ref)' R (u_t - u_ref)
+
 Costs stay analytic (derivatives by autodiff); p_k comes from the model's kinematics,
 the dynamics stay a black box.
 """
@@ -32,7 +38,10 @@ class Task:
     """x0, x_goal [nx]; Q, Q_f [nx, nx]; R [nu, nu]; u_min, u_max, u_ref [nu] (limits may be
     +-inf); point goals: targets [k, 3], weights, final_weights [k] and ``points`` (static).
     ``hinges`` (qpos indices wrapped) and ``quats`` (first qpos index of each quaternion)
-    are empty for the Euclidean state error."""
+    are empty for the Euclidean state error. ``deadline`` (static): the control step of an
+    episode at which the task ends, for a receding horizon that shrinks to it (None: the
+    horizon recedes); ``end``: the stage within the horizon at which it ends (an int32
+    scalar, 0 .. T; None: T), set by :func:`at_step`."""
 
     x0: jax.Array
     x_goal: jax.Array
@@ -49,6 +58,17 @@ class Task:
     hinges: tuple = struct.field(pytree_node=False, default=())
     quats: tuple = struct.field(pytree_node=False, default=())
     points: PointsFn | None = struct.field(pytree_node=False, default=None)
+    deadline: int | None = struct.field(pytree_node=False, default=None)
+    end: jax.Array | None = None
+
+
+def at_step(task: Task, n: jax.Array) -> Task:
+    """The horizon-T task as planned at control step n of an episode: with a ``deadline``
+    D it ends at stage clip(D - n, 0, T) (the horizon shrinks to the task's end; past it
+    only the control effort counts, module docstring); without one it is ``task``."""
+    if task.deadline is None:
+        return task
+    return task.replace(end=jnp.clip(task.deadline - n, 0, task.T).astype(jnp.int32))
 
 
 def quat_error(q: jax.Array, g: jax.Array) -> jax.Array:
@@ -116,10 +136,39 @@ def goal_cost(task: Task, x: jax.Array, terminal: bool | None = None) -> jax.Arr
     return 0.5 * e @ task.Q @ e + _point_terms(task, x, task.weights)
 
 
+def effort_cost(task: Task, u: jax.Array) -> jax.Array:
+    """1/2 (u - u_ref)' R (u - u_ref) for u [nu]."""
+    du = u - task.u_ref
+    return 0.5 * du @ task.R @ du
+
+
+def stage_cost(task: Task, x: jax.Array, u: jax.Array, t: jax.Array) -> jax.Array:
+    """The cost of stage t of a task that ends at stage ``task.end`` (module docstring):
+    l(x, u) before the end, l_f(x) and the effort at it, the effort alone after it."""
+    before, at_end = t < task.end, t == task.end
+    # the state weights of the stage: Q before the end, Q_f at it (one error, one points call)
+    Q = jnp.where(before, task.Q, 0.0) + jnp.where(at_end, task.Q_f, 0.0)
+    w = jnp.where(before, task.weights, 0.0) + jnp.where(at_end, task.final_weights, 0.0)
+    e = state_error(task, x)
+    return 0.5 * e @ Q @ e + _point_terms(task, x, w) + effort_cost(task, u)
+
+
+def final_cost(task: Task, x: jax.Array) -> jax.Array:
+    """The cost of the horizon's last state x [nx]: l_f(x), or 0 if the task ended before it."""
+    if task.end is None:
+        return terminal_cost(task, x)
+    return jnp.where(task.end == task.T, terminal_cost(task, x), 0.0)
+
+
 def task_cost(task: Task) -> cost_lib.Cost:
-    """The task's cost as the solver's :class:`~mjx_surrogate.cost.Cost`; with point goals,
-    their Hessian is Gauss-Newton's (:func:`point_goal_derivatives`)."""
+    """The task's cost as the solver's :class:`~mjx_surrogate.cost.Cost` (timed where the
+    task ends within its horizon); with point goals, their Hessian is Gauss-Newton's
+    (:func:`point_goal_derivatives`)."""
     derivatives = None if task.points is None else (lambda X, U: point_goal_derivatives(task, X, U))
+    if task.end is not None:
+        return cost_lib.Cost(
+            lambda x, u, t: stage_cost(task, x, u, t), lambda x: final_cost(task, x), derivatives, True
+        )
     return cost_lib.Cost(lambda x, u: running_cost(task, x, u), lambda x: terminal_cost(task, x), derivatives)
 
 
@@ -131,6 +180,7 @@ def point_goal_derivatives(task: Task, X: jax.Array, U: jax.Array):
     of the MJX kinematics, whose compile is long (docs/performance.md). The rest of the cost
     is differentiated exactly."""
     plain = dataclasses.replace(task, points=None)
+    plain_cost = task_cost(plain)
 
     def gn(x, weights):
         r = task.points(x) - task.targets  # [k, 3]
@@ -139,11 +189,17 @@ def point_goal_derivatives(task: Task, X: jax.Array, U: jax.Array):
         H = jnp.einsum("k,kcm,kcn->mn", weights, J, J)
         return g, H
 
-    running = cost_lib.hessian_and_gradient(lambda x, u: running_cost(plain, x, u), (0, 1))
-    ((lxx, _), (lux, luu)), (lx, lu) = jax.vmap(running)(X[:-1], U)
-    g, H = jax.vmap(lambda x: gn(x, task.weights))(X[:-1])
-    Vxx, Vx = cost_lib.hessian_and_gradient(lambda x: terminal_cost(plain, x))(X[-1])
-    gT, HT = gn(X[-1], task.final_weights)
+    running = cost_lib.hessian_and_gradient(plain_cost.running, (0, 1))
+    ((lxx, _), (lux, luu)), (lx, lu) = jax.vmap(running)(*cost_lib.stage_inputs(plain_cost, X, U))
+    Vxx, Vx = cost_lib.hessian_and_gradient(plain_cost.terminal)(X[-1])
+    if task.end is None:
+        g, H = jax.vmap(lambda x: gn(x, task.weights))(X[:-1])
+        gT, HT = gn(X[-1], task.final_weights)
+    else:  # the points' weights of each stage: running before the end, final at it
+        t = jnp.arange(U.shape[0])[:, None]
+        w = jnp.where(t < task.end, task.weights, 0.0) + jnp.where(t == task.end, task.final_weights, 0.0)
+        g, H = jax.vmap(gn)(X[:-1], w)
+        gT, HT = gn(X[-1], jnp.where(task.end == task.T, task.final_weights, 0.0))
     return lx + g, lu, lxx + H, luu, lux, Vx + gT, Vxx + HT
 
 

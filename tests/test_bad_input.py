@@ -62,6 +62,14 @@ CASES = [
     (["smoke_mpc", "--mpc.refit_updates", "-1"], "mpc.refit_updates"),
     (["smoke_mpc", "--mpc.n_samples", "2"], "mpc.n_samples"),  # the pendulum's nx + nu = 3
     (["smoke_mpc", "--mpc.sampling_knots", "-1"], "mpc.sampling_knots"),
+    (
+        ["smoke_mpc", "--mpc.controllers", "d2c", "--mpc.steps", "9", "--mpc.horizon_end", "task"],
+        "mpc.horizon_end",
+    ),
+    (["smoke_mpc", "--mpc.horizon_end", "shrink"], "--mpc.horizon_end"),
+    (["smoke_mpc", "--mpc.sysid_every", "0"], "mpc.sysid_every"),
+    (["smoke_mpc", "--solver.sysid", "rollout", "--mpc.sysid_every", "2"], "mpc.sysid_every"),
+    (["smoke_mpc", "--mpc.n_alphas", "0"], "mpc.n_alphas"),
     (["smoke_mpc", "--mpc.first_plan", "random"], "--mpc.first_plan"),
     (["smoke_mpc", "--mpc.sampling_knots", "99"], "mpc.sampling_knots"),  # over the horizon
     (["lorenz_mpc", "--mpc.plants", "mass=1.5"], "mpc.plants[0]"),  # not a keyword of Lorenz's

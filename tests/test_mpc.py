@@ -12,6 +12,7 @@ import pytest
 from mjx_surrogate import progress
 from mjx_surrogate.control import mpc, mpc_sampling
 from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.identification.sysid import SysIdParams
 from mjx_surrogate.systems.function import from_jax, from_numpy
 from mjx_surrogate.tasks import make_task
@@ -69,6 +70,32 @@ def test_mpc_on_a_linear_system_is_the_receding_horizon_lqr(controller):
     )
     assert float(r.cost) == pytest.approx(J, rel=1e-8)
     assert r.plan_cost.shape == (N,) and np.all(np.asarray(r.iterations) >= 1)
+
+
+@pytest.mark.parametrize("planner", ["d2c", "surrogate"])
+def test_a_horizon_that_shrinks_to_the_tasks_end_is_the_finite_horizon_lqr(planner):
+    """A task that ends 15 steps after the episode's start (deadline 15), planned over
+    H = 10: the plan at step n ends at stage h_n = min(H, 15 - n) with the terminal weight
+    there, so u_n = K_0 of the horizon-h_n LQR (float64 NumPy); once the end is within the
+    horizon the closed loop is the finite-horizon LQR of the task itself. The receding
+    horizon's loop (every plan H steps) differs from it."""
+    N = 15
+    task = _task().replace(deadline=N)
+    U0, key, params = jnp.zeros((H, 1)), jax.random.key(0), ILQRParams(max_iter=3)
+    if planner == "d2c":
+        r = mpc.receding_horizon(_linear(), task, U0, key, N, params, SID, 0.0, "d2c")
+    else:
+        model = _LinearModel(jnp.asarray(A), jnp.asarray(B))
+        r = mpc.surrogate_mpc(model, _linear(), task, U0, key, N, params)
+    X = [np.array([1.0, 0.0])]
+    U = []
+    for n in range(N):
+        U.append(_lqr_first_gain(A, B, min(H, N - n)) @ X[-1])
+        X.append(A @ X[-1] + B @ U[-1])
+    np.testing.assert_allclose(np.asarray(r.X), np.array(X), atol=1e-8)
+    np.testing.assert_allclose(np.asarray(r.U), np.array(U), atol=1e-8)
+    receding = mpc.receding_horizon(_linear(), _task(), U0, key, N, params, SID, 0.0, "d2c")
+    assert np.max(np.abs(np.asarray(receding.U) - np.array(U))) > 1e-3
 
 
 class _LinearModel(NamedTuple):
@@ -159,9 +186,12 @@ def test_the_plant_is_stepped_with_the_episodes_noise_and_the_model_is_not_the_p
 
 
 @pytest.mark.slow
-def test_black_box_steps_are_the_calls_the_black_box_received():
+@pytest.mark.parametrize("every", [1, 4])
+def test_black_box_steps_are_the_calls_the_black_box_received(every):
     """A NumPy black box counts the rows it is asked to step: the episode's calls are the
-    plant's N steps plus black_box_steps per replan."""
+    plant's N steps plus black_box_steps per replan; identified at every 4th step of the
+    horizon (and its last: 4 of 10 steps), each identification steps 4/10 as many rows,
+    and on a linear system the interpolated models are the exact ones: the same LQR loop."""
     calls = []
 
     def step(x, u):
@@ -169,11 +199,19 @@ def test_black_box_steps_are_the_calls_the_black_box_received():
         return x @ A.T + u @ B.T
 
     system = from_numpy(step, 2, 1, 0.1, vectorized=True)
-    params = ILQRParams(max_iter=3)
-    r = mpc.receding_horizon(system, _task(), jnp.zeros((H, 1)), jax.random.key(0), 5, params, SID)
-    per_replan = mpc.black_box_steps(r, H, params.n_alphas, SID)
+    params, sysid = ILQRParams(max_iter=3), SID.replace(every=every)
+    r = mpc.receding_horizon(system, _task(), jnp.zeros((H, 1)), jax.random.key(0), 5, params, sysid)
+    per_replan = mpc.black_box_steps(r, H, params.n_alphas, sysid)
     assert per_replan.shape == (5,) and np.all(per_replan > 0)
     assert sum(calls) == 5 + int(per_replan.sum()), (sum(calls), per_replan)
+    assert np.all(np.asarray(r.identified) <= 1)  # never an every-step model
+    knots = 10 if every == 1 else 4
+    assert 10 * sid.steps_per_identification(sysid, H) == knots * sid.steps_per_identification(SID, H)
+    K0 = _lqr_first_gain(A, B, H)
+    X = [np.array([1.0, 0.0])]
+    for _ in range(5):
+        X.append((A + B @ K0) @ X[-1])
+    np.testing.assert_allclose(np.asarray(r.X), np.array(X), atol=1e-8)
 
 
 @pytest.mark.slow

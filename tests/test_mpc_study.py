@@ -96,6 +96,9 @@ def test_the_sampling_budget_matches_d2c_and_the_table_and_figures_are_written(s
     assert len(surrogate_stages) == 8 and all(v["status"] == "done" for v in surrogate_stages)
     table = (path / "mpc_table.md").read_text()
     assert table.count("### Plant mass=1.2,length=1.1,damping=2, process noise") == 2
+    # the task ends at step 8 and the episodes run 6: every plan ends at the task's end
+    assert m["mpc_horizon_end"]["mode"] == "task"
+    assert "Horizon: every plan ends at the task's end (step 8)" in table
     assert "TVLQR tracking" in table and all(r["plant"] == "mass=1.2,length=1.1,damping=2" for r in rows)
     fig = "mpc_cost_vs_noise_mass1.2_length1.1_damping2.png"
     for name in (fig, "mpc_cost_vs_calls.png", "mpc_trajectories.png"):
@@ -310,3 +313,24 @@ def test_d2c_mpc_identifies_with_the_fewest_samples_unless_told():
         20,
         "gaussian",
     )
+
+
+def test_plans_end_at_the_tasks_end_unless_the_episodes_run_past_it():
+    """mpc.horizon_end "auto" resolves to "task" where the episodes end within the task
+    (smoke_mpc: 6 of its 8 steps), to "receding" where they run past it; a preset's own
+    choice stays."""
+    import dataclasses
+
+    from configs.pendulum_mpc import CONFIG as PENDULUM
+    from configs.smoke_mpc import CONFIG
+    from mjx_surrogate.runs.resolution import resolve
+
+    def resolved(cfg, **mpc):
+        return resolve(
+            dataclasses.replace(cfg, mpc=dataclasses.replace(cfg.mpc, **mpc))
+        ).config.mpc.horizon_end
+
+    assert resolved(CONFIG) == "task"
+    assert resolved(CONFIG, controllers=("d2c",), steps=9) == "receding"
+    assert resolved(CONFIG, horizon_end="receding") == "receding"
+    assert resolved(PENDULUM) == "receding" and resolved(PENDULUM, horizon_end="auto") == "task"

@@ -9,7 +9,7 @@ import pytest
 
 from mjx_surrogate.runs.config import Config, PointGoal, SystemConfig, TaskConfig
 from mjx_surrogate.runs.resolution import resolve
-from mjx_surrogate.tasks import quat_error, running_cost, state_error, terminal_cost
+from mjx_surrogate.tasks import make_task, quat_error, running_cost, state_error, terminal_cost
 
 
 def _unit(v):
@@ -97,6 +97,28 @@ def test_native_point_kinematics_equal_mjx_with_their_jacobians():
     np.testing.assert_allclose(Jn, Jm, atol=1e-8)
 
 
+HINGES = """<mujoco><worldbody><body><joint type="slide" axis="1 0 0"/><geom size=".1" mass="1"/>
+<body pos="0 0 .3"><joint type="hinge" axis="0 1 0"/><geom size=".1" mass="1"/>
+<body pos=".2 0 .3"><joint type="hinge" axis="1 1 0"/><geom size=".1" mass="1"/>
+<site name="tip" pos=".1 .05 .2"/></body></body></body></worldbody></mujoco>"""
+
+
+def test_native_point_jacobians_of_hinges_and_slides_are_mujocos_own():
+    """Where every joint is a hinge or a slide the native points' Jacobian is MuJoCo's
+    mj_jacSite / mj_jacBody: jacfwd through MJX's kinematics to 1e-12 (central differences
+    agree only to about 1e-9), zero beyond qpos."""
+    from mjx_surrogate.systems.kinematics import make_points_fn, native_points_fn
+
+    m = mujoco.MjModel.from_xml_string(HINGES)
+    ids = [("site", 0), ("body", 3)]
+    native, mjx_fn = native_points_fn(m, ids), make_points_fn(m, ids)
+    X = jnp.asarray(np.random.default_rng(1).normal(size=(5, 2 * m.nq)))
+    Jn = jax.jit(jax.vmap(jax.jacfwd(native)))(X)
+    Jm = jax.jit(jax.vmap(jax.jacfwd(mjx_fn)))(X)
+    assert Jn.shape == (5, 2, 3, 6) and np.all(np.asarray(Jn)[..., m.nq :] == 0)
+    np.testing.assert_allclose(Jn, Jm, atol=1e-12)
+
+
 def test_several_quaternion_blocks_each_get_their_rotation_vector_from_one_program():
     """A free joint and two ball joints (three quaternion blocks) around a hinge: each block's
     error is MuJoCo's own quaternion difference and the hinge is wrapped; the blocks share
@@ -121,3 +143,66 @@ def test_several_quaternion_blocks_each_get_their_rotation_vector_from_one_progr
     np.testing.assert_array_equal(e[rest], (x - goal)[rest])
     program = jax.jit(lambda x: running_cost(task, x, jnp.zeros(1))).lower(jnp.asarray(x)).as_text()
     assert program.count("atan2") == 1
+
+
+def _ending_task(points: bool):
+    """nx 4, nu 2, T 6, random weights; with ``points``, two goal points linear in x (so
+    that Gauss-Newton's Hessian is the exact one)."""
+    rng = np.random.default_rng(3)
+    sym = lambda n: (lambda M: M @ M.T)(rng.normal(size=(n, n)))  # noqa: E731
+    kw = {}
+    if points:
+        P = jnp.asarray(rng.normal(size=(2, 3, 4)))
+        kw = dict(targets=rng.normal(size=(2, 3)), weights=[0.5, 2.0], final_weights=[3.0, 1.0])
+        kw["points"] = lambda x: P @ x
+    task = make_task(
+        rng.normal(size=4), rng.normal(size=4), sym(4), sym(4), sym(2), 6, u_ref=rng.normal(size=2), **kw
+    )
+    return task.replace(deadline=9), rng.normal(size=(7, 4)), rng.normal(size=(6, 2))
+
+
+def _ending_reference(task, end, X, U):
+    """J_E of the tasks module docstring, stage by stage in plain jnp."""
+    J = 0.0
+    for t in range(task.T):
+        du = U[t] - task.u_ref
+        J += 0.5 * du @ task.R @ du
+        if t < end:
+            J += running_cost(task, X[t], U[t]) - 0.5 * du @ task.R @ du
+        if t == end:
+            J += terminal_cost(task, X[t])
+    return J + (terminal_cost(task, X[-1]) if end == task.T else 0.0)
+
+
+@pytest.mark.parametrize("points", [False, True], ids=["quadratic", "point goals"])
+def test_a_task_that_ends_within_its_horizon_costs_and_differentiates_as_written(points):
+    """at_step at control step n of an episode with deadline 9 ends a horizon-6 task at
+    stage clip(9 - n, 0, 6): the cost is J_E (running before the end, terminal at it, effort
+    after it) and its derivatives are those of J_E, stage by stage (autodiff of a loop
+    written apart; the point goals' Gauss-Newton Hessian is exact for linear points)."""
+    from mjx_surrogate.control.riccati import cost_derivatives
+    from mjx_surrogate.tasks import at_step, task_cost, trajectory_cost
+
+    task, X, U = _ending_task(points)
+    X, U = jnp.asarray(X), jnp.asarray(U)
+    plain = task.replace(deadline=None)
+    assert at_step(plain, 4) is plain and task_cost(task).timed is False
+    for n, end in [(3, 6), (5, 4), (8, 1), (9, 0), (12, 0)]:
+        ended = at_step(task, jnp.asarray(n))
+        assert int(ended.end) == end and task_cost(ended).timed
+        ref = lambda X, U, end=end: _ending_reference(task, end, X, U)  # noqa: E731
+        assert float(trajectory_cost(ended, X, U)) == pytest.approx(float(ref(X, U)), rel=1e-12)
+        derivatives = jax.jit(lambda X, U, e=ended: cost_derivatives(task_cost(e), X, U))
+        lx, lu, lxx, luu, lux, Vx, Vxx = derivatives(X, U)
+        gX, gU = jax.grad(ref, (0, 1))(X, U)
+        (hXX, hXU), (_, hUU) = jax.hessian(ref, (0, 1))(X, U)
+        T = task.T
+        np.testing.assert_allclose(lx, gX[:T], atol=1e-10)
+        np.testing.assert_allclose(Vx, gX[T], atol=1e-10)
+        np.testing.assert_allclose(lu, gU, atol=1e-10)
+        np.testing.assert_allclose(lxx, [hXX[t, :, t] for t in range(T)], atol=1e-10)
+        np.testing.assert_allclose(Vxx, hXX[T, :, T], atol=1e-10)
+        np.testing.assert_allclose(luu, [hUU[t, :, t] for t in range(T)], atol=1e-10)
+        np.testing.assert_allclose(lux, [hXU[t, :, t].T for t in range(T)], atol=1e-10)
+    full = at_step(task.replace(deadline=6), 0)  # ends at the horizon's end: the usual J
+    assert float(trajectory_cost(full, X, U)) == pytest.approx(float(trajectory_cost(task, X, U)), rel=1e-12)

@@ -130,8 +130,9 @@ def cause_text(rows: list[dict]) -> str:
     )
 
 
-def table(rows: list[dict], dt: float, verdict: dict | None = None) -> str:
-    """The side-by-side table (Markdown), one block per condition, after the verdict."""
+def table(rows: list[dict], dt: float, verdict: dict | None = None, horizon: str = "") -> str:
+    """The side-by-side table (Markdown), one block per condition, after the verdict;
+    ``horizon``: where the plans end, a sentence."""
     f = lambda v: "-" if v is None else f"{v:.4g}"  # noqa: E731
     out = []
     for p, w in dict.fromkeys((r["plant"], r["process_noise"]) for r in rows):
@@ -164,5 +165,5 @@ def table(rows: list[dict], dt: float, verdict: dict | None = None) -> str:
         )
     return (
         head + f"Control period {dt:g} s; compute per control step: a batch's wall time over its "
-        "episodes' steps.\n" + "\n".join(out) + "\n"
+        "episodes' steps." + (f" Horizon: {horizon}." if horizon else "") + "\n" + "\n".join(out) + "\n"
     )

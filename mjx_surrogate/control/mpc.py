@@ -11,12 +11,17 @@ through the plan's gains or with its controls alone, whichever costs less), with
 
 (process noise in state units, drawn from the episode's key). The plant defaults to the
 controller's system; a different plant (other masses, another parameter) is the model
-mismatch the controller does not know.
+mismatch the controller does not know. A task with a ``deadline`` D (a finite-time task,
+its goal a terminal cost) is planned at step n as :func:`~mjx_surrogate.tasks.at_step` has
+it: the plan ends at the task's end, stage min(D - n, H), so that the goal stays where the
+task put it instead of receding with the horizon.
 Controllers: "d2c" (LTV models identified on the black box at every replan), "jacfwd" and
 "finite_difference" (the exact-Jacobian oracles); :func:`surrogate_mpc` plans on a global
 surrogate instead (SINDy-MPC, MLP-MPC) and :func:`tracking` replays a fixed nominal with its
-TVLQR gains (no replanning). The episode is one program: a ``lax.scan`` over the control
-steps, each replan an iLQR ``while_loop``; episodes batch with ``jax.vmap`` over x0 and keys.
+TVLQR gains (no replanning). D2C-MPC with ``sysid.every`` = k identifies at every k-th
+step of the horizon only, interpolating between (MuJoCo MPC's derivative skip). The
+episode is one program: a ``lax.scan`` over the control steps, each replan an iLQR
+``while_loop``; episodes batch with ``jax.vmap`` over x0 and keys.
 """
 
 from __future__ import annotations
@@ -34,7 +39,7 @@ from mjx_surrogate.control.ilqr import ILQRParams, Problem, ilqr_advance, ilqr_i
 from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter, poll_step
 from mjx_surrogate.systems.system import System
-from mjx_surrogate.tasks import Task, task_cost, trajectory_cost
+from mjx_surrogate.tasks import Task, at_step, task_cost, trajectory_cost
 
 CONTROLLERS = ("d2c", "jacfwd", "finite_difference")
 POLLS_PER_EPISODE = 25  # progress reports (and stop checks) per episode, at most about
@@ -76,8 +81,10 @@ def receding_horizon(
     method = "d2c" if controller == "d2c" else oracle_method(controller)
     plant_step = (plant if plant is not None else system).step
 
-    def replan(x, plan, k):
-        return ilqr_replan(problem(system, task.replace(x0=x), sysid, method), plan, params, k)
+    def replan(x, plan, k, n):
+        # knotted models (sysid.every > 1) stay knotted: no hand-over to every-step ones
+        prob = problem(system, at_step(task, n).replace(x0=x), sysid, method)._replace(linearize_fine=None)
+        return ilqr_replan(prob, plan, params, k)
 
     X, U, (plan_cost, its, ident) = episode(
         replan, plant_step, task.x0, first_plan(U0, task.x0), key, steps, process_noise, progress=progress
@@ -101,8 +108,8 @@ def surrogate_mpc(
     pytree with ``step(x, u)``: a SindyModel, an MLPModel), Jacobians by ``jax.jacfwd``
     through it: SINDy-MPC, MLP-MPC. U0 [H, nu]; no black-box call but the plant's steps."""
 
-    def replan(x, plan, k):
-        return surrogate_replan(model, task, x, plan, params, k)
+    def replan(x, plan, k, n):
+        return surrogate_replan(model, at_step(task, n), x, plan, params, k)
 
     X, U, (plan_cost, its, ident) = episode(
         replan, plant.step, task.x0, first_plan(U0, task.x0), key, steps, process_noise, progress=progress
@@ -213,13 +220,13 @@ def episode(
     observe=None,
     progress: ProgressMeter = NO_PROGRESS,
 ):
-    """The receding-horizon loop every planner shares: ``replan(x, plan, key) -> (plan,
-    info)`` from the measured x and the previous plan shifted by one step (``plan0``: the
-    first one's warm start; a :class:`Plan` or U [H, nu], leaves with the control steps
-    leading); applies the plan's first control to the plant and adds the process noise.
-    A controller that learns during the episode passes ``memory`` (a pytree) and
-    ``observe(memory, n, x, u, x_next) -> memory``, called after every plant step; its
-    replan is then ``replan(x, plan, key, memory, n) -> (plan, info, memory)``.
+    """The receding-horizon loop every planner shares: ``replan(x, plan, key, n) -> (plan,
+    info)`` at control step n from the measured x and the previous plan shifted by one step
+    (``plan0``: the first one's warm start; a :class:`Plan` or U [H, nu], leaves with the
+    control steps leading); applies the plan's first control to the plant and adds the
+    process noise. A controller that learns during the episode passes ``memory`` (a pytree)
+    and ``observe(memory, n, x, u, x_next) -> memory``, called after every plant step; its
+    replan is then ``replan(x, plan, key, n, memory) -> (plan, info, memory)``.
     ``progress``: told of every k-th control step (k = steps // POLLS_PER_EPISODE, at
     least 1: each report is a host callback, docs/performance.md); once it reports a stop
     request, the remaining steps are skipped (their rows of X, U and info are NaN, or 0
@@ -230,9 +237,9 @@ def episode(
     def advance(x, plan, mem, n, k):
         k_plan, k_noise = jax.random.split(k)
         if observe is None:
-            plan, info = replan(x, plan, k_plan)
+            plan, info = replan(x, plan, k_plan, n)
         else:
-            plan, info, mem = replan(x, plan, k_plan, mem, n)
+            plan, info, mem = replan(x, plan, k_plan, n, mem)
         u = (plan.U if isinstance(plan, Plan) else plan)[0]
         x_next = plant_step(x, u) + process_noise * jax.random.normal(k_noise, x.shape, x.dtype)
         if observe is not None:

@@ -42,7 +42,7 @@ from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.surrogates.mlp import MLPModel, MLPSpec, optimizer, targets
 from mjx_surrogate.surrogates.sindy import SindyModel, design
 from mjx_surrogate.systems.system import System
-from mjx_surrogate.tasks import Task, trajectory_cost
+from mjx_surrogate.tasks import Task, at_step, trajectory_cost
 
 RIDGE = 1e-10  # relative to the scaled Gram's unit diagonal: keeps an empty support solvable
 
@@ -93,7 +93,7 @@ def refitted_sindy_mpc(
     gram0 = ts0.T @ ts0
     proj0 = ts0.T @ _targets(model, offline.x, offline.x_next).astype(x0.dtype)
 
-    def replan(x, plan, key, seen: Transitions, n):
+    def replan(x, plan, key, n, seen: Transitions):
         w = weight * (jnp.arange(steps) < n).astype(x.dtype)
         m = refit(
             model,
@@ -104,7 +104,7 @@ def refitted_sindy_mpc(
             _targets(model, seen.x, seen.x_next),
             w,
         )
-        plan, info = surrogate_replan(m, task, x, plan, params, key)
+        plan, info = surrogate_replan(m, at_step(task, n), x, plan, params, key)
         return plan, info, seen
 
     X, U, (plan_cost, its, ident) = episode(
@@ -174,7 +174,7 @@ def refitted_mlp_mpc(
     b = min(spec.batch_size, z_off.shape[0])
     opt = optimizer(spec)
 
-    def replan(x, plan, key, memory, n):
+    def replan(x, plan, key, n, memory):
         seen, p, state = memory
         k_batch, k_plan = jax.random.split(key)
         w = weight * (jnp.arange(steps) < n)
@@ -190,7 +190,7 @@ def refitted_mlp_mpc(
 
         (p, state), _ = jax.lax.scan(update, (p, state), jax.random.split(k_batch, updates))
         m = model.replace(params=p)
-        plan, info = surrogate_replan(m, task, x, plan, params, k_plan)
+        plan, info = surrogate_replan(m, at_step(task, n), x, plan, params, k_plan)
         return plan, info, (seen, p, state)
 
     memory = (

@@ -29,7 +29,7 @@ import numpy as np
 from mjx_surrogate.control.mpc import MPCResult, episode
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.systems.system import System
-from mjx_surrogate.tasks import Task, trajectory_cost
+from mjx_surrogate.tasks import Task, at_step, trajectory_cost
 from mjx_surrogate.trajectory import open_loop
 
 
@@ -72,20 +72,20 @@ def sampling_mpc(
     lo, hi = task.u_min, task.u_max
     plant_step = (plant if plant is not None else system).step
 
-    def plan_cost(x, U):
+    def plan_cost(x, U, n):
         X, Uc = open_loop(system.step, x, U, lo, hi)
-        return trajectory_cost(task, X, Uc)
+        return trajectory_cost(at_step(task, n), X, Uc)
 
-    def replan(x, U, k):
+    def replan(x, U, k, n):
         eps = perturbations(k, n_samples - 1, *U.shape, knots, U.dtype)
         samples = jnp.concatenate([U[None], jnp.clip(U + sigma * eps, lo, hi)])  # [S, H, nu]
-        J = jax.vmap(lambda Ui: plan_cost(x, Ui))(samples)
+        J = jax.vmap(lambda Ui: plan_cost(x, Ui, n))(samples)
         if temperature is None:
             best = jnp.argmin(J)
             return samples[best], J[best]
         w = jax.nn.softmax(-(J - jnp.min(J)) / temperature)
         mean = jnp.einsum("s,stu->tu", w, samples)
-        return mean, plan_cost(x, mean)
+        return mean, plan_cost(x, mean, n)
 
     X, U, J = episode(replan, plant_step, task.x0, U0, key, steps, process_noise, progress=progress)
     ones = jnp.ones((steps,), jnp.int32)

@@ -22,7 +22,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from mjx_surrogate.cost import Cost, hessian_and_gradient
+from mjx_surrogate.cost import Cost, hessian_and_gradient, stage_inputs
 from mjx_surrogate.linalg import spd_solve
 
 
@@ -132,7 +132,8 @@ def cost_derivatives(cost: Cost, X: jax.Array, U: jax.Array):
     the cost's own ``derivatives``)."""
     if cost.derivatives is not None:
         return cost.derivatives(X, U)
-    ((lxx, _), (lux, luu)), (lx, lu) = jax.vmap(hessian_and_gradient(cost.running, (0, 1)))(X[:-1], U)
+    running = hessian_and_gradient(cost.running, (0, 1))
+    ((lxx, _), (lux, luu)), (lx, lu) = jax.vmap(running)(*stage_inputs(cost, X, U))
     VxxT, VxT = hessian_and_gradient(cost.terminal, 0)(X[-1])
     return lx, lu, lxx, luu, lux, VxT, VxxT
 

@@ -314,6 +314,12 @@ class MPCConfig:
       data_level), "predictive_sampling" and "mppi" (derivative-free, on the black box).
     horizon: control steps per plan H (None: task.T). steps: control steps of an episode
       (None: task.T; at most task.T with "tvlqr"). max_iter: iLQR iterations per replan.
+    horizon_end: where a plan made at control step n ends: "task" at the task's end when
+      that comes first (stage min(task.T - n, H): the horizon shrinks to it, the terminal
+      cost stays at the task's end, only the control effort counts after it; needs steps
+      <= task.T), "receding" H steps ahead (the terminal cost at every plan's end, moving
+      with it), "auto": "task" where steps <= task.T, else "receding". Every planner
+      plans on the same horizon; the run records which one and why (mpc_horizon_end).
     process_noise: standard deviations (state units) of the noise added after every plant
       step, one set of episodes per level. plants: the black boxes the episodes run on,
       each "model" (the controller's own) or changes NAME=VALUE[,NAME=VALUE...]: on a
@@ -342,6 +348,10 @@ class MPCConfig:
       design sysid_design ("orthogonal": with nx + nu samples the Gram matrix is exactly
       diagonal, paper Section 3; "gaussian": D2C 2.0's). The offline optimum keeps the
       solver's settings.
+    sysid_every: D2C-MPC identifies at every k-th step of the horizon and its last one,
+      linearly interpolated between (MuJoCo MPC's derivative skip; one-step schemes; the
+      replans never hand over to every-step models). n_alphas: line-search step sizes per
+      replan iteration (None: solver.n_alphas).
     """
 
     controllers: Tuple[str, ...] = (
@@ -350,6 +360,7 @@ class MPCConfig:
     horizon: Optional[int] = None  # control steps per plan H (None: task.T)
     steps: Optional[int] = None  # control steps of an episode (None: task.T)
     max_iter: int = 5  # iLQR iterations per replan
+    horizon_end: Literal["auto", "task", "receding"] = "auto"  # plans end at the task's end, or H ahead
     process_noise: Tuple[float, ...] = (0.0, 0.01)  # noise std added after each plant step, per level
     plants: Tuple[str, ...] = ("model",)  # "model" or NAME=VALUE[,NAME=VALUE...], e.g. "mass=1.5"
     n_episodes: int = 4  # episodes per controller and condition
@@ -363,6 +374,8 @@ class MPCConfig:
     first_plan: Literal["optimum", "zeros"] = "optimum"  # every planner's first warm start
     n_samples: Optional[int] = None  # D2C-MPC's samples per identification (None: nx + nu)
     sysid_design: Literal["gaussian", "orthogonal"] = "orthogonal"  # D2C-MPC's perturbations
+    sysid_every: int = 1  # D2C-MPC: identify every k-th step of the horizon, interpolate between
+    n_alphas: Optional[int] = None  # line-search step sizes per replan iteration (None: the solver's)
 
 
 @dataclasses.dataclass(frozen=True)

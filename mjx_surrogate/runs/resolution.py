@@ -300,10 +300,12 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
 
 def mpc_params(cfg: Config):
     """The (ILQRParams, SysIdParams) of a D2C-MPC replan: the solver's, with at most
-    mpc.max_iter iterations and mpc's identification samples and design (``cfg`` resolved)."""
+    mpc.max_iter iterations of mpc.n_alphas step sizes and mpc's identification samples,
+    design and knots (``cfg`` resolved)."""
     params, sysid = solver_params(cfg)
     m = cfg.mpc
-    return params.replace(max_iter=m.max_iter), sysid.replace(n_samples=m.n_samples, design=m.sysid_design)
+    params = params.replace(max_iter=m.max_iter, n_alphas=m.n_alphas or params.n_alphas)
+    return params, sysid.replace(n_samples=m.n_samples, design=m.sysid_design, every=m.sysid_every)
 
 
 def resolve(cfg: Config, local: bool = False) -> Resolved:
@@ -426,6 +428,14 @@ def _resolve_mpc(cfg: Config, system: System, T: int, solver_samples: int):
             "mpc.sampling_knots",
             f"at most the horizon, {m.horizon} steps (0: every step), got {m.sampling_knots}",
         )
+    if m.horizon_end == "task" and m.steps > T:
+        raise ConfigError(
+            "mpc.horizon_end",
+            f"'task' ends every plan at the task's end, task.T = {T}: needs mpc.steps <= {T}, "
+            f"got {m.steps} ('receding' for longer episodes)",
+        )
+    if m.horizon_end == "auto":
+        m = dataclasses.replace(m, horizon_end="task" if m.steps <= T else "receding")
     if "tvlqr" in m.controllers and m.steps > T:
         raise ConfigError(
             "mpc.steps",

@@ -79,7 +79,7 @@ def _check_mpc(m: MPCConfig) -> None:
         get_planner(c, f"mpc.controllers[{i}]")
     if len(set(m.controllers)) < len(m.controllers):
         raise ConfigError("mpc.controllers", "names a controller twice")
-    for field in ("horizon", "steps", "max_iter", "n_episodes"):
+    for field in ("horizon", "steps", "max_iter", "n_episodes", "sysid_every", "n_alphas"):
         v = getattr(m, field)
         if v is not None and v < 1:
             raise ConfigError(f"mpc.{field}", f"must be >= 1, got {v}")
@@ -330,6 +330,12 @@ def _check_registered(cfg: Config) -> None:
         one_step = ", ".join(n for n, s in SCHEMES.items() if s.one_step)
         raise ConfigError(
             "solver.sysid_every",
+            f"> 1 needs a one-step scheme ({one_step}); {cfg.solver.sysid!r} identifies from rollouts",
+        )
+    if cfg.mpc.sysid_every > 1 and not scheme.one_step:
+        one_step = ", ".join(n for n, s in SCHEMES.items() if s.one_step)
+        raise ConfigError(
+            "mpc.sysid_every",
             f"> 1 needs a one-step scheme ({one_step}); {cfg.solver.sysid!r} identifies from rollouts",
         )
     if cfg.solver.sysid_significance > 0 and not scheme.t_test:

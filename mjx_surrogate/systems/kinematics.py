@@ -10,7 +10,9 @@ dynamics are never differentiated here.
 
 from __future__ import annotations
 
+import contextlib
 import copy
+import queue
 
 import jax
 import jax.numpy as jnp
@@ -67,12 +69,27 @@ def make_points_fn(m: mujoco.MjModel, ids: list[tuple[str, int]], field: str = "
 def native_points_fn(m: mujoco.MjModel, ids: list[tuple[str, int]]):
     """``points(x [nx]) -> [k, 3]`` as :func:`make_points_fn`, by native ``mj_kinematics``
     through a named host call (:mod:`~mjx_surrogate.systems.host_call`, batched over any
-    leading axes), with a custom JVP whose Jacobian [k, 3, nx] (zero beyond qpos) comes from
-    central differences in qpos."""
+    leading axes), with a custom JVP whose Jacobian [k, 3, nx] (zero beyond qpos) is
+    MuJoCo's own (``mj_jacSite``, ``mj_jacBody``) where every joint is a hinge or a slide,
+    else central differences in qpos (a quaternion's four coordinates)."""
     m = copy.copy(m)  # the key is its content: a later edit of the caller's model is not seen
     nq, k = m.nq, len(ids)
     key = model_key(m, "points", [(kind, int(j)) for kind, j in ids])
     h = 1e-6
+    hinges_and_slides = m.nq == m.nv  # no ball or free joint: no quaternion in qpos
+    free: queue.SimpleQueue = queue.SimpleQueue()  # MjData reused across calls
+
+    @contextlib.contextmanager
+    def own_data():
+        """A free MjData (a new one when none is: callbacks of several devices may run at once)."""
+        try:
+            data = free.get_nowait()
+        except queue.Empty:
+            data = mujoco.MjData(m)
+        try:
+            yield data
+        finally:
+            free.put(data)
 
     def at(q: np.ndarray, data: mujoco.MjData) -> np.ndarray:
         data.qpos[:] = q
@@ -82,20 +99,34 @@ def native_points_fn(m: mujoco.MjModel, ids: list[tuple[str, int]]):
     def host_points(x: np.ndarray) -> np.ndarray:
         x = np.asarray(x)
         flat = x.reshape(-1, x.shape[-1]).astype(np.float64)
-        data = mujoco.MjData(m)  # per call: callbacks of several devices may run at once
-        out = np.stack([at(row[:nq], data) for row in flat])
+        with own_data() as data:
+            out = np.stack([at(row[:nq], data) for row in flat])
         return out.reshape(x.shape[:-1] + (k, 3)).astype(x.dtype)
 
-    def host_jacobian(x: np.ndarray) -> np.ndarray:
-        x = np.asarray(x)
-        flat = x.reshape(-1, x.shape[-1]).astype(np.float64)
-        J = np.zeros((flat.shape[0], k, 3, x.shape[-1]))
-        data = mujoco.MjData(m)
+    def jacobian_rows(flat: np.ndarray, J: np.ndarray, data: mujoco.MjData) -> None:
+        """J [B, k, 3, nx] of the rows flat [B, nx], written in place."""
+        if hinges_and_slides:  # qvel is the rate of qpos: MuJoCo's own point Jacobians
+            jac = np.empty((3, m.nv))
+            for b, row in enumerate(flat):
+                data.qpos[:] = row[:nq]
+                mujoco.mj_kinematics(m, data)
+                mujoco.mj_comPos(m, data)
+                for i, (kind, j) in enumerate(ids):
+                    (mujoco.mj_jacSite if kind == "site" else mujoco.mj_jacBody)(m, data, jac, None, j)
+                    J[b, i, :, :nq] = jac
+            return
         for b, row in enumerate(flat):
             for i in range(nq):
                 e = np.zeros(nq)
                 e[i] = h
                 J[b, :, :, i] = (at(row[:nq] + e, data) - at(row[:nq] - e, data)) / (2 * h)
+
+    def host_jacobian(x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x)
+        flat = x.reshape(-1, x.shape[-1]).astype(np.float64)
+        J = np.zeros((flat.shape[0], k, 3, x.shape[-1]))
+        with own_data() as data:
+            jacobian_rows(flat, J, data)
         return J.reshape(x.shape[:-1] + (k, 3, x.shape[-1])).astype(x.dtype)
 
     def call(name, fn, x, shape):

@@ -1,0 +1,110 @@
+"""A finite-time robot task in closed loop: the menagerie UR5e's reach (benchmarks/robots.py,
+downloaded at run time) under D2C-MPC, with the plans ending at the task's end and H steps
+ahead (``mpc.horizon_end`` "task" and "receding"), on the model and on a heavier plant,
+with and without process noise. What a user who ran the reach offline runs next:
+
+    python -m experiments.run <the reach's config> --experiment.kind mpc \\
+        --mpc.horizon 25 --mpc.steps 50
+
+Per mode, plant and noise level: the closed-loop cost (median over the episodes), the
+share of episodes that reached the goal (the task's goal test), black-box steps and
+milliseconds per control step (compile apart) and the real-time factor.
+
+    python benchmarks/mpc_reach.py [--modes task receding] [--episodes 2] [--final-weight 1000]
+                                   [--max-iter 5] [--every 1] [--n-alphas A] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import sys
+import tempfile
+
+_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, _ROOT)
+
+
+def reach_config(task: str, mode: str, args):
+    """The robots benchmark's reach task ``task`` as an MPC study in ``mode``, or None."""
+    from benchmarks.robots import task_config
+    from mjx_surrogate.runs.config import MPCConfig
+
+    cfg = task_config(task)
+    if cfg is None:
+        return None
+    goals = tuple(dataclasses.replace(g, final_weight=args.final_weight) for g in cfg.task.goals)
+    return dataclasses.replace(
+        cfg,
+        task=dataclasses.replace(cfg.task, goals=goals),
+        experiment=dataclasses.replace(
+            cfg.experiment, kind="mpc", exact_oracle=False, video=False, out_dir=args.out
+        ),
+        mpc=MPCConfig(
+            controllers=("d2c",),
+            horizon=args.horizon,
+            steps=args.steps,
+            horizon_end=mode,
+            process_noise=tuple(args.noise),
+            plants=tuple(args.plants),
+            n_episodes=args.episodes,
+            max_iter=args.max_iter,
+            sysid_every=args.every,
+            n_alphas=args.n_alphas,
+        ),
+    )
+
+
+def _g(v) -> str:
+    return "-" if v is None else f"{v:.4g}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--tasks", nargs="*", default=["ur5e servos (reach)"], help="benchmarks/robots.py tasks")
+    ap.add_argument("--modes", nargs="*", default=["task", "receding"], help="mpc.horizon_end values")
+    ap.add_argument("--horizon", type=int, default=25)
+    ap.add_argument("--steps", type=int, default=50)
+    ap.add_argument("--episodes", type=int, default=2)
+    ap.add_argument("--max-iter", type=int, default=5, help="mpc.max_iter: iLQR iterations per replan")
+    ap.add_argument("--every", type=int, default=1, help="mpc.sysid_every: identify every k-th step")
+    ap.add_argument("--n-alphas", type=int, default=None, help="mpc.n_alphas (default: the solver's)")
+    ap.add_argument("--noise", type=float, nargs="*", default=[0.0, 0.01])
+    ap.add_argument("--plants", nargs="*", default=["model", "mass=1.2"])
+    ap.add_argument("--final-weight", type=float, default=1000.0, help="the goal's terminal weight")
+    ap.add_argument("--out", default=os.path.join(tempfile.gettempdir(), "mpc_reach"))
+    args = ap.parse_args()
+    from experiments.run import run
+    from mjx_surrogate.runtime import configure_runtime
+
+    configure_runtime(x64=True)
+    results = []
+    for task in args.tasks:
+        for mode in args.modes:
+            cfg = reach_config(task, mode, args)
+            if cfg is None:
+                print(f"{task}: model not reachable, skipped", file=sys.stderr)
+                continue
+            folder = run(cfg, name=f"mpc_reach_{mode}_it{args.max_iter}_every{args.every}")
+            with open(os.path.join(folder, "metrics.json")) as f:
+                metrics = json.load(f)
+            for r in metrics["mpc_rows"]:
+                results.append({"task": task, "mode": mode, "offline_cost": metrics["d2c"]["cost"]} | r)
+    print(
+        "| task | horizon end | plant | noise | cost (median) | offline optimum | goal reached "
+        "| black-box steps / step | ms / step | real-time factor |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for r in results:
+        print(
+            f"| {r['task']} | {r['mode']} | {r['plant']} | {r['process_noise']:g} | {_g(r['cost_median'])} | "
+            f"{_g(r['offline_cost'])} | "
+            f"{100 * r['goal_reached']:.0f} % | {r['black_box_steps_per_control_step']:.0f} | "
+            f"{1e3 * r['compute_per_step_s']:.0f} | {r['real_time_factor']:.2f} |"
+        )
+
+
+if __name__ == "__main__":
+    main()
