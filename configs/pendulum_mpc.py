@@ -4,7 +4,8 @@ black-box budget) or tracks the offline optimum (TVLQR), on the model, on a 1.5x
 plant and on a 1.2x longer one with twice the damping, under process noise; SINDy-MPC also
 refitted online from each episode's own transitions (each weighing 10 training ones). The
 task is D2C 2.0's swing-up with a running state cost (Q = 0.01 Q_f): with the paper's
-terminal-only cost a receding horizon keeps postponing the swing (docs/mpc.md)."""
+terminal-only cost a receding horizon keeps postponing the swing, which plans that end at
+the task's end (``mpc.horizon_end task``) do not (docs/mpc.md)."""
 
 from configs import preset
 

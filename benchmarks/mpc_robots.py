@@ -1,17 +1,20 @@
-"""A finite-time robot task in closed loop: the menagerie UR5e's reach (benchmarks/robots.py,
-downloaded at run time) under D2C-MPC, with the plans ending at the task's end and H steps
-ahead (``mpc.horizon_end`` "task" and "receding"), on the model and on a heavier plant,
-with and without process noise. What a user who ran the reach offline runs next:
+"""Robot tasks in closed loop: the tasks of benchmarks/robots.py (models we did not write,
+downloaded at run time; default: the menagerie UR5e's reach) under D2C-MPC, with the plans
+ending at the task's end and H steps ahead (``mpc.horizon_end`` "task" and "receding"), on
+the model and on a heavier plant, with and without process noise. What a user who ran the
+task offline runs next:
 
-    python -m experiments.run <the reach's config> --experiment.kind mpc \\
+    python -m experiments.run <the task's config> --experiment.kind mpc \\
         --mpc.horizon 25 --mpc.steps 50
 
-Per mode, plant and noise level: the closed-loop cost (median over the episodes), the
+Per task, mode, plant and noise level: the closed-loop cost (median over the episodes), the
 share of episodes that reached the goal (the task's goal test), black-box steps and
-milliseconds per control step (compile apart) and the real-time factor.
+milliseconds per control step (compile apart) and the real-time factor. A point goal's
+terminal weight is set to ``--final-weight``; a hold task has none.
 
-    python benchmarks/mpc_reach.py [--modes task receding] [--episodes 2] [--final-weight 1000]
-                                   [--max-iter 5] [--every 1] [--n-alphas A] [--out DIR]
+    python benchmarks/mpc_robots.py [--tasks ur5e "walker (hold)"] [--modes task receding]
+        [--episodes 2] [--final-weight 1000] [--max-iter 5] [--every 1] [--n-alphas A]
+        [--out DIR]
 """
 
 from __future__ import annotations
@@ -27,8 +30,14 @@ _ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, _ROOT)
 
 
-def reach_config(task: str, mode: str, args):
-    """The robots benchmark's reach task ``task`` as an MPC study in ``mode``, or None."""
+# Control periods as the tasks' own suites run these models (the hold tasks otherwise step
+# at the model's time step): dm_control's walker task (control_timestep 0.025 s) and
+# gymnasium's Hopper (frame_skip 4 of 0.002 s).
+CONTROL_DT = {"walker (hold)": 0.025, "hopper (hold)": 0.008}
+
+
+def mpc_config(task: str, mode: str, args):
+    """The robots benchmark's task ``task`` as an MPC study in ``mode``, or None."""
     from benchmarks.robots import task_config
     from mjx_surrogate.runs.config import MPCConfig
 
@@ -36,6 +45,8 @@ def reach_config(task: str, mode: str, args):
     if cfg is None:
         return None
     goals = tuple(dataclasses.replace(g, final_weight=args.final_weight) for g in cfg.task.goals)
+    if task in CONTROL_DT:
+        cfg = dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, control_dt=CONTROL_DT[task]))
     return dataclasses.replace(
         cfg,
         task=dataclasses.replace(cfg.task, goals=goals),
@@ -63,7 +74,9 @@ def _g(v) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--tasks", nargs="*", default=["ur5e servos (reach)"], help="benchmarks/robots.py tasks")
+    ap.add_argument(
+        "--tasks", nargs="*", default=["ur5e"], help="substrings of benchmarks/robots.py's task names"
+    )
     ap.add_argument("--modes", nargs="*", default=["task", "receding"], help="mpc.horizon_end values")
     ap.add_argument("--horizon", type=int, default=25)
     ap.add_argument("--steps", type=int, default=50)
@@ -74,20 +87,21 @@ def main() -> None:
     ap.add_argument("--noise", type=float, nargs="*", default=[0.0, 0.01])
     ap.add_argument("--plants", nargs="*", default=["model", "mass=1.2"])
     ap.add_argument("--final-weight", type=float, default=1000.0, help="the goal's terminal weight")
-    ap.add_argument("--out", default=os.path.join(tempfile.gettempdir(), "mpc_reach"))
+    ap.add_argument("--out", default=os.path.join(tempfile.gettempdir(), "mpc_robots"))
     args = ap.parse_args()
+    from benchmarks.robots import TASKS
     from experiments.run import run
     from mjx_surrogate.runtime import configure_runtime
 
     configure_runtime(x64=True)
     results = []
-    for task in args.tasks:
+    for task in [n for n in TASKS if any(t in n for t in args.tasks)]:
         for mode in args.modes:
-            cfg = reach_config(task, mode, args)
+            cfg = mpc_config(task, mode, args)
             if cfg is None:
                 print(f"{task}: model not reachable, skipped", file=sys.stderr)
                 continue
-            folder = run(cfg, name=f"mpc_reach_{mode}_it{args.max_iter}_every{args.every}")
+            folder = run(cfg, name=f"mpc_{mode}_it{args.max_iter}_every{args.every}")
             with open(os.path.join(folder, "metrics.json")) as f:
                 metrics = json.load(f)
             for r in metrics["mpc_rows"]:
