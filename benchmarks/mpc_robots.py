@@ -14,7 +14,7 @@ terminal weight is set to ``--final-weight``; a hold task has none.
 
     python benchmarks/mpc_robots.py [--tasks ur5e "walker (hold)"] [--modes task receding]
         [--episodes 2] [--final-weight 1000] [--max-iter 5] [--every 1] [--n-alphas A]
-        [--out DIR]
+        [--replan-hz HZ] [--out DIR]
 """
 
 from __future__ import annotations
@@ -64,6 +64,7 @@ def mpc_config(task: str, mode: str, args):
             max_iter=args.max_iter,
             sysid_every=args.every,
             n_alphas=args.n_alphas,
+            replan_hz=args.replan_hz,
         ),
     )
 
@@ -84,6 +85,7 @@ def main() -> None:
     ap.add_argument("--max-iter", type=int, default=5, help="mpc.max_iter: iLQR iterations per replan")
     ap.add_argument("--every", type=int, default=1, help="mpc.sysid_every: identify every k-th step")
     ap.add_argument("--n-alphas", type=int, default=None, help="mpc.n_alphas (default: the solver's)")
+    ap.add_argument("--replan-hz", type=float, default=None, help="mpc.replan_hz (default: every step)")
     ap.add_argument("--noise", type=float, nargs="*", default=[0.0, 0.01])
     ap.add_argument("--plants", nargs="*", default=["model", "mass=1.2"])
     ap.add_argument("--final-weight", type=float, default=1000.0, help="the goal's terminal weight")
@@ -101,7 +103,7 @@ def main() -> None:
             if cfg is None:
                 print(f"{task}: model not reachable, skipped", file=sys.stderr)
                 continue
-            folder = run(cfg, name=f"mpc_{mode}_it{args.max_iter}_every{args.every}")
+            folder = run(cfg, name=f"mpc_{mode}_it{args.max_iter}_every{args.every}_hz{args.replan_hz}")
             with open(os.path.join(folder, "metrics.json")) as f:
                 metrics = json.load(f)
             for r in metrics["mpc_rows"]:

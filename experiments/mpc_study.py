@@ -29,7 +29,7 @@ from mjx_surrogate.analysis.evaluation import finite_or_none
 from mjx_surrogate.control.planners import PLANNERS, PlannerContext, get_planner
 from mjx_surrogate.identification import data
 from mjx_surrogate.runs import pipeline, plots
-from mjx_surrogate.runs.resolution import Resolved, mpc_params, plant_builder
+from mjx_surrogate.runs.resolution import Resolved, mpc_params, plant_builder, replan_every
 from mjx_surrogate.runs.results import Run
 from mjx_surrogate.surrogates import FitContext, fit_all
 from mjx_surrogate.systems.plant import make_plant, parse_plant, plant_label, plant_slug
@@ -193,8 +193,10 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
 
     rows = []
     params, sysid = mpc_params(cfg)
+    every = replan_every(m, float(system.dt))
+    record.set("mpc_replan", {"every_control_steps": every, "hz": 1.0 / (every * float(system.dt))})
     context = PlannerContext(
-        cfg, system, task, plan_task, optimum, U0, params, sysid, m.samples or DEFAULT_SAMPLES, fit
+        cfg, system, task, plan_task, optimum, U0, params, sysid, m.samples or DEFAULT_SAMPLES, fit, every
     )
     # the oracle follows experiment.exact_oracle (off for a user's MJCF: minutes of compile)
     chosen = [c for c in PLANNERS if c in m.controllers and (c != "oracle" or cfg.experiment.exact_oracle)]
@@ -205,14 +207,21 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         rows += done
         if c == "d2c" and m.samples is None:  # the sampling MPCs get D2C-MPC's budget
             calls = np.median([r["black_box_steps_per_control_step"] for r in done])
-            context = context._replace(samples=max(2, int(round(calls / H))))
+            context = context._replace(samples=max(2, int(round(calls * every / H))))
     record.set("mpc_rows", rows)
     N = m.steps  # the offline optimum's cost over an episode's steps: what "works" is judged on
     offline = float(trajectory_cost(task, X_star[: N + 1], U_star[:N])) if N <= task.T else None
     verdict = closed_loop_verdict(rows, finite_or_none(offline))
     record.set("mpc_verdict", verdict | {"cause": cause_text(rows)})
     _figures(record, res, rows, X_star)
-    text = table(rows, float(system.dt), record.metrics["mpc_verdict"], horizon_end_text(m, task.T))
+    rate = record.metrics["mpc_replan"]
+    replans = (
+        f"; every planner replans every {rate['every_control_steps']} control steps ({rate['hz']:g} Hz), "
+        "the plant stepping under its last plan in between"
+        if rate["every_control_steps"] > 1
+        else ""
+    )
+    text = table(rows, float(system.dt), record.metrics["mpc_verdict"], horizon_end_text(m, task.T) + replans)
     record.folder.write_text("mpc_table.md", text)
     if cfg.experiment.video and system.mj_model is not None:  # episode 0 of the hardest condition
         last = f"_{len(m.plants) * len(m.process_noise) - 1}_X"

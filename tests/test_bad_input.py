@@ -70,6 +70,9 @@ CASES = [
     (["smoke_mpc", "--mpc.sysid_every", "0"], "mpc.sysid_every"),
     (["smoke_mpc", "--solver.sysid", "rollout", "--mpc.sysid_every", "2"], "mpc.sysid_every"),
     (["smoke_mpc", "--mpc.n_alphas", "0"], "mpc.n_alphas"),
+    (["smoke_mpc", "--mpc.replan_hz", "3"], "mpc.replan_hz"),  # 3.33 control steps of 0.1 s
+    (["smoke_mpc", "--mpc.replan_hz", "2.5"], "mpc.replan_hz"),  # 4 steps do not divide 6
+    (["smoke_mpc", "--mpc.replan_hz", "-5"], "mpc.replan_hz"),
     (["smoke_mpc", "--mpc.first_plan", "random"], "--mpc.first_plan"),
     (["smoke_mpc", "--mpc.sampling_knots", "99"], "mpc.sampling_knots"),  # over the horizon
     (["lorenz_mpc", "--mpc.plants", "mass=1.5"], "mpc.plants[0]"),  # not a keyword of Lorenz's

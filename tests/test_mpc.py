@@ -98,6 +98,42 @@ def test_a_horizon_that_shrinks_to_the_tasks_end_is_the_finite_horizon_lqr(plann
     assert np.max(np.abs(np.asarray(receding.U) - np.array(U))) > 1e-3
 
 
+@pytest.mark.parametrize("planner", ["d2c", "surrogate"])
+def test_between_replans_the_plant_steps_under_the_plans_feedback_policy(planner):
+    """Replanning every 3rd of 30 steps under process noise 0.05 on a linear system: each
+    replan is the horizon-H LQR from the measured state, and the plant then steps under its
+    time-varying gains, u_{n+j} = U[j] + K[j] (x - X[j]) = K_j x for j = 0, 1, 2 (float64
+    NumPy Riccati recursion; the noise of step n drawn from the n-th of the episode's keys,
+    as at every step)."""
+    key, w, r = jax.random.key(4), 0.05, 3
+    params = ILQRParams(max_iter=3)
+    if planner == "d2c":
+        res = mpc.receding_horizon(
+            _linear(), _task(), jnp.zeros((H, 1)), key, N, params, SID, w, "d2c", replan_every=r
+        )
+    else:
+        model = _LinearModel(jnp.asarray(A), jnp.asarray(B))
+        res = mpc.surrogate_mpc(
+            model, _linear(), _task(), jnp.zeros((H, 1)), key, N, params, w, replan_every=r
+        )
+    P, gains = Q_F, []
+    for _ in range(H):  # K_{H-1}, ..., K_0
+        K = -np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
+        P = Q + A.T @ P @ (A + B @ K)
+        gains.append(K)
+    gains = gains[::-1]
+    keys = jax.random.split(key, N)
+    X = [np.array([1.0, 0.0])]
+    for n in range(N):
+        u = gains[n % r] @ X[-1]
+        noise = w * np.asarray(jax.random.normal(jax.random.split(keys[n])[1], (2,), jnp.float64))
+        X.append(A @ X[-1] + B @ u + noise)
+    np.testing.assert_allclose(np.asarray(res.X), np.array(X), atol=1e-7)
+    assert res.plan_cost.shape == res.iterations.shape == (N // r,)
+    with pytest.raises(ValueError, match="replan_every: a divisor of the 30 steps, got 4"):
+        mpc.receding_horizon(_linear(), _task(), jnp.zeros((H, 1)), key, N, params, SID, replan_every=4)
+
+
 class _LinearModel(NamedTuple):
     """A differentiable surrogate as the surrogates are: a pytree with step(x, u)."""
 
@@ -186,8 +222,8 @@ def test_the_plant_is_stepped_with_the_episodes_noise_and_the_model_is_not_the_p
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("every", [1, 4])
-def test_black_box_steps_are_the_calls_the_black_box_received(every):
+@pytest.mark.parametrize("every,replan_every", [(1, 1), (4, 1), (1, 5)])
+def test_black_box_steps_are_the_calls_the_black_box_received(every, replan_every):
     """A NumPy black box counts the rows it is asked to step: the episode's calls are the
     plant's N steps plus black_box_steps per replan; identified at every 4th step of the
     horizon (and its last: 4 of 10 steps), each identification steps 4/10 as many rows,
@@ -200,18 +236,21 @@ def test_black_box_steps_are_the_calls_the_black_box_received(every):
 
     system = from_numpy(step, 2, 1, 0.1, vectorized=True)
     params, sysid = ILQRParams(max_iter=3), SID.replace(every=every)
-    r = mpc.receding_horizon(system, _task(), jnp.zeros((H, 1)), jax.random.key(0), 5, params, sysid)
+    r = mpc.receding_horizon(
+        system, _task(), jnp.zeros((H, 1)), jax.random.key(0), 5, params, sysid, replan_every=replan_every
+    )
     per_replan = mpc.black_box_steps(r, H, params.n_alphas, sysid)
-    assert per_replan.shape == (5,) and np.all(per_replan > 0)
+    assert per_replan.shape == (5 // replan_every,) and np.all(per_replan > 0)
     assert sum(calls) == 5 + int(per_replan.sum()), (sum(calls), per_replan)
     assert np.all(np.asarray(r.identified) <= 1)  # never an every-step model
     knots = 10 if every == 1 else 4
     assert 10 * sid.steps_per_identification(sysid, H) == knots * sid.steps_per_identification(SID, H)
-    K0 = _lqr_first_gain(A, B, H)
-    X = [np.array([1.0, 0.0])]
-    for _ in range(5):
-        X.append((A + B @ K0) @ X[-1])
-    np.testing.assert_allclose(np.asarray(r.X), np.array(X), atol=1e-8)
+    if replan_every == 1:
+        K0 = _lqr_first_gain(A, B, H)
+        X = [np.array([1.0, 0.0])]
+        for _ in range(5):
+            X.append((A + B @ K0) @ X[-1])
+        np.testing.assert_allclose(np.asarray(r.X), np.array(X), atol=1e-8)
 
 
 @pytest.mark.slow
@@ -262,11 +301,16 @@ def test_d2c_mpc_swings_the_mujoco_pendulum_up_as_the_oracles_mpc_does():
     assert float(d2c.cost) == pytest.approx(float(oracle.cost), rel=1e-4)
 
 
-def test_sampling_with_zero_spread_applies_the_shifted_warm_start():
+@pytest.mark.parametrize("replan_every", [1, 3])
+def test_sampling_with_zero_spread_applies_the_shifted_warm_start(replan_every):
     """sigma 0: every sample is the warm start, so the episode applies U0 step by step
-    (its last control once U0 runs out) on the plant."""
+    (its last control once U0 runs out) on the plant, replanning at every step or every
+    third one (the plan shifted by three, its controls applied in between)."""
     U0 = jnp.asarray(np.sin(np.arange(H))[:, None])
-    r = mpc_sampling.sampling_mpc(_linear(), _task(), U0, jax.random.key(0), N, 0.0, 8)
+    r = mpc_sampling.sampling_mpc(
+        _linear(), _task(), U0, jax.random.key(0), N, 0.0, 8, replan_every=replan_every
+    )
+    assert r.plan_cost.shape == (N // replan_every,)
     applied = np.concatenate([np.asarray(U0), np.repeat(np.asarray(U0[-1:]), N - H, axis=0)])
     np.testing.assert_array_equal(np.asarray(r.U), applied)
     X = [np.array([1.0, 0.0])]

@@ -334,3 +334,16 @@ def test_plans_end_at_the_tasks_end_unless_the_episodes_run_past_it():
     assert resolved(CONFIG, controllers=("d2c",), steps=9) == "receding"
     assert resolved(CONFIG, horizon_end="receding") == "receding"
     assert resolved(PENDULUM) == "receding" and resolved(PENDULUM, horizon_end="auto") == "task"
+
+
+def test_a_replanning_rate_is_a_whole_number_of_control_steps():
+    """mpc.replan_hz 5 on smoke_mpc's 0.1 s pendulum: a replan every 2 control steps; unset:
+    every step."""
+    import dataclasses
+
+    from configs.smoke_mpc import CONFIG
+    from mjx_surrogate.runs.resolution import replan_every, resolve
+
+    cfg = resolve(dataclasses.replace(CONFIG, mpc=dataclasses.replace(CONFIG.mpc, replan_hz=5.0))).config
+    assert replan_every(cfg.mpc, 0.1) == 2 and replan_every(CONFIG.mpc, 0.1) == 1
+    assert replan_every(cfg.mpc, 0.03) == 0  # 6.67 steps: refused by the resolution

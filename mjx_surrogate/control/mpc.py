@@ -47,8 +47,9 @@ POLLS_PER_EPISODE = 25  # progress reports (and stop checks) per episode, at mos
 
 class MPCResult(NamedTuple):
     """X [N+1, nx], U [N, nu]: the closed loop on the plant; cost: the task's cost of (X, U)
-    over the N steps (terminal term at x_N); plan_cost [N]: each replan's predicted horizon
-    cost; iterations [N] and identified [N, max_iter]: each replan's iLQR iterations and
+    over the N steps (terminal term at x_N); plan_cost [R]: each of the R replans' (one
+    every N / R control steps) predicted horizon cost; iterations [R] and identified [R,
+    max_iter]: each replan's iLQR iterations and
     identifications (as :class:`~mjx_surrogate.control.ilqr.ILQRResult`)."""
 
     X: jax.Array
@@ -59,7 +60,7 @@ class MPCResult(NamedTuple):
     identified: jax.Array
 
 
-@functools.partial(jax.jit, static_argnames=("system", "steps", "controller", "plant"))
+@functools.partial(jax.jit, static_argnames=("system", "steps", "controller", "plant", "replan_every"))
 def receding_horizon(
     system: System,
     task: Task,
@@ -72,10 +73,12 @@ def receding_horizon(
     controller: str = "d2c",
     plant: System | None = None,
     progress: ProgressMeter = NO_PROGRESS,
+    replan_every: int = 1,
 ) -> MPCResult:
     """One MPC episode of ``steps`` control steps from ``task.x0``, the first plan warm-started
-    from U0 [H, nu] (H = task.T); ``progress`` counts its control steps and can stop it
-    (:func:`episode`)."""
+    from U0 [H, nu] (H = task.T), replanning every ``replan_every`` control steps and
+    applying the plan's policy in between; ``progress`` counts its control steps and can
+    stop it (:func:`episode`)."""
     if controller not in CONTROLLERS:
         raise ValueError(f"controller: one of {', '.join(CONTROLLERS)}, got {controller!r}")
     method = "d2c" if controller == "d2c" else oracle_method(controller)
@@ -87,12 +90,21 @@ def receding_horizon(
         return ilqr_replan(prob, plan, params, k)
 
     X, U, (plan_cost, its, ident) = episode(
-        replan, plant_step, task.x0, first_plan(U0, task.x0), key, steps, process_noise, progress=progress
+        replan,
+        plant_step,
+        task.x0,
+        first_plan(U0, task.x0),
+        key,
+        steps,
+        process_noise,
+        progress=progress,
+        replan_every=replan_every,
+        limits=(task.u_min, task.u_max),
     )
     return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)
 
 
-@functools.partial(jax.jit, static_argnames=("plant", "steps"))
+@functools.partial(jax.jit, static_argnames=("plant", "steps", "replan_every"))
 def surrogate_mpc(
     model,
     plant: System,
@@ -103,6 +115,7 @@ def surrogate_mpc(
     params: ILQRParams = ILQRParams(max_iter=5),
     process_noise: float | jax.Array = 0.0,
     progress: ProgressMeter = NO_PROGRESS,
+    replan_every: int = 1,
 ) -> MPCResult:
     """One episode on ``plant`` whose replans run iLQR on a differentiable surrogate (a
     pytree with ``step(x, u)``: a SindyModel, an MLPModel), Jacobians by ``jax.jacfwd``
@@ -112,7 +125,16 @@ def surrogate_mpc(
         return surrogate_replan(model, at_step(task, n), x, plan, params, k)
 
     X, U, (plan_cost, its, ident) = episode(
-        replan, plant.step, task.x0, first_plan(U0, task.x0), key, steps, process_noise, progress=progress
+        replan,
+        plant.step,
+        task.x0,
+        first_plan(U0, task.x0),
+        key,
+        steps,
+        process_noise,
+        progress=progress,
+        replan_every=replan_every,
+        limits=(task.u_min, task.u_max),
     )
     return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)
 
@@ -173,9 +195,9 @@ def first_plan(U0: jax.Array, x0: jax.Array) -> Plan:
     )
 
 
-def shifted(plan):
-    """Every leaf of a plan [H, ...] moved one control step on, its last row repeated."""
-    return jax.tree.map(lambda a: jnp.concatenate([a[1:], a[-1:]]), plan)
+def shifted(plan, steps: int = 1):
+    """Every leaf of a plan [H, ...] moved ``steps`` control steps on, its last row repeated."""
+    return jax.tree.map(lambda a: jnp.concatenate([a[steps:], jnp.repeat(a[-1:], steps, axis=0)]), plan)
 
 
 def warm_start(prob: Problem, plan: Plan, params: ILQRParams, key: jax.Array):
@@ -219,52 +241,84 @@ def episode(
     memory=None,
     observe=None,
     progress: ProgressMeter = NO_PROGRESS,
+    replan_every: int = 1,
+    limits: tuple | None = None,
 ):
     """The receding-horizon loop every planner shares: ``replan(x, plan, key, n) -> (plan,
-    info)`` at control step n from the measured x and the previous plan shifted by one step
-    (``plan0``: the first one's warm start; a :class:`Plan` or U [H, nu], leaves with the
-    control steps leading); applies the plan's first control to the plant and adds the
-    process noise. A controller that learns during the episode passes ``memory`` (a pytree)
+    info)`` at control step n from the measured x and the previous plan shifted by
+    ``replan_every`` = r steps (``plan0``: the first one's warm start; a :class:`Plan` or U
+    [H, nu], leaves with the control steps leading), every r control steps; in between the
+    plant steps at its own rate under the plan: u_{n+j} = U[j] + K[j] (x_{n+j} - X[j]) for a
+    :class:`Plan` (its feedback gains, clipped to ``limits`` (lo, hi) when given), U[j] for
+    controls alone, then the process noise is added. r = 1 applies each plan's first
+    control only. A controller that learns during the episode passes ``memory`` (a pytree)
     and ``observe(memory, n, x, u, x_next) -> memory``, called after every plant step; its
     replan is then ``replan(x, plan, key, n, memory) -> (plan, info, memory)``.
-    ``progress``: told of every k-th control step (k = steps // POLLS_PER_EPISODE, at
-    least 1: each report is a host callback, docs/performance.md); once it reports a stop
-    request, the remaining steps are skipped (their rows of X, U and info are NaN, or 0
-    for integers).
-    -> X [steps+1, nx], U [steps, nu], info stacked [steps, ...]."""
+    ``progress``: told of every k-th replan (k = replans // POLLS_PER_EPISODE, at least 1:
+    each report is a host callback, docs/performance.md); once it reports a stop request,
+    the remaining steps are skipped (their rows of X, U and info are NaN, or 0 for
+    integers). Control step n draws its noise, and a replan at n its key, from the n-th of
+    ``steps`` keys split from ``key``, whatever r.
+    -> X [steps+1, nx], U [steps, nu], info stacked [steps / r, ...]."""
+    r = replan_every
+    if r < 1 or steps % r:
+        raise ValueError(f"replan_every: a divisor of the {steps} steps, got {r}")
 
-    @jax.jit  # traced once: for the skipped branch's shapes and for the step itself
-    def advance(x, plan, mem, n, k):
-        k_plan, k_noise = jax.random.split(k)
+    def act(plan, j, x):
+        if not isinstance(plan, Plan):
+            return plan[j]
+        u = plan.U[j] + plan.K[j] @ (x - plan.X[j])
+        return u if limits is None else jnp.clip(u, *limits)
+
+    def plant(plan, n, carry, inputs):
+        x, mem = carry
+        j, k = inputs
+        u = (plan.U if isinstance(plan, Plan) else plan)[0] if r == 1 else act(plan, j, x)
+        k_noise = jax.random.split(k)[1]
+        x_next = plant_step(x, u) + process_noise * jax.random.normal(k_noise, x.shape, x.dtype)
+        if observe is not None:
+            mem = observe(mem, n + j, x, u, x_next)
+        return (x_next, mem), (x, u)
+
+    @jax.jit  # traced once: for the skipped branch's shapes and for the block itself
+    def advance(x, plan, mem, n, keys):
+        k_plan = jax.random.split(keys[0])[0]
         if observe is None:
             plan, info = replan(x, plan, k_plan, n)
         else:
             plan, info, mem = replan(x, plan, k_plan, n, mem)
-        u = (plan.U if isinstance(plan, Plan) else plan)[0]
-        x_next = plant_step(x, u) + process_noise * jax.random.normal(k_noise, x.shape, x.dtype)
-        if observe is not None:
-            mem = observe(mem, n, x, u, x_next)
-        return (x_next, shifted(plan), mem), (x, u, info)
+        if r == 1:
+            (x, mem), (xs, us) = plant(plan, n, (x, mem), (0, keys[0]))
+            xs, us = xs[None], us[None]
+        else:
+            (x, mem), (xs, us) = jax.lax.scan(
+                lambda c, i: plant(plan, n, c, i), (x, mem), (jnp.arange(r), keys)
+            )
+        return (x, shifted(plan, r), mem), (xs, us, info)
 
-    def control_step(carry, inputs):
+    def block(carry, inputs):
         x, plan, mem, stopped = carry
-        n, k = inputs
+        i, keys = inputs
+        n = i * r
         # unbatched (one answer for a vmapped batch), so both conds really branch
-        quiet = stopped | (n % every != 0)
+        quiet = stopped | (i % every != 0)
         stopped = jax.lax.cond(quiet, lambda: stopped, lambda: poll_step(progress, n))
-        shapes = jax.eval_shape(advance, x, plan, mem, n, k)[1]
+        shapes = jax.eval_shape(advance, x, plan, mem, n, keys)[1]
 
         def skip():
             return (x, plan, mem), jax.tree.map(_blank, shapes)
 
-        (x, plan, mem), row = jax.lax.cond(stopped, skip, lambda: advance(x, plan, mem, n, k))
+        (x, plan, mem), row = jax.lax.cond(stopped, skip, lambda: advance(x, plan, mem, n, keys))
         return (x, plan, mem, stopped), row
 
-    every = max(1, steps // POLLS_PER_EPISODE)
+    replans = steps // r
+    every = max(1, replans // POLLS_PER_EPISODE)
     plan0 = jax.tree.map(lambda a: a.astype(x0.dtype), plan0)
-    inputs = (jnp.arange(steps), jax.random.split(key, steps))
+    keys = jax.random.split(key, steps)
+    keys = keys.reshape((replans, r) + keys.shape[1:])
     carry = (x0, plan0, memory, jnp.array(False))
-    (xN, _, _, stopped), (X, U, info) = jax.lax.scan(control_step, carry, inputs)
+    (xN, _, _, stopped), (X, U, info) = jax.lax.scan(block, carry, (jnp.arange(replans), keys))
+    X, U = X.reshape((steps,) + X.shape[2:]), U.reshape((steps,) + U.shape[2:])
     return jnp.concatenate([X, jnp.where(stopped, jnp.nan, xN)[None]]), U, info
 
 

@@ -68,7 +68,7 @@ def refit(model: SindyModel, gram0, proj0, scale, theta_on, y_on, w) -> SindyMod
     return model.replace(coef=coef / scale[:, None])
 
 
-@functools.partial(jax.jit, static_argnames=("plant", "steps"))
+@functools.partial(jax.jit, static_argnames=("plant", "steps", "replan_every"))
 def refitted_sindy_mpc(
     model: SindyModel,
     offline: Transitions,
@@ -81,6 +81,7 @@ def refitted_sindy_mpc(
     process_noise: float | jax.Array = 0.0,
     weight: float | jax.Array = 10.0,
     progress: ProgressMeter = NO_PROGRESS,
+    replan_every: int = 1,
 ) -> MPCResult:
     """One episode of ``steps`` control steps on ``plant`` from ``task.x0``: SINDy-MPC whose
     model is refitted before every replan (module docstring). ``offline``: the transitions
@@ -118,6 +119,8 @@ def refitted_sindy_mpc(
         empty_transitions(steps, x0.shape[0], U0.shape[-1], x0.dtype),
         record,
         progress,
+        replan_every,
+        (task.u_min, task.u_max),
     )
     return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)
 
@@ -149,7 +152,7 @@ def weighted_loss(model: MLPModel, p, z_off, y_off, z_on, y_on, w) -> jax.Array:
     return total / (y_off.shape[-1] * (z_off.shape[0] + jnp.sum(w)))
 
 
-@functools.partial(jax.jit, static_argnames=("plant", "steps", "spec", "updates"))
+@functools.partial(jax.jit, static_argnames=("plant", "steps", "spec", "updates", "replan_every"))
 def refitted_mlp_mpc(
     model: MLPModel,
     offline: Transitions,
@@ -164,6 +167,7 @@ def refitted_mlp_mpc(
     process_noise: float | jax.Array = 0.0,
     weight: float | jax.Array = 10.0,
     progress: ProgressMeter = NO_PROGRESS,
+    replan_every: int = 1,
 ) -> MPCResult:
     """One episode of ``steps`` control steps on ``plant`` from ``task.x0``: MLP-MPC whose
     network takes ``updates`` optimiser steps (``spec``'s) before every replan (module
@@ -209,5 +213,7 @@ def refitted_mlp_mpc(
         memory,
         lambda mem, n, x, u, x_next: (record(mem[0], n, x, u, x_next), *mem[1:]),
         progress,
+        replan_every,
+        (task.u_min, task.u_max),
     )
     return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)

@@ -51,7 +51,9 @@ def perturbations(key: jax.Array, n: int, H: int, nu: int, knots: int, dtype) ->
     return jnp.einsum("tk,skj->stj", W, jax.random.normal(key, (n, knots, nu), dtype))
 
 
-@functools.partial(jax.jit, static_argnames=("system", "steps", "n_samples", "plant", "knots"))
+@functools.partial(
+    jax.jit, static_argnames=("system", "steps", "n_samples", "plant", "knots", "replan_every")
+)
 def sampling_mpc(
     system: System,
     task: Task,
@@ -65,6 +67,7 @@ def sampling_mpc(
     plant: System | None = None,
     knots: int = 0,
     progress: ProgressMeter = NO_PROGRESS,
+    replan_every: int = 1,
 ) -> MPCResult:
     """One episode of ``steps`` control steps from ``task.x0`` (horizon H = task.T), the
     first plan U0 [H, nu]; ``sigma`` (scalar or [nu], control units) scales the samples,
@@ -87,11 +90,21 @@ def sampling_mpc(
         mean = jnp.einsum("s,stu->tu", w, samples)
         return mean, plan_cost(x, mean, n)
 
-    X, U, J = episode(replan, plant_step, task.x0, U0, key, steps, process_noise, progress=progress)
-    ones = jnp.ones((steps,), jnp.int32)
-    return MPCResult(X, U, trajectory_cost(task, X, U), J, ones, jnp.zeros((steps, 1), jnp.int8))
+    X, U, J = episode(
+        replan,
+        plant_step,
+        task.x0,
+        U0,
+        key,
+        steps,
+        process_noise,
+        progress=progress,
+        replan_every=replan_every,
+    )
+    ones = jnp.ones(J.shape, jnp.int32)
+    return MPCResult(X, U, trajectory_cost(task, X, U), J, ones, jnp.zeros(J.shape + (1,), jnp.int8))
 
 
 def black_box_steps(n_samples: int, horizon: int, mppi: bool) -> int:
-    """Black-box control steps one replan simulates (not counting the plant's own step)."""
+    """Black-box control steps one replan simulates (not counting the plant's own steps)."""
     return (n_samples + int(mppi)) * horizon

@@ -46,6 +46,7 @@ class PlannerContext(NamedTuple):
     sysid: SysIdParams
     samples: int
     fit: Callable[[], tuple[dict, Any]]
+    replan_every: int = 1
 
 
 Episode = Callable[..., mpc.MPCResult]  # (plant, key, process_noise, meter) -> MPCResult
@@ -84,7 +85,7 @@ def _replanning(name: str):
 
         def one(plant, k, w, pm):
             return mpc.receding_horizon(
-                c.system, c.plan_task, c.U0, k, N, c.params, c.sysid, w, method, plant, pm
+                c.system, c.plan_task, c.U0, k, N, c.params, c.sysid, w, method, plant, pm, c.replan_every
             )
 
         return {"D2C-MPC" if name == "d2c" else f"oracle MPC ({method})": one}
@@ -93,12 +94,14 @@ def _replanning(name: str):
 
 
 def _d2c_steps(c: PlannerContext, result: mpc.MPCResult) -> float:
-    """The median over episodes of each episode's mean steps per control step."""
+    """The median over episodes of each episode's mean steps per control step (a replan's
+    over the control steps it serves)."""
     m = c.config.mpc
     per_episode = [
         mpc.black_box_steps(
             jax.tree.map(lambda a: a[e], result), m.horizon, c.params.n_alphas, c.sysid
         ).mean()
+        / c.replan_every
         for e in range(m.n_episodes)
     ]
     return float(np.median(per_episode))
@@ -118,16 +121,31 @@ def _surrogates(c: PlannerContext) -> dict[str, Episode]:
     models, train = c.fit()
 
     def on_model(model):
-        return lambda plant, k, w, pm: mpc.surrogate_mpc(model, plant, c.plan_task, c.U0, k, N, params, w, pm)
+        return lambda plant, k, w, pm: mpc.surrogate_mpc(
+            model, plant, c.plan_task, c.U0, k, N, params, w, pm, c.replan_every
+        )
 
     def refitted_sindy(model):
         return lambda plant, k, w, pm: mpc_online.refitted_sindy_mpc(
-            model, train, plant, c.plan_task, c.U0, k, N, params, w, m.refit_weight, pm
+            model, train, plant, c.plan_task, c.U0, k, N, params, w, m.refit_weight, pm, c.replan_every
         )
 
     def refitted_mlp(model, spec):
         return lambda plant, k, w, pm: mpc_online.refitted_mlp_mpc(
-            model, train, plant, c.plan_task, c.U0, k, N, spec, m.refit_updates, params, w, m.refit_weight, pm
+            model,
+            train,
+            plant,
+            c.plan_task,
+            c.U0,
+            k,
+            N,
+            spec,
+            m.refit_updates,
+            params,
+            w,
+            m.refit_weight,
+            pm,
+            c.replan_every,
         )
 
     out = {f"{label} MPC": on_model(model) for label, model in models.items()}
@@ -152,7 +170,19 @@ def _sampling(mppi: bool):
 
         def one(plant, k, w, pm):
             return mpc_sampling.sampling_mpc(
-                c.system, plan_task, c.U0, k, N, m.sampling_sigma, S, lam, w, plant, m.sampling_knots, pm
+                c.system,
+                plan_task,
+                c.U0,
+                k,
+                N,
+                m.sampling_sigma,
+                S,
+                lam,
+                w,
+                plant,
+                m.sampling_knots,
+                pm,
+                c.replan_every,
             )
 
         knots = f", {m.sampling_knots} knots" if m.sampling_knots else ""
@@ -162,7 +192,9 @@ def _sampling(mppi: bool):
 
 
 def _sampling_steps(mppi: bool):
-    return lambda c, result: float(mpc_sampling.black_box_steps(c.samples, c.config.mpc.horizon, mppi))
+    return lambda c, result: (
+        mpc_sampling.black_box_steps(c.samples, c.config.mpc.horizon, mppi) / c.replan_every
+    )
 
 
 for _name, _kind in {

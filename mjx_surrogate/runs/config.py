@@ -314,6 +314,12 @@ class MPCConfig:
       data_level), "predictive_sampling" and "mppi" (derivative-free, on the black box).
     horizon: control steps per plan H (None: task.T). steps: control steps of an episode
       (None: task.T; at most task.T with "tvlqr"). max_iter: iLQR iterations per replan.
+    replan_hz: how often every planner replans, per second of the system's time (None:
+      at every control step); 1 / (replan_hz control_dt) must be a whole number r of
+      control steps dividing mpc.steps. Between replans the plant steps at its own rate
+      under the last plan: its controls with its feedback gains (iLQR planners,
+      u = U[j] + K[j] (x - X[j]), clipped to the limits) or its controls alone (sampling
+      planners), as MuJoCo MPC's agent and hydrax's simulation loop run them.
     horizon_end: where a plan made at control step n ends: "task" at the task's end when
       that comes first (stage min(task.T - n, H): the horizon shrinks to it, the terminal
       cost stays at the task's end, only the control effort counts after it; needs steps
@@ -361,6 +367,7 @@ class MPCConfig:
     steps: Optional[int] = None  # control steps of an episode (None: task.T)
     max_iter: int = 5  # iLQR iterations per replan
     horizon_end: Literal["auto", "task", "receding"] = "auto"  # plans end at the task's end, or H ahead
+    replan_hz: Optional[float] = None  # replans per second (None: every control step)
     process_noise: Tuple[float, ...] = (0.0, 0.01)  # noise std added after each plant step, per level
     plants: Tuple[str, ...] = ("model",)  # "model" or NAME=VALUE[,NAME=VALUE...], e.g. "mass=1.5"
     n_episodes: int = 4  # episodes per controller and condition

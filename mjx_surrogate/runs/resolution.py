@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from typing import NamedTuple
 
@@ -428,6 +429,15 @@ def _resolve_mpc(cfg: Config, system: System, T: int, solver_samples: int):
             "mpc.sampling_knots",
             f"at most the horizon, {m.horizon} steps (0: every step), got {m.sampling_knots}",
         )
+    if m.replan_hz is not None:
+        every = replan_every(m, float(system.dt))
+        if not (math.isfinite(m.replan_hz) and m.replan_hz > 0) or every < 1 or m.steps % every:
+            raise ConfigError(
+                "mpc.replan_hz",
+                f"a rate whose period is a whole number of control steps of {float(system.dt):g} s "
+                f"dividing mpc.steps = {m.steps} (e.g. {1 / float(system.dt):g}, "
+                f"{1 / (2 * float(system.dt)):g}), got {m.replan_hz}",
+            )
     if m.horizon_end == "task" and m.steps > T:
         raise ConfigError(
             "mpc.horizon_end",
@@ -448,6 +458,17 @@ def _resolve_mpc(cfg: Config, system: System, T: int, solver_samples: int):
         except ConfigError as e:
             raise ConfigError(f"mpc.plants[{i}]", str(e).removeprefix(f"{e.field}: ")) from None
     return m
+
+
+def replan_every(m, dt: float) -> int:
+    """Control steps from one replan to the next: 1 / (mpc.replan_hz dt), or 1 when unset;
+    0 where that is not a whole number (to 1e-9)."""
+    if m.replan_hz is None:
+        return 1
+    if not (math.isfinite(m.replan_hz) and m.replan_hz > 0):
+        return 0
+    r = 1.0 / (m.replan_hz * dt)
+    return int(round(r)) if abs(r - round(r)) <= 1e-9 * max(1.0, r) else 0
 
 
 def plant_builder(cfg: Config, system: System):
