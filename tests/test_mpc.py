@@ -11,6 +11,7 @@ import pytest
 
 from mjx_surrogate import progress
 from mjx_surrogate.control import mpc, mpc_sampling
+from mjx_surrogate.control.episode import POLLS_PER_EPISODE
 from mjx_surrogate.control.ilqr import ILQRParams
 from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.identification.sysid import SysIdParams
@@ -472,7 +473,7 @@ def test_a_stop_inside_a_batch_of_episodes_skips_its_remaining_steps(controller)
 def test_a_long_episode_reports_about_polls_per_episode_times():
     """Every k-th control step is reported (k = steps // POLLS_PER_EPISODE): the host
     callback's cost stays bounded on episodes of cheap steps."""
-    steps = 2 * mpc.POLLS_PER_EPISODE + 1
+    steps = 2 * POLLS_PER_EPISODE + 1
     bar = _StopAt(steps + 1)
     with progress.meter("steps", steps, display=False) as meter:
         progress._BARS[int(meter.meter_id)] = bar

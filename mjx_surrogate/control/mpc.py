@@ -35,14 +35,14 @@ import numpy as np
 
 from mjx_surrogate.control.d2c import oracle_method, problem
 from mjx_surrogate.control.effort import simulation_curve, steps_per_identification
+from mjx_surrogate.control.episode import Plan, episode, first_plan
 from mjx_surrogate.control.ilqr import ILQRParams, Problem, ilqr_advance, ilqr_init, ilqr_result
 from mjx_surrogate.identification import sysid as sid
-from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter, poll_step
+from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.systems.system import System
 from mjx_surrogate.tasks import Task, at_step, task_cost, trajectory_cost
 
 CONTROLLERS = ("d2c", "jacfwd", "finite_difference")
-POLLS_PER_EPISODE = 25  # progress reports (and stop checks) per episode, at most about
 
 
 class MPCResult(NamedTuple):
@@ -175,31 +175,6 @@ def tracking(
     )
 
 
-class Plan(NamedTuple):
-    """A replan's result and the next one's warm start: controls U [H, nu] and the policy
-    around them, u = U + K (x - X), with X [H+1, nx] and gains K [H, nu, nx] (K = 0: the
-    controls alone)."""
-
-    U: jax.Array
-    X: jax.Array
-    K: jax.Array
-
-
-def first_plan(U0: jax.Array, x0: jax.Array) -> Plan:
-    """The warm start of an episode's first replan: U0 [H, nu], no feedback."""
-    H, nu = U0.shape
-    return Plan(
-        U0.astype(x0.dtype),
-        jnp.zeros((H + 1, x0.shape[0]), x0.dtype),
-        jnp.zeros((H, nu, x0.shape[0]), x0.dtype),
-    )
-
-
-def shifted(plan, steps: int = 1):
-    """Every leaf of a plan [H, ...] moved ``steps`` control steps on, its last row repeated."""
-    return jax.tree.map(lambda a: jnp.concatenate([a[steps:], jnp.repeat(a[-1:], steps, axis=0)]), plan)
-
-
 def warm_start(prob: Problem, plan: Plan, params: ILQRParams, key: jax.Array):
     """The iLQR state a replan starts from (x0: the measured state): the cheaper of two
     rollouts of the shifted previous plan, its policy's, which feeds the measured state's
@@ -228,104 +203,6 @@ def surrogate_replan(model, task: Task, x: jax.Array, plan: Plan, params: ILQRPa
         step, lambda X, U, K, k: sid.exact_jacobians(step, X, U), task_cost(task), x, task.u_min, task.u_max
     )
     return ilqr_replan(prob, plan, params, key)
-
-
-def episode(
-    replan,
-    plant_step,
-    x0: jax.Array,
-    plan0,
-    key: jax.Array,
-    steps: int,
-    process_noise,
-    memory=None,
-    observe=None,
-    progress: ProgressMeter = NO_PROGRESS,
-    replan_every: int = 1,
-    limits: tuple | None = None,
-):
-    """The receding-horizon loop every planner shares: ``replan(x, plan, key, n) -> (plan,
-    info)`` at control step n from the measured x and the previous plan shifted by
-    ``replan_every`` = r steps (``plan0``: the first one's warm start; a :class:`Plan` or U
-    [H, nu], leaves with the control steps leading), every r control steps; in between the
-    plant steps at its own rate under the plan: u_{n+j} = U[j] + K[j] (x_{n+j} - X[j]) for a
-    :class:`Plan` (its feedback gains, clipped to ``limits`` (lo, hi) when given), U[j] for
-    controls alone, then the process noise is added. r = 1 applies each plan's first
-    control only. A controller that learns during the episode passes ``memory`` (a pytree)
-    and ``observe(memory, n, x, u, x_next) -> memory``, called after every plant step; its
-    replan is then ``replan(x, plan, key, n, memory) -> (plan, info, memory)``.
-    ``progress``: told of every k-th replan (k = replans // POLLS_PER_EPISODE, at least 1:
-    each report is a host callback, docs/performance.md); once it reports a stop request,
-    the remaining steps are skipped (their rows of X, U and info are NaN, or 0 for
-    integers). Control step n draws its noise, and a replan at n its key, from the n-th of
-    ``steps`` keys split from ``key``, whatever r.
-    -> X [steps+1, nx], U [steps, nu], info stacked [steps / r, ...]."""
-    r = replan_every
-    if r < 1 or steps % r:
-        raise ValueError(f"replan_every: a divisor of the {steps} steps, got {r}")
-
-    def act(plan, j, x):
-        if not isinstance(plan, Plan):
-            return plan[j]
-        u = plan.U[j] + plan.K[j] @ (x - plan.X[j])
-        return u if limits is None else jnp.clip(u, *limits)
-
-    def plant(plan, n, carry, inputs):
-        x, mem = carry
-        j, k = inputs
-        u = (plan.U if isinstance(plan, Plan) else plan)[0] if r == 1 else act(plan, j, x)
-        k_noise = jax.random.split(k)[1]
-        x_next = plant_step(x, u) + process_noise * jax.random.normal(k_noise, x.shape, x.dtype)
-        if observe is not None:
-            mem = observe(mem, n + j, x, u, x_next)
-        return (x_next, mem), (x, u)
-
-    @jax.jit  # traced once: for the skipped branch's shapes and for the block itself
-    def advance(x, plan, mem, n, keys):
-        k_plan = jax.random.split(keys[0])[0]
-        if observe is None:
-            plan, info = replan(x, plan, k_plan, n)
-        else:
-            plan, info, mem = replan(x, plan, k_plan, n, mem)
-        if r == 1:
-            (x, mem), (xs, us) = plant(plan, n, (x, mem), (0, keys[0]))
-            xs, us = xs[None], us[None]
-        else:
-            (x, mem), (xs, us) = jax.lax.scan(
-                lambda c, i: plant(plan, n, c, i), (x, mem), (jnp.arange(r), keys)
-            )
-        return (x, shifted(plan, r), mem), (xs, us, info)
-
-    def block(carry, inputs):
-        x, plan, mem, stopped = carry
-        i, keys = inputs
-        n = i * r
-        # unbatched (one answer for a vmapped batch), so both conds really branch
-        quiet = stopped | (i % every != 0)
-        stopped = jax.lax.cond(quiet, lambda: stopped, lambda: poll_step(progress, n))
-        shapes = jax.eval_shape(advance, x, plan, mem, n, keys)[1]
-
-        def skip():
-            return (x, plan, mem), jax.tree.map(_blank, shapes)
-
-        (x, plan, mem), row = jax.lax.cond(stopped, skip, lambda: advance(x, plan, mem, n, keys))
-        return (x, plan, mem, stopped), row
-
-    replans = steps // r
-    every = max(1, replans // POLLS_PER_EPISODE)
-    plan0 = jax.tree.map(lambda a: a.astype(x0.dtype), plan0)
-    keys = jax.random.split(key, steps)
-    keys = keys.reshape((replans, r) + keys.shape[1:])
-    carry = (x0, plan0, memory, jnp.array(False))
-    (xN, _, _, stopped), (X, U, info) = jax.lax.scan(block, carry, (jnp.arange(replans), keys))
-    X, U = X.reshape((steps,) + X.shape[2:]), U.reshape((steps,) + U.shape[2:])
-    return jnp.concatenate([X, jnp.where(stopped, jnp.nan, xN)[None]]), U, info
-
-
-def _blank(s: jax.ShapeDtypeStruct) -> jax.Array:
-    """A skipped step's row: NaN, or 0 for integers and booleans."""
-    fill = jnp.nan if jnp.issubdtype(s.dtype, jnp.inexact) else 0
-    return jnp.full(s.shape, fill, s.dtype)
 
 
 def black_box_steps(result: MPCResult, horizon: int, n_alphas: int, sysid: sid.SysIdParams) -> np.ndarray:

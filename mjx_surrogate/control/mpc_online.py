@@ -34,8 +34,9 @@ import jax.numpy as jnp
 import optax
 from flax import nnx
 
+from mjx_surrogate.control.episode import episode, first_plan
 from mjx_surrogate.control.ilqr import ILQRParams
-from mjx_surrogate.control.mpc import MPCResult, episode, first_plan, surrogate_replan
+from mjx_surrogate.control.mpc import MPCResult, surrogate_replan
 from mjx_surrogate.identification.data import Transitions
 from mjx_surrogate.linalg import spd_solve
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter

@@ -26,7 +26,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate.control.mpc import MPCResult, episode
+from mjx_surrogate.control.episode import episode
+from mjx_surrogate.control.mpc import MPCResult
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.systems.system import System
 from mjx_surrogate.tasks import Task, at_step, trajectory_cost

@@ -5,7 +5,7 @@ the system, the offline task and its horizon-H copy, the offline optimum, the fi
 the solver's settings) into its episodes, ``{label: episode(plant, key, noise, meter) ->
 MPCResult}``, one per planner it stands for (the surrogates' kind: one per fitted model),
 and counts its black-box steps per control step. Every episode runs the same loop,
-:func:`mjx_surrogate.control.mpc.episode`. Built in, in the order a study runs them:
+:func:`mjx_surrogate.control.episode.episode`. Built in, in the order a study runs them:
 ``d2c``, ``oracle``, ``tvlqr``, ``surrogates``, ``predictive_sampling``, ``mppi``; a new
 planner is one function plus :func:`register_planner`.
 """
