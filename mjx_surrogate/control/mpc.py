@@ -89,19 +89,7 @@ def receding_horizon(
         prob = problem(system, at_step(task, n).replace(x0=x), sysid, method)._replace(linearize_fine=None)
         return ilqr_replan(prob, plan, params, k)
 
-    X, U, (plan_cost, its, ident) = episode(
-        replan,
-        plant_step,
-        task.x0,
-        first_plan(U0, task.x0),
-        key,
-        steps,
-        process_noise,
-        progress=progress,
-        replan_every=replan_every,
-        limits=(task.u_min, task.u_max),
-    )
-    return MPCResult(X, U, trajectory_cost(task, X, U), plan_cost, its, ident)
+    return _ilqr_episode(replan, plant_step, task, U0, key, steps, process_noise, progress, replan_every)
 
 
 @functools.partial(jax.jit, static_argnames=("plant", "steps", "replan_every"))
@@ -124,9 +112,16 @@ def surrogate_mpc(
     def replan(x, plan, k, n):
         return surrogate_replan(model, at_step(task, n), x, plan, params, k)
 
+    return _ilqr_episode(replan, plant.step, task, U0, key, steps, process_noise, progress, replan_every)
+
+
+def _ilqr_episode(
+    replan, plant_step, task, U0, key, steps, process_noise, progress, replan_every
+) -> MPCResult:
+    """:func:`episode` of an iLQR planner from U0, its policy clipped to the task's limits."""
     X, U, (plan_cost, its, ident) = episode(
         replan,
-        plant.step,
+        plant_step,
         task.x0,
         first_plan(U0, task.x0),
         key,
