@@ -51,10 +51,15 @@ def mpc_config(task: str, mode: str, args):
         cfg,
         task=dataclasses.replace(cfg.task, goals=goals),
         experiment=dataclasses.replace(
-            cfg.experiment, kind="mpc", exact_oracle=False, video=False, out_dir=args.out
+            cfg.experiment,
+            kind="mpc",
+            exact_oracle="oracle" in args.controllers,
+            oracle="finite_difference",
+            video=False,
+            out_dir=args.out,
         ),
         mpc=MPCConfig(
-            controllers=("d2c",),
+            controllers=tuple(args.controllers),
             horizon=args.horizon,
             steps=args.steps,
             horizon_end=mode,
@@ -77,6 +82,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument(
         "--tasks", nargs="*", default=["ur5e"], help="substrings of benchmarks/robots.py's task names"
+    )
+    ap.add_argument(
+        "--controllers", nargs="*", default=["d2c"], help="mpc.controllers (oracle: finite differences)"
     )
     ap.add_argument("--modes", nargs="*", default=["task", "receding"], help="mpc.horizon_end values")
     ap.add_argument("--horizon", type=int, default=25)
@@ -109,15 +117,16 @@ def main() -> None:
             for r in metrics["mpc_rows"]:
                 results.append({"task": task, "mode": mode, "offline_cost": metrics["d2c"]["cost"]} | r)
     print(
-        "| task | horizon end | plant | noise | cost (median) | offline optimum | goal reached "
+        "| task | controller | horizon end | plant | noise | cost (median) | offline optimum | goal reached "
         "| black-box steps / step | ms / step | real-time factor |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in results:
         print(
-            f"| {r['task']} | {r['mode']} | {r['plant']} | {r['process_noise']:g} | {_g(r['cost_median'])} | "
+            f"| {r['task']} | {r['controller']} | {r['mode']} | {r['plant']} | {r['process_noise']:g} | "
+            f"{_g(r['cost_median'])} | "
             f"{_g(r['offline_cost'])} | "
-            f"{100 * r['goal_reached']:.0f} % | {r['black_box_steps_per_control_step']:.0f} | "
+            f"{100 * r['goal_reached']:.0f} % | {_g(r['black_box_steps_per_control_step'])} | "
             f"{1e3 * r['compute_per_step_s']:.0f} | {r['real_time_factor']:.2f} |"
         )
 
