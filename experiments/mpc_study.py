@@ -214,14 +214,9 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     verdict = closed_loop_verdict(rows, finite_or_none(offline))
     record.set("mpc_verdict", verdict | {"cause": cause_text(rows)})
     _figures(record, res, rows, X_star)
-    rate = record.metrics["mpc_replan"]
-    replans = (
-        f"; every planner replans every {rate['every_control_steps']} control steps ({rate['hz']:g} Hz), "
-        "the plant stepping under its last plan in between"
-        if rate["every_control_steps"] > 1
-        else ""
+    text = table(
+        rows, float(system.dt), record.metrics["mpc_verdict"], plans_text(m, task.T, every, system.dt)
     )
-    text = table(rows, float(system.dt), record.metrics["mpc_verdict"], horizon_end_text(m, task.T) + replans)
     record.folder.write_text("mpc_table.md", text)
     if cfg.experiment.video and system.mj_model is not None:  # episode 0 of the hardest condition
         last = f"_{len(m.plants) * len(m.process_noise) - 1}_X"
@@ -240,6 +235,16 @@ def horizon_end_text(m, T: int) -> str:
         )
     why = f"the episodes run {m.steps} steps, past the task's {T}" if m.steps > T else "as configured"
     return f"every plan ends {m.horizon} steps ahead, its terminal cost moving with it ({why})"
+
+
+def plans_text(m, T: int, every: int, dt) -> str:
+    """Where the plans end and, when not at every control step, how often they are made."""
+    if every == 1:
+        return horizon_end_text(m, T)
+    return (
+        f"{horizon_end_text(m, T)}; every planner replans every {every} control steps "
+        f"({1.0 / (every * float(dt)):g} Hz), the plant stepping under its last plan in between"
+    )
 
 
 def _figures(record, res, rows, X_star) -> None:

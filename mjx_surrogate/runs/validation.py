@@ -326,18 +326,16 @@ def _check_registered(cfg: Config) -> None:
     get_model_strategy(cfg.solver.model_strategy, "solver.model_strategy")
     if cfg.solver.sysid_every < 1:
         raise ConfigError("solver.sysid_every", f"must be >= 1, got {cfg.solver.sysid_every}")
-    if cfg.solver.sysid_every > 1 and not scheme.one_step:
-        one_step = ", ".join(n for n, s in SCHEMES.items() if s.one_step)
-        raise ConfigError(
-            "solver.sysid_every",
-            f"> 1 needs a one-step scheme ({one_step}); {cfg.solver.sysid!r} identifies from rollouts",
-        )
-    if cfg.mpc.sysid_every > 1 and not scheme.one_step:
-        one_step = ", ".join(n for n, s in SCHEMES.items() if s.one_step)
-        raise ConfigError(
-            "mpc.sysid_every",
-            f"> 1 needs a one-step scheme ({one_step}); {cfg.solver.sysid!r} identifies from rollouts",
-        )
+    for field, every in (
+        ("solver.sysid_every", cfg.solver.sysid_every),
+        ("mpc.sysid_every", cfg.mpc.sysid_every),
+    ):
+        if every > 1 and not scheme.one_step:
+            one_step = ", ".join(n for n, s in SCHEMES.items() if s.one_step)
+            raise ConfigError(
+                field,
+                f"> 1 needs a one-step scheme ({one_step}); {cfg.solver.sysid!r} identifies from rollouts",
+            )
     if cfg.solver.sysid_significance > 0 and not scheme.t_test:
         tested = ", ".join(n for n, s in SCHEMES.items() if s.t_test)
         raise ConfigError(
