@@ -7,9 +7,10 @@ the task's start, or ``--episodes`` run together by ``vmap`` from starts around 
 * "d2c", and the "finite_difference" and "jacfwd" oracles: at most ``--iterations`` iLQR
   iterations per replan (D2C-MPC's identification as ``mpc_params``: nx + nu orthogonal
   samples);
-* the derivative-free "predictive_sampling" and "mppi": ``--samples`` samples per replan of
-  spread ``SAMPLING_SIGMA``, drawn at every step or at ``--knots`` knots; MPPI's
-  temperature is 1 % of the start's zero-control plan cost.
+* the derivative-free "predictive_sampling", "mppi" and "cem": ``--samples`` samples per
+  replan of spread ``SAMPLING_SIGMA`` (control units), every step its own value or plans
+  held at ``--knots`` knots (a linear spline); MPPI's temperature is 1 % of the start's
+  zero-control plan cost, CEM's spread floor a tenth of its start.
 
 Each on plants whose pole masses are ``--mass-scales`` times the model's (1: the model
 itself; others through ``mujoco.MjSpec``), for ``--tasks``: the preset's terminal-only
@@ -38,7 +39,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 HEAVY_BODY = {"pendulum": "pole", "cartpole": "pole"}
 SAMPLING_SIGMA = {"pendulum": 1.0, "cartpole": 5.0}  # the samples' spread, control units
-CONTROLLERS = ("d2c", "finite_difference", "jacfwd", "predictive_sampling", "mppi")
+CONTROLLERS = ("d2c", "finite_difference", "jacfwd", "predictive_sampling", "mppi", "cem")
 TASKS = ("terminal", "running")
 
 
@@ -110,22 +111,15 @@ def run(
         # MPPI's temperature: a fixed fraction of the start's zero-control plan cost
         temperature = 0.01 * float(trajectory_cost(task, *open_loop(system.step, task.x0, U0)))
         for controller in controllers:
-            if controller in ("predictive_sampling", "mppi"):
-                lam = temperature if controller == "mppi" else None
+            spline = "linear" if knots else "zero"
+            sampling = mpc_sampling.SamplingSettings(controller, samples, knots, spline)
+            if controller in ("predictive_sampling", "mppi", "cem"):
+                spread = mpc_sampling.hyper(sigma, temperature, 0.1 * sigma, task.x0.dtype)
 
-                def one(x0, task=task, plant=plant, lam=lam):
+                def one(x0, task=task, plant=plant, sampling=sampling, spread=spread):
+                    start = task.replace(x0=x0)
                     return mpc_sampling.sampling_mpc(
-                        system,
-                        task.replace(x0=x0),
-                        U0,
-                        jax.random.key(0),
-                        steps,
-                        sigma,
-                        samples,
-                        lam,
-                        0.0,
-                        plant,
-                        knots,
+                        system, start, U0, jax.random.key(0), steps, sampling, spread, 0.0, plant
                     )
             else:
 
@@ -158,8 +152,8 @@ def run(
                 calls = mpc.black_box_steps(
                     flat._replace(iterations=r.iterations.reshape(-1)), horizon, params.n_alphas, sid
                 )
-            elif controller in ("predictive_sampling", "mppi"):
-                calls = np.array([mpc_sampling.black_box_steps(samples, horizon, controller == "mppi")])
+            elif controller in ("predictive_sampling", "mppi", "cem"):
+                calls = np.array([mpc_sampling.black_box_steps(sampling, horizon)])
             else:
                 calls = None
             X_end = r.X[..., -1, :].reshape(-1, system.nx)
@@ -168,7 +162,7 @@ def run(
                     "system": system_name,
                     "backend": backend,
                     "device": jax.devices()[0].platform,
-                    "samples": samples if controller in ("predictive_sampling", "mppi") else None,
+                    "samples": samples if controller in ("predictive_sampling", "mppi", "cem") else None,
                     "task": task_name,
                     "plant": plant_name,
                     "controller": controller,

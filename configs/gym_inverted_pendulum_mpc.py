@@ -25,6 +25,9 @@ def _asset(name: str) -> str:
     return os.path.join(root, "envs", "mujoco", "assets", name)
 
 
+# the sampling planners' spread in control units, as docs/mpc.md's tables were measured
+CONTROL_UNITS = {f"mpc.{p}": {"sigma_units": "control"} for p in ("predictive_sampling", "mppi", "cem")}
+
 CONFIG = Config(
     system=SystemConfig(name="mjcf", mjcf_path=_asset("inverted_pendulum.xml"), backend="native"),
     task=TaskConfig(
@@ -47,4 +50,5 @@ CONFIG = Config(
         n_episodes=4,
         refit_weight=10.0,
     ),
+    extensions=CONTROL_UNITS,
 )

@@ -24,11 +24,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate import progress
-from mjx_surrogate.analysis.closed_loop import cause_text, closed_loop_verdict, table
+from mjx_surrogate.analysis.closed_loop import cause_text, closed_loop_verdict, in_goal_from, table
 from mjx_surrogate.analysis.evaluation import finite_or_none
 from mjx_surrogate.control.planners import PLANNERS, PlannerContext, get_planner
 from mjx_surrogate.identification import data
 from mjx_surrogate.runs import pipeline, plots
+from mjx_surrogate.runs.extension_settings import settings_of
 from mjx_surrogate.runs.resolution import Resolved, mpc_params, plant_builder, replan_every
 from mjx_surrogate.runs.results import Run
 from mjx_surrogate.surrogates import FitContext, fit_all
@@ -121,6 +122,7 @@ def _row(res, e: _Episodes, r, run_s: float, context: PlannerContext) -> tuple[d
     X, U = np.asarray(r.X), np.asarray(r.U)
     costs = np.asarray(r.cost, dtype=float)
     goals = [pipeline.goal_test(task, x, cfg.task.goal_tolerance) for x in X]
+    entered = [in_goal_from(pipeline.goal_passes(task, x, cfg.task.goal_tolerance)) for x in X]
     per_step = run_s / (m.n_episodes * m.steps)
     row = {
         "controller": e.label,
@@ -129,6 +131,8 @@ def _row(res, e: _Episodes, r, run_s: float, context: PlannerContext) -> tuple[d
         "costs": [finite_or_none(c) for c in costs],
         "cost_median": finite_or_none(np.median(costs)),
         "goal_reached": sum(g["reached"] for g in goals) / len(goals),
+        # per episode: the time from which every state passes the goal test (None: not at the end)
+        "in_goal_from_s": [None if n is None else n * float(system.dt) for n in entered],
         "final_goal_cost_median": finite_or_none(np.median([g["goal_cost_final"] or np.inf for g in goals])),
         "black_box_steps_per_control_step": kind.black_box_steps(context, r),
         "iterations_per_replan": float(np.mean(r.iterations)) if kind.iterative else None,
@@ -195,8 +199,20 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     params, sysid = mpc_params(cfg)
     every = replan_every(m, float(system.dt))
     record.set("mpc_replan", {"every_control_steps": every, "hz": 1.0 / (every * float(system.dt))})
+    own = {n: settings_of(cfg, "mpc", n) for n, kind in PLANNERS.items() if kind.settings is not None}
     context = PlannerContext(
-        cfg, system, task, plan_task, optimum, U0, params, sysid, m.samples or DEFAULT_SAMPLES, fit, every
+        cfg,
+        system,
+        task,
+        plan_task,
+        optimum,
+        U0,
+        params,
+        sysid,
+        m.samples or DEFAULT_SAMPLES,
+        fit,
+        every,
+        planner_settings=own,
     )
     # the oracle follows experiment.exact_oracle (off for a user's MJCF: minutes of compile)
     chosen = [c for c in PLANNERS if c in m.controllers and (c != "oracle" or cfg.experiment.exact_oracle)]
@@ -207,7 +223,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         rows += done
         if c == "d2c" and m.samples is None:  # the sampling MPCs get D2C-MPC's budget
             calls = np.median([r["black_box_steps_per_control_step"] for r in done])
-            context = context._replace(samples=max(2, int(round(calls * every / H))))
+            context = context._replace(samples=max(2, int(round(calls * every / H))), samples_matched=True)
     record.set("mpc_rows", rows)
     N = m.steps  # the offline optimum's cost over an episode's steps: what "works" is judged on
     offline = float(trajectory_cost(task, X_star[: N + 1], U_star[:N])) if N <= task.T else None

@@ -2,7 +2,10 @@
 
 Cost convention (one for the whole project, docs/results.md), with e(x) = x - x* or its
 geodesic form (hinge angles wrapped to (-pi, pi], each quaternion block replaced by
-(0, rotation vector of q*^-1 q)) and p_k(x) the world position of goal point k:
+(0, rotation vector of q*^-1 q)) or its chordal form (each hinge's error d replaced by the
+chord 2 sin(d / 2), whose square is |(cos d, sin d) - (1, 0)|^2 = 2 (1 - cos d): smooth
+and periodic, the angle cost of hydrax's swing-up tasks) and p_k(x) the world position of
+goal point k:
 
     l(x, u) = 1/2 e' Q e + 1/2 (u - u_ref)' R (u - u_ref) + sum_k 1/2 w_k |p_k(x) - p_k*|^2
     l_f(x)  = 1/2 e' Q_f e + sum_k 1/2 w_f,k |p_k(x) - p_k*|^2
@@ -37,8 +40,9 @@ PointsFn = Callable[[jax.Array], jax.Array]  # x [nx] -> goal point positions [k
 class Task:
     """x0, x_goal [nx]; Q, Q_f [nx, nx]; R [nu, nu]; u_min, u_max, u_ref [nu] (limits may be
     +-inf); point goals: targets [k, 3], weights, final_weights [k] and ``points`` (static).
-    ``hinges`` (qpos indices wrapped) and ``quats`` (first qpos index of each quaternion)
-    are empty for the Euclidean state error. ``deadline`` (static): the control step of an
+    ``hinges`` (qpos indices wrapped, or measured by their chord where ``chordal``) and
+    ``quats`` (first qpos index of each quaternion) are empty for the Euclidean state
+    error. ``deadline`` (static): the control step of an
     episode at which the task ends, for a receding horizon that shrinks to it (None: the
     horizon recedes); ``end``: the stage within the horizon at which it ends (an int32
     scalar, 0 .. T; None: T), set by :func:`at_step`."""
@@ -60,6 +64,7 @@ class Task:
     points: PointsFn | None = struct.field(pytree_node=False, default=None)
     deadline: int | None = struct.field(pytree_node=False, default=None)
     end: jax.Array | None = None
+    chordal: bool = struct.field(pytree_node=False, default=False)
 
 
 def at_step(task: Task, n: jax.Array) -> Task:
@@ -86,9 +91,13 @@ def quat_error(q: jax.Array, g: jax.Array) -> jax.Array:
 
 
 def state_error(task: Task, x: jax.Array) -> jax.Array:
-    """e(x) [nx]: x - x_goal, hinge angles wrapped, quaternion blocks as (0, rotvec)."""
+    """e(x) [nx]: x - x_goal, hinge angles wrapped (or their chords), quaternion blocks as
+    (0, rotvec)."""
     e = x - task.x_goal
-    if task.hinges:  # a constant mask, not a gather and a scatter: a smaller program
+    if task.hinges and task.chordal:
+        chord = np.isin(np.arange(x.shape[-1]), task.hinges)
+        e = jnp.where(chord, 2.0 * jnp.sin(e / 2.0), e)
+    elif task.hinges:  # a constant mask, not a gather and a scatter: a smaller program
         wrap = np.isin(np.arange(x.shape[-1]), task.hinges)
         e = jnp.where(wrap, jnp.mod(e + jnp.pi, 2 * jnp.pi) - jnp.pi, e)
     if task.quats:
@@ -163,8 +172,11 @@ def final_cost(task: Task, x: jax.Array) -> jax.Array:
 def task_cost(task: Task) -> cost_lib.Cost:
     """The task's cost as the solver's :class:`~mjx_surrogate.cost.Cost` (timed where the
     task ends within its horizon); with point goals, their Hessian is Gauss-Newton's
-    (:func:`point_goal_derivatives`)."""
+    (:func:`point_goal_derivatives`), and so is a chordal state error's
+    (:func:`chordal_derivatives`)."""
     derivatives = None if task.points is None else (lambda X, U: point_goal_derivatives(task, X, U))
+    if task.chordal and task.hinges:
+        derivatives = lambda X, U: chordal_derivatives(task, X, U)  # noqa: E731
     if task.end is not None:
         return cost_lib.Cost(
             lambda x, u, t: stage_cost(task, x, u, t), lambda x: final_cost(task, x), derivatives, True
@@ -201,6 +213,36 @@ def point_goal_derivatives(task: Task, X: jax.Array, U: jax.Array):
         g, H = jax.vmap(gn)(X[:-1], w)
         gT, HT = gn(X[-1], jnp.where(task.end == task.T, task.final_weights, 0.0))
     return lx + g, lu, lxx + H, luu, lux, Vx + gT, Vxx + HT
+
+
+def chordal_derivatives(task: Task, X: jax.Array, U: jax.Array):
+    """Cost derivatives with the state term 1/2 e' Q e of a chordal state error taken to
+    Gauss-Newton's order, as MuJoCo MPC treats its residuals: gradient J'Q e, Hessian J'Q J
+    with J = de/dx (diagonal: cos(d / 2) at each hinge, 1 elsewhere). The exact Hessian of a
+    hinge's 2 (1 - cos d) is Q cos d, negative below the horizontal (a swing-up's start), where
+    a Newton step climbs; J'Q J stays positive semi-definite. The effort and any point goals
+    as :func:`task_cost` without the state term."""
+    rest = task_cost(dataclasses.replace(task, chordal=False, hinges=(), Q=0 * task.Q, Q_f=0 * task.Q_f))
+    if rest.derivatives is not None:  # point goals
+        lx, lu, lxx, luu, lux, Vx, Vxx = rest.derivatives(X, U)
+    else:
+        running = cost_lib.hessian_and_gradient(rest.running, (0, 1))
+        ((lxx, _), (lux, luu)), (lx, lu) = jax.vmap(running)(*cost_lib.stage_inputs(rest, X, U))
+        Vxx, Vx = cost_lib.hessian_and_gradient(rest.terminal)(X[-1])
+    chord = np.isin(np.arange(X.shape[-1]), task.hinges)
+    e = jax.vmap(lambda x: state_error(task, x))(X)  # [T+1, nx]
+    J = jnp.where(chord, jnp.cos((X - task.x_goal) / 2.0), 1.0)  # de/dx, diagonal
+    T = U.shape[0]
+    if task.end is None:
+        Qs, QT = jnp.broadcast_to(task.Q, (T,) + task.Q.shape), task.Q_f
+    else:
+        t = jnp.arange(T)[:, None, None]
+        Qs = jnp.where(t < task.end, task.Q, 0.0) + jnp.where(t == task.end, task.Q_f, 0.0)
+        QT = jnp.where(task.end == task.T, task.Q_f, 0.0)
+    Je, JT = J[:-1], J[-1]
+    gx = jnp.einsum("ti,tij,tj->ti", Je, Qs, e[:-1])
+    Hx = Je[:, :, None] * Qs * Je[:, None, :]
+    return lx + gx, lu, lxx + Hx, luu, lux, Vx + JT * (QT @ e[-1]), Vxx + JT[:, None] * QT * JT[None, :]
 
 
 def trajectory_cost(task: Task, X: jax.Array, U: jax.Array) -> jax.Array:
@@ -242,6 +284,7 @@ def make_task(
     points: PointsFn | None = None,
     hinges: tuple = (),
     quats: tuple = (),
+    chordal: bool = False,
 ) -> Task:
     """Assemble a :class:`Task` from array-likes (shapes checked by ``resolution.resolve``)."""
     dtype = dtype or jnp.result_type(float)
@@ -267,4 +310,5 @@ def make_task(
         hinges=tuple(int(i) for i in hinges),
         quats=tuple(int(i) for i in quats),
         points=points if k else None,
+        chordal=bool(chordal),
     )

@@ -75,6 +75,16 @@ CASES = [
     (["smoke_mpc", "--mpc.replan_hz", "-5"], "mpc.replan_hz"),
     (["smoke_mpc", "--mpc.first_plan", "random"], "--mpc.first_plan"),
     (["smoke_mpc", "--mpc.sampling_knots", "99"], "mpc.sampling_knots"),  # over the horizon
+    (["smoke_mpc", "--mpc.predictive_sampling.knots", "6"], "mpc.predictive_sampling.knots"),  # H is 5
+    (["smoke_mpc", "--mpc.mppi.spline", "quadratic"], "--mpc.mppi.spline"),
+    (["smoke_mpc", "--mpc.mppi.temperature", "0"], "mpc.mppi.temperature"),
+    (["smoke_mpc", "--mpc.cem.elites", "0"], "mpc.cem.elites"),
+    (["smoke_mpc", "--mpc.cem.samples", "4", "--mpc.cem.elites", "5"], "mpc.cem.elites"),
+    (["smoke_mpc", "--mpc.cem.explore_fraction", "1"], "mpc.cem.explore_fraction"),
+    (["smoke_mpc", "--mpc.cem.iterations", "0"], "mpc.cem.iterations"),
+    (["smoke_mpc", "--mpc.predictive_sampling.sigma", "nan"], "mpc.predictive_sampling.sigma"),
+    (["smoke_mpc", "--mpc.ilqg.sigma", "1"], "--mpc.ilqg.sigma"),  # no such planner
+    (["smoke_mpc", "--task.state_error", "chord"], "--task.state_error"),
     (["lorenz_mpc", "--mpc.plants", "mass=1.5"], "mpc.plants[0]"),  # not a keyword of Lorenz's
     (["lorenz_mpc", "--mpc.plants", "dt=0.02"], "mpc.plants[0]"),  # a plant keeps the period
     (["smoke_mpc", "--mpc.plants", "heavier"], "mpc.plants[0]"),

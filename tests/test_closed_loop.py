@@ -110,3 +110,16 @@ def test_the_one_step_error_against_numpy():
     scale = np.sqrt(np.mean(np.sum((2 * X) ** 2, -1)))
     expected = np.median(np.linalg.norm(np.diff(X, axis=0), axis=-1)) / scale
     assert _one_step_error(hold, X, U, optimum) == pytest.approx(expected, rel=1e-9)
+
+
+def test_in_goal_from_is_where_the_episode_entered_the_goal_for_good():
+    """The first step from which every state passes; None when the last state fails (an
+    episode that swung up and fell again never counts as held)."""
+    from mjx_surrogate.analysis.closed_loop import _entered, in_goal_from
+
+    assert in_goal_from([False, False, True, True]) == 2
+    assert in_goal_from([True, True, True]) == 0
+    assert in_goal_from([False, True, False, True, True]) == 3  # left the goal once: the later entry
+    assert in_goal_from([False, True, True, False]) is None  # fell again
+    assert _entered({"in_goal_from_s": [1.0, 3.0, 2.0]}) == "2 (3)"
+    assert _entered({"in_goal_from_s": [1.0, None]}) == "- (1 of 2 stay)"

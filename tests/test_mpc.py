@@ -302,73 +302,6 @@ def test_d2c_mpc_swings_the_mujoco_pendulum_up_as_the_oracles_mpc_does():
     assert float(d2c.cost) == pytest.approx(float(oracle.cost), rel=1e-4)
 
 
-@pytest.mark.parametrize("replan_every", [1, 3])
-def test_sampling_with_zero_spread_applies_the_shifted_warm_start(replan_every):
-    """sigma 0: every sample is the warm start, so the episode applies U0 step by step
-    (its last control once U0 runs out) on the plant, replanning at every step or every
-    third one (the plan shifted by three, its controls applied in between)."""
-    U0 = jnp.asarray(np.sin(np.arange(H))[:, None])
-    r = mpc_sampling.sampling_mpc(
-        _linear(), _task(), U0, jax.random.key(0), N, 0.0, 8, replan_every=replan_every
-    )
-    assert r.plan_cost.shape == (N // replan_every,)
-    applied = np.concatenate([np.asarray(U0), np.repeat(np.asarray(U0[-1:]), N - H, axis=0)])
-    np.testing.assert_array_equal(np.asarray(r.U), applied)
-    X = [np.array([1.0, 0.0])]
-    for u in applied:
-        X.append(A @ X[-1] + B @ u)
-    np.testing.assert_allclose(np.asarray(r.X), np.array(X), atol=1e-12)
-
-
-@pytest.mark.slow
-def test_mppi_at_zero_temperature_is_predictive_sampling_and_both_beat_no_control():
-    system, task, U0 = _linear(), _task(), jnp.zeros((H, 1))
-    ps = mpc_sampling.sampling_mpc(system, task, U0, jax.random.key(4), N, 2.0, 64)
-    cold = mpc_sampling.sampling_mpc(system, task, U0, jax.random.key(4), N, 2.0, 64, 1e-300)
-    np.testing.assert_array_equal(np.asarray(cold.U), np.asarray(ps.U))
-    warm = mpc_sampling.sampling_mpc(system, task, U0, jax.random.key(4), N, 2.0, 64, 1.0)
-    idle = mpc_sampling.sampling_mpc(system, task, U0, jax.random.key(4), N, 0.0, 2)
-    lqr = mpc.receding_horizon(
-        system, task, U0, jax.random.key(0), N, ILQRParams(max_iter=3), SID, 0.0, "jacfwd"
-    )
-    for r in (ps, warm):
-        assert float(lqr.cost) <= float(r.cost) < 0.5 * float(idle.cost), (float(r.cost), float(idle.cost))
-
-
-def test_smooth_samples_are_straight_between_knots_and_h_knots_are_the_plain_draws():
-    key = jax.random.key(2)
-    plain = mpc_sampling.perturbations(key, 5, H, 1, 0, jnp.float64)
-    np.testing.assert_array_equal(np.asarray(mpc_sampling.perturbations(key, 5, H, 1, H, jnp.float64)), plain)
-    z = np.asarray(jax.random.normal(key, (5, 4, 1), jnp.float64))  # the draws at the knots
-    eps = np.asarray(mpc_sampling.perturbations(key, 5, 10, 1, 4, jnp.float64))  # knots at 0, 3, 6, 9
-    np.testing.assert_allclose(eps[:, [0, 3, 6, 9]], z, atol=1e-15)
-    np.testing.assert_allclose(eps[:, 1], (2 * z[:, 0] + z[:, 1]) / 3, atol=1e-15)
-    bends = np.abs(np.diff(eps[..., 0], 2, axis=1))  # second differences, centred at t = 1 .. 8
-    assert np.all(np.delete(bends, [2, 5], axis=1) < 1e-12) and np.all(bends[:, [2, 5]] > 1e-6)
-    flat = np.asarray(mpc_sampling.perturbations(key, 5, 10, 1, 1, jnp.float64))
-    np.testing.assert_array_equal(flat, np.repeat(flat[:, :1], 10, axis=1))
-    system, task, U0 = _linear(), _task(), jnp.zeros((H, 1))
-    every = mpc_sampling.sampling_mpc(system, task, U0, jax.random.key(4), N, 2.0, 16)
-    as_knots = mpc_sampling.sampling_mpc(system, task, U0, jax.random.key(4), N, 2.0, 16, knots=H)
-    np.testing.assert_allclose(np.asarray(as_knots.U), np.asarray(every.U), atol=1e-12)  # XLA's fusion
-
-
-def test_sampling_black_box_steps_are_the_calls_the_black_box_received():
-    calls = []
-
-    def step(x, u):
-        calls.append(len(x))
-        return x @ A.T + u @ B.T
-
-    system = from_numpy(step, 2, 1, 0.1, vectorized=True)
-    for temperature, mppi in ((None, False), (1.0, True)):
-        calls.clear()
-        mpc_sampling.sampling_mpc(
-            system, _task(), jnp.zeros((H, 1)), jax.random.key(0), 5, 1.0, 16, temperature
-        )
-        assert sum(calls) == 5 + 5 * mpc_sampling.black_box_steps(16, H, mppi), sum(calls)
-
-
 def _numpy_policy(x0, X, U, K):
     """u_t = U_t + K_t (x_t - X_t) on the double integrator, float64 NumPy."""
     x, us = np.asarray(x0, float), []
@@ -435,7 +368,14 @@ def test_a_stop_inside_a_batch_of_episodes_skips_its_remaining_steps(controller)
     def batch(meter):
         if controller == "sampling":
             one = lambda k: mpc_sampling.sampling_mpc(  # noqa: E731
-                plant, task, U0, k, N, 0.5, 8, None, 0.0, None, 0, meter
+                plant,
+                task,
+                U0,
+                k,
+                N,
+                mpc_sampling.SamplingSettings(samples=8),
+                mpc_sampling.hyper(0.5),
+                progress=meter,
             )
         else:
             one = lambda k: mpc.receding_horizon(  # noqa: E731
@@ -477,7 +417,8 @@ def test_a_long_episode_reports_about_polls_per_episode_times():
     bar = _StopAt(steps + 1)
     with progress.meter("steps", steps, display=False) as meter:
         progress._BARS[int(meter.meter_id)] = bar
+        settings, spread = mpc_sampling.SamplingSettings(samples=4), mpc_sampling.hyper(0.5)
         mpc_sampling.sampling_mpc(
-            _linear(), _task(), jnp.zeros((H, 1)), jax.random.key(0), steps, 0.5, 4, progress=meter
+            _linear(), _task(), jnp.zeros((H, 1)), jax.random.key(0), steps, settings, spread, progress=meter
         )
     assert bar.seen == list(range(1, steps + 1, 2))

@@ -20,6 +20,7 @@ CONTROLLERS = (
     "MLP",
     "predictive sampling",
     "MPPI",
+    "CEM",
     "SINDy cubic_trig MPC refitted online",
     "MLP MPC refitted online",
 )
@@ -245,7 +246,7 @@ def test_the_videos_show_the_stored_trajectories(smoke_mpc):
     assert np.corrcoef(cy, np.cos(q))[0, 1] < -0.98  # image rows grow downwards
     episodes = np.array(imageio.mimread(str(path / "mpc_episodes.mp4")))
     order = m["mpc_video_order"]
-    assert episodes.shape == (7, 240, 320 * len(order), 3) and len(order) == 9  # two refitted online
+    assert episodes.shape == (7, 240, 320 * len(order), 3) and len(order) == 10  # two refitted online
     band = episodes[:, : video.LABEL_HEIGHT].reshape(7, video.LABEL_HEIGHT, len(order), 320, 3)
     assert band.mean() < 80 and all((band[0, :, i].min(-1) > 180).sum() > 20 for i in range(len(order)))
     first = arrays[m["videos"]["mpc_episodes.mp4"]["trajectories"][0]][0]  # D2C-MPC, episode 0

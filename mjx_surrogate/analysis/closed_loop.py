@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 MATCH_TOL = 0.10
 WORKS_FACTOR = 10.0
 SURROGATE_PREFIXES = ("SINDy", "MLP")
@@ -130,6 +132,25 @@ def cause_text(rows: list[dict]) -> str:
     )
 
 
+def in_goal_from(passes) -> int | None:
+    """The first step n from which every state passes the goal test (``passes`` [N+1],
+    bool): the episode entered the goal then and stayed; None if its last state fails."""
+    passes = np.asarray(passes, bool)
+    if not passes[-1]:
+        return None
+    failed = np.flatnonzero(~passes)
+    return int(failed[-1] + 1) if len(failed) else 0
+
+
+def _entered(r: dict) -> str:
+    """'median (latest)' of the episodes' in-goal-from times, '-' where one never stays."""
+    t = r.get("in_goal_from_s")
+    if not t or any(v is None for v in t):
+        held = 0 if not t else sum(v is not None for v in t)
+        return "-" if not t else f"- ({held} of {len(t)} stay)"
+    return f"{np.median(t):.3g} ({max(t):.3g})"
+
+
 def table(rows: list[dict], dt: float, verdict: dict | None = None, horizon: str = "") -> str:
     """The side-by-side table (Markdown), one block per condition, after the verdict;
     ``horizon``: where the plans end, a sentence."""
@@ -138,9 +159,10 @@ def table(rows: list[dict], dt: float, verdict: dict | None = None, horizon: str
     for p, w in dict.fromkeys((r["plant"], r["process_noise"]) for r in rows):
         out += [
             f"\n### Plant {p}, process noise {w:g}\n",
-            "| controller | closed-loop cost (median) | min - max | goal reached | black-box steps "
-            "per control step | iterations per replan | ms per control step | real-time factor |",
-            "|---|---|---|---|---|---|---|---|",
+            "| controller | closed-loop cost (median) | min - max | goal reached | in goal from, s "
+            "(latest) | black-box steps per control step | iterations per replan | ms per control "
+            "step | real-time factor |",
+            "|---|---|---|---|---|---|---|---|---|",
         ]
         for r in rows:
             if (r["plant"], r["process_noise"]) != (p, w):
@@ -152,7 +174,8 @@ def table(rows: list[dict], dt: float, verdict: dict | None = None, horizon: str
                 else f"{len(r['costs']) - len(c)} diverged"
             )
             out.append(
-                f"| {r['controller']} | {f(r['cost_median'])} | {spread} | {100 * r['goal_reached']:.0f} % | "
+                f"| {r['controller']} | {f(r['cost_median'])} | {spread} | "
+                f"{100 * r['goal_reached']:.0f} % | {_entered(r)} | "
                 f"{f(r['black_box_steps_per_control_step'])} | {f(r['iterations_per_replan'])} | "
                 f"{1e3 * r['compute_per_step_s']:.3g} | {r['real_time_factor']:.3g} |"
             )

@@ -199,6 +199,8 @@ def prediction_errors(step_t: step_models.StepT, test: Dataset) -> tuple[dict, n
 
 
 def finite_or_none(v) -> float | None:
-    """A float for JSON, None where it is not finite."""
+    """A float for JSON, None where it is not finite (or is None)."""
+    if v is None:
+        return None
     v = float(v)
     return v if np.isfinite(v) else None

@@ -53,6 +53,7 @@ def episode(
     progress: ProgressMeter = NO_PROGRESS,
     replan_every: int = 1,
     limits: tuple | None = None,
+    shift=None,
 ):
     """The receding-horizon loop every planner shares: ``replan(x, plan, key, n) -> (plan,
     info)`` at control step n from the measured x and the previous plan shifted by
@@ -60,7 +61,9 @@ def episode(
     [H, nu], leaves with the control steps leading), every r control steps; in between the
     plant steps at its own rate under the plan: u_{n+j} = U[j] + K[j] (x_{n+j} - X[j]) for a
     :class:`Plan` (its feedback gains, clipped to ``limits`` (lo, hi) when given), U[j] for
-    controls alone, then the process noise is added. r = 1 applies each plan's first
+    controls alone (U [H, nu], or any plan with a ``U`` field), then the process noise is
+    added. ``shift(plan, r) -> plan``: how a plan moves on r steps (default
+    :func:`shifted`). r = 1 applies each plan's first
     control only. A controller that learns during the episode passes ``memory`` (a pytree)
     and ``observe(memory, n, x, u, x_next) -> memory``, called after every plant step; its
     replan is then ``replan(x, plan, key, n, memory) -> (plan, info, memory)``.
@@ -74,16 +77,21 @@ def episode(
     if r < 1 or steps % r:
         raise ValueError(f"replan_every: a divisor of the {steps} steps, got {r}")
 
+    shift = shifted if shift is None else shift
+
+    def controls(plan):
+        return plan.U if hasattr(plan, "U") else plan
+
     def act(plan, j, x):
         if not isinstance(plan, Plan):
-            return plan[j]
+            return controls(plan)[j]
         u = plan.U[j] + plan.K[j] @ (x - plan.X[j])
         return u if limits is None else jnp.clip(u, *limits)
 
     def plant(plan, n, carry, inputs):
         x, mem = carry
         j, k = inputs
-        u = (plan.U if isinstance(plan, Plan) else plan)[0] if r == 1 else act(plan, j, x)
+        u = controls(plan)[0] if r == 1 else act(plan, j, x)
         k_noise = jax.random.split(k)[1]
         x_next = plant_step(x, u) + process_noise * jax.random.normal(k_noise, x.shape, x.dtype)
         if observe is not None:
@@ -104,7 +112,7 @@ def episode(
             (x, mem), (xs, us) = jax.lax.scan(
                 lambda c, i: plant(plan, n, c, i), (x, mem), (jnp.arange(r), keys)
             )
-        return (x, shifted(plan, r), mem), (xs, us, info)
+        return (x, shift(plan, r), mem), (xs, us, info)
 
     def block(carry, inputs):
         x, plan, mem, stopped = carry

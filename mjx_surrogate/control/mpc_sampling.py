@@ -1,111 +1,178 @@
-"""Derivative-free receding-horizon control on the black box: predictive sampling and MPPI.
+"""Derivative-free receding-horizon control on the black box: a plan held at spline knots,
+improved by sampling (predictive sampling, MPPI, CEM: :mod:`~.sampling_rules`).
 
-The same episode as :func:`mjx_surrogate.control.mpc.receding_horizon` (notation there), with a
-sampling planner instead of iLQR. At control step n, from the measured x_n and the
-shifted previous plan U (H steps):
+A plan over H control steps is k knots y [k, nu] at times tau [k] (``splines.knot_times``:
+spread from the plan's start to its horizon, or one at every step with ``knots`` 0) read
+through a spline, U = W y with W = ``splines.basis(spline, tau, 0 .. H-1)`` [H, H or k].
+A replan from the measured x_n (``optimise``) runs ``iterations`` times:
 
-    U_i = clip(U + sigma * eps_i),  eps_i ~ N(0, I),  i = 1 .. S-1;   U_0 = U (kept)
-    J_i = J(rollout of U_i from x_n on the black box)
+    y_i = clip(rule.sample(mean, spread)),  J_i = J(rollout of W y_i from x_n),  i < S
+    (mean, spread) = rule.update(y, J)
 
-Predictive sampling (``temperature`` None) keeps argmin_i J_i; MPPI weights the samples by
-w_i = exp(-(J_i - min J) / temperature) / sum and plans sum_i w_i U_i. A replan simulates
-S H black-box control steps (MPPI one more rollout, H steps, to cost its mean plan).
-
-Smooth samples (``knots`` k >= 1, as hydrax's spline-parametrised planners): eps_i is drawn at
-k knots spread evenly over the horizon (its first and last step) and interpolated linearly
-in between, eps_i = W z_i with W [H, k] and z_i ~ N(0, I) [k, nu]: a perturbation varies
-slowly over the horizon instead of independently at every step. k = H is the default's
-draws exactly (W = I); k = 1 perturbs every step by the same amount.
+and its plan is the final mean (the info: the last iteration's cheapest J_i). Between
+replans the plant gets the plan's controls at its own steps; the next replan starts from
+the spline moved on by the elapsed r steps (the knots re-read at tau + r, the spread kept),
+as hydrax's planners advance their knot times. A replan simulates iterations x S x H
+black-box control steps. With ``knots`` 0 every step is its own knot (W = I, the spline a
+zero-order hold): predictive sampling then draws what it always drew, step by step.
 """
 
 from __future__ import annotations
 
 import functools
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from mjx_surrogate.control import splines
 from mjx_surrogate.control.episode import episode
 from mjx_surrogate.control.mpc import MPCResult
+from mjx_surrogate.control.sampling_rules import SamplingHyper, get_rule
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.systems.system import System
 from mjx_surrogate.tasks import Task, at_step, trajectory_cost
 from mjx_surrogate.trajectory import open_loop
 
-
-def interpolation(H: int, knots: int) -> np.ndarray:
-    """W [H, knots]: linear interpolation from values at ``knots`` times spread evenly over
-    control steps 0 .. H-1 (both ends included; one knot: a constant) to every step."""
-    t, tau = np.arange(H, dtype=float), np.linspace(0.0, H - 1.0, knots)
-    if knots == 1:
-        return np.ones((H, 1))
-    return np.stack([np.interp(t, tau, e) for e in np.eye(knots)], axis=1)
+__all__ = ["SamplingHyper", "SamplingSettings", "SplinePlan", "hyper", "optimise", "sampling_mpc"]
 
 
-def perturbations(key: jax.Array, n: int, H: int, nu: int, knots: int, dtype) -> jax.Array:
-    """eps [n, H, nu] ~ N(0, I) at every step (knots 0), or drawn at ``knots`` knots and
-    interpolated linearly between them (module docstring)."""
-    if knots == 0:
-        return jax.random.normal(key, (n, H, nu), dtype)
-    W = jnp.asarray(interpolation(H, knots), dtype)
-    return jnp.einsum("tk,skj->stj", W, jax.random.normal(key, (n, knots, nu), dtype))
+class SamplingSettings(NamedTuple):
+    """A sampling planner's shapes (static): its ``rule`` (``sampling_rules.RULES``), S
+    ``samples`` per iteration, ``knots`` (0: every step), the ``spline`` through them
+    ("zero", "linear", "cubic"), ``iterations`` per replan, CEM's ``elites`` and its
+    ``explore`` draws at the starting spread."""
+
+    rule: str = "predictive_sampling"
+    samples: int = 64
+    knots: int = 0
+    spline: str = "zero"
+    iterations: int = 1
+    elites: int = 3
+    explore: int = 0
 
 
-@functools.partial(
-    jax.jit, static_argnames=("system", "steps", "n_samples", "plant", "knots", "replan_every")
-)
+class SplinePlan(NamedTuple):
+    """The sampling planner's plan: its controls U [H, nu] at the horizon's steps and the
+    distribution they come from, knots ``mean`` and ``spread`` [k, nu]."""
+
+    U: jax.Array
+    mean: jax.Array
+    spread: jax.Array
+
+
+def hyper(sigma, temperature=1.0, sigma_min=0.0, dtype=None) -> SamplingHyper:
+    """:class:`SamplingHyper` of plain numbers (``dtype``: the default float's)."""
+    dtype = dtype or jnp.result_type(float)
+    return SamplingHyper(*(jnp.asarray(v, dtype) for v in (sigma, temperature, sigma_min)))
+
+
+def _matrices(H: int, s: SamplingSettings, r: int = 0):
+    """(W [H, k] or None for W = I, M [k, k]: the knots moved on r steps, or None for r 0)."""
+    tau = splines.knot_times(H, s.knots)
+    kind = "zero" if s.knots == 0 else s.spline
+    W = None if s.knots == 0 else splines.basis(kind, tau, np.arange(H))
+    M = splines.basis(kind, tau, tau + r) if r else None
+    return W, M
+
+
+def _read(W, mean):
+    return mean if W is None else jnp.einsum("tk,kj->tj", jnp.asarray(W, mean.dtype), mean)
+
+
+def first_spline_plan(U0: jax.Array, s: SamplingSettings, sigma) -> SplinePlan:
+    """The plan whose spline is closest to U0 [H, nu] in least squares (U0 itself with
+    ``knots`` 0), at spread ``sigma`` (scalar or [nu])."""
+    W, _ = _matrices(U0.shape[0], s)
+    mean = U0 if W is None else jnp.asarray(np.linalg.pinv(W), U0.dtype) @ U0
+    spread = jnp.broadcast_to(jnp.asarray(sigma, U0.dtype), mean.shape)
+    return SplinePlan(_read(W, mean), mean, spread)
+
+
+def moved_on(plan: SplinePlan, r: int, s: SamplingSettings) -> SplinePlan:
+    """The plan r control steps later: its spline re-read at the knot times plus r (beyond
+    the horizon's end each spline's own extension: the last knot held, or extrapolated)."""
+    if s.knots == 0:  # a knot per step: the plan shifted, its last control held
+        mean = jnp.concatenate([plan.mean[r:], jnp.repeat(plan.mean[-1:], r, axis=0)])
+        return SplinePlan(mean, mean, plan.spread)
+    W, M = _matrices(plan.U.shape[0], s, r)
+    mean = jnp.einsum("ik,kj->ij", jnp.asarray(M, plan.mean.dtype), plan.mean)
+    return SplinePlan(_read(W, mean), mean, plan.spread)
+
+
+def optimise(
+    system: System,
+    task: Task,
+    x: jax.Array,
+    plan: SplinePlan,
+    key: jax.Array,
+    s: SamplingSettings,
+    hyper: SamplingHyper,
+    n: jax.Array | int = 0,
+) -> tuple[SplinePlan, jax.Array]:
+    """One replan from x [nx] at control step n: ``s.iterations`` rounds of sampling,
+    rollouts on ``system`` and the rule's update (module docstring) -> (the plan, the last
+    round's cheapest cost)."""
+    rule, lo, hi = get_rule(s.rule), task.u_min, task.u_max
+    W, _ = _matrices(plan.U.shape[0], s)
+    planned = at_step(task, n)
+
+    def cost(knots):
+        return trajectory_cost(planned, *open_loop(system.step, x, _read(W, knots), lo, hi))
+
+    def round_(carry, k):
+        mean, spread = carry
+        knots = jnp.clip(rule.sample(k, mean, spread, s.samples, s.explore, hyper), lo, hi)
+        J = jax.vmap(cost)(knots)
+        new = rule.update(knots, J, mean, spread, s.elites, hyper)
+        # no finite rollout at all: keep the distribution rather than average infinities
+        kept = jnp.any(jnp.isfinite(J))
+        return jax.tree.map(lambda a, b: jnp.where(kept, a, b), new, (mean, spread)), jnp.min(J)
+
+    keys = jax.random.split(key, s.iterations) if s.iterations > 1 else key[None]
+    (mean, spread), J = jax.lax.scan(round_, (plan.mean, plan.spread), keys)
+    return SplinePlan(_read(W, mean), mean, spread), J[-1]
+
+
+@functools.partial(jax.jit, static_argnames=("system", "steps", "settings", "plant", "replan_every"))
 def sampling_mpc(
     system: System,
     task: Task,
     U0: jax.Array,
     key: jax.Array,
     steps: int,
-    sigma: float | jax.Array,
-    n_samples: int = 64,
-    temperature: float | jax.Array | None = None,
+    settings: SamplingSettings,
+    hyper: SamplingHyper,
     process_noise: float | jax.Array = 0.0,
     plant: System | None = None,
-    knots: int = 0,
     progress: ProgressMeter = NO_PROGRESS,
     replan_every: int = 1,
 ) -> MPCResult:
     """One episode of ``steps`` control steps from ``task.x0`` (horizon H = task.T), the
-    first plan U0 [H, nu]; ``sigma`` (scalar or [nu], control units) scales the samples,
-    drawn at every step (``knots`` 0) or at that many knots (module docstring)."""
-    lo, hi = task.u_min, task.u_max
+    first plan U0 [H, nu] as a spline (:func:`first_spline_plan`), replanning every
+    ``replan_every`` steps with :func:`optimise`."""
     plant_step = (plant if plant is not None else system).step
 
-    def plan_cost(x, U, n):
-        X, Uc = open_loop(system.step, x, U, lo, hi)
-        return trajectory_cost(at_step(task, n), X, Uc)
-
-    def replan(x, U, k, n):
-        eps = perturbations(k, n_samples - 1, *U.shape, knots, U.dtype)
-        samples = jnp.concatenate([U[None], jnp.clip(U + sigma * eps, lo, hi)])  # [S, H, nu]
-        J = jax.vmap(lambda Ui: plan_cost(x, Ui, n))(samples)
-        if temperature is None:
-            best = jnp.argmin(J)
-            return samples[best], J[best]
-        w = jax.nn.softmax(-(J - jnp.min(J)) / temperature)
-        mean = jnp.einsum("s,stu->tu", w, samples)
-        return mean, plan_cost(x, mean, n)
+    def replan(x, plan, k, n):
+        return optimise(system, task, x, plan, k, settings, hyper, n)
 
     X, U, J = episode(
         replan,
         plant_step,
         task.x0,
-        U0,
+        first_spline_plan(U0.astype(task.x0.dtype), settings, hyper.sigma),
         key,
         steps,
         process_noise,
         progress=progress,
         replan_every=replan_every,
+        shift=lambda plan, r: moved_on(plan, r, settings),
     )
-    ones = jnp.ones(J.shape, jnp.int32)
+    ones = jnp.full(J.shape, settings.iterations, jnp.int32)
     return MPCResult(X, U, trajectory_cost(task, X, U), J, ones, jnp.zeros(J.shape + (1,), jnp.int8))
 
 
-def black_box_steps(n_samples: int, horizon: int, mppi: bool) -> int:
+def black_box_steps(settings: SamplingSettings, horizon: int) -> int:
     """Black-box control steps one replan simulates (not counting the plant's own steps)."""
-    return (n_samples + int(mppi)) * horizon
+    return settings.iterations * settings.samples * horizon

@@ -6,8 +6,9 @@ the solver's settings) into its episodes, ``{label: episode(plant, key, noise, m
 MPCResult}``, one per planner it stands for (the surrogates' kind: one per fitted model),
 and counts its black-box steps per control step. Every episode runs the same loop,
 :func:`mjx_surrogate.control.episode.episode`. Built in, in the order a study runs them:
-``d2c``, ``oracle``, ``tvlqr``, ``surrogates``, ``predictive_sampling``, ``mppi``; a new
-planner is one function plus :func:`register_planner`.
+``d2c``, ``oracle``, ``tvlqr``, ``surrogates``, ``predictive_sampling``, ``mppi``, ``cem``
+(the sampling ones: :mod:`~.sampling_planners`); a new planner is one function plus
+:func:`register_planner`, and may bring settings (``--mpc.<name>.<field>``).
 """
 
 from __future__ import annotations
@@ -18,15 +19,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate.control import mpc, mpc_online, mpc_sampling
+from mjx_surrogate.control import mpc, mpc_online, sampling_planners
 from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.control.sampling_rules import get_rule
 from mjx_surrogate.errors import registered
 from mjx_surrogate.identification.sysid import SysIdParams
 from mjx_surrogate.surrogates.mlp import MLPModel
 from mjx_surrogate.surrogates.registry import mlp_spec
 from mjx_surrogate.surrogates.sindy import SindyModel
-from mjx_surrogate.tasks import Task, trajectory_cost
-from mjx_surrogate.trajectory import open_loop
+from mjx_surrogate.tasks import Task
 
 
 class PlannerContext(NamedTuple):
@@ -47,6 +48,8 @@ class PlannerContext(NamedTuple):
     samples: int
     fit: Callable[[], tuple[dict, Any]]
     replan_every: int = 1
+    samples_matched: bool = False  # ``samples`` is D2C-MPC's budget (split over iterations)
+    planner_settings: dict = {}  # name -> the run's values of that planner's own settings
 
 
 Episode = Callable[..., mpc.MPCResult]  # (plant, key, process_noise, meter) -> MPCResult
@@ -62,6 +65,7 @@ class PlannerKind(NamedTuple):
     black_box_steps: Callable[[PlannerContext, mpc.MPCResult], float | None]
     iterative: bool = False
     description: str = ""
+    settings: Any = None  # its own settings' defaults (``--mpc.<name>.<field>``), or None
 
 
 PLANNERS: dict[str, PlannerKind] = {}
@@ -157,46 +161,6 @@ def _surrogates(c: PlannerContext) -> dict[str, Episode]:
     return out
 
 
-def _sampling(mppi: bool):
-    """Predictive sampling, or MPPI at ``mpc.mppi_temperature`` times the first plan's cost."""
-
-    def episodes(c: PlannerContext) -> dict[str, Episode]:
-        m, task, plan_task = c.config.mpc, c.task, c.plan_task
-        first = trajectory_cost(
-            plan_task, *open_loop(c.system.step, task.x0, c.U0, plan_task.u_min, plan_task.u_max)
-        )
-        lam = m.mppi_temperature * float(first) if mppi else None
-        S, N = c.samples, m.steps
-
-        def one(plant, k, w, pm):
-            return mpc_sampling.sampling_mpc(
-                c.system,
-                plan_task,
-                c.U0,
-                k,
-                N,
-                m.sampling_sigma,
-                S,
-                lam,
-                w,
-                plant,
-                m.sampling_knots,
-                pm,
-                c.replan_every,
-            )
-
-        knots = f", {m.sampling_knots} knots" if m.sampling_knots else ""
-        return {f"{'MPPI' if mppi else 'predictive sampling'} (S={S}{knots})": one}
-
-    return episodes
-
-
-def _sampling_steps(mppi: bool):
-    return lambda c, result: (
-        mpc_sampling.black_box_steps(c.samples, c.config.mpc.horizon, mppi) / c.replan_every
-    )
-
-
 for _name, _kind in {
     "d2c": PlannerKind(_replanning("d2c"), _d2c_steps, True, "iLQR on LTV models identified at every replan"),
     "oracle": PlannerKind(
@@ -204,11 +168,15 @@ for _name, _kind in {
     ),
     "tvlqr": PlannerKind(_tracking, lambda c, r: 0.0, False, "TVLQR tracking of the offline optimum"),
     "surrogates": PlannerKind(_surrogates, lambda c, r: 0.0, True, "iLQR on each global surrogate"),
-    "predictive_sampling": PlannerKind(
-        _sampling(False), _sampling_steps(False), False, "the best of S sampled plans"
-    ),
-    "mppi": PlannerKind(
-        _sampling(True), _sampling_steps(True), False, "the samples' exponentially weighted mean"
-    ),
+    **{
+        name: PlannerKind(
+            sampling_planners.sampling_episodes(name),
+            sampling_planners.sampling_steps(name),
+            False,
+            get_rule(name).description,
+            sampling_planners.SETTINGS[name],
+        )
+        for name in ("predictive_sampling", "mppi", "cem")
+    },
 }.items():
     register_planner(_name, _kind)

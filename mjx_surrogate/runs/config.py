@@ -91,8 +91,10 @@ class TaskConfig:
     x0_keyframe, goal_keyframe: a keyframe of the model (name or index) giving x0, or
       x_goal and the control reference u_ref (its ctrl).
     u_ref: the control the R term pulls towards (default zeros).
-    state_error: "euclidean" (x - x_goal) or "geodesic" (hinge angles wrapped to
-      (-pi, pi], quaternions by their rotation vector); None: the preset's, else geodesic.
+    state_error: "euclidean" (x - x_goal), "geodesic" (hinge angles wrapped to
+      (-pi, pi], quaternions by their rotation vector) or "chordal" (as geodesic, but each
+      hinge's error d measured by its chord 2 sin(d / 2): the angle costs 2 (1 - cos d),
+      hydrax's swing-up cost); None: the preset's, else geodesic.
     goals: PointGoal terms on sites or bodies, added to the quadratic cost.
     goal_tolerance: the goal counts as reached when the terminal cost is at most this
       fraction of the terminal cost at x0 (docs/results.md).
@@ -113,7 +115,7 @@ class TaskConfig:
     x0_keyframe: Optional[str] = None
     goal_keyframe: Optional[str] = None
     u_ref: Vector = None
-    state_error: Optional[Literal["euclidean", "geodesic"]] = None
+    state_error: Optional[Literal["euclidean", "geodesic", "chordal"]] = None
     goals: Tuple[PointGoal, ...] = ()
     goal_tolerance: float = 0.01
 
@@ -300,7 +302,7 @@ class AnalysisConfig:
 
 
 # the built-in planners (mjx_surrogate.control.planners), in the order a study runs them
-MPC_CONTROLLERS = ("d2c", "oracle", "tvlqr", "surrogates", "predictive_sampling", "mppi")
+MPC_CONTROLLERS = ("d2c", "oracle", "tvlqr", "surrogates", "predictive_sampling", "mppi", "cem")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -311,7 +313,9 @@ class MPCConfig:
       Jacobians: experiment.oracle; only where experiment.exact_oracle is on), "tvlqr"
       (tracking the offline D2C optimum, no replanning), "surrogates" (iLQR on every
       model of surrogate.kinds, fitted on data.n_traj trajectories around the optimum at
-      data_level), "predictive_sampling" and "mppi" (derivative-free, on the black box).
+      data_level), "predictive_sampling", "mppi" and "cem" (derivative-free, on the black
+      box; each with its own settings, --mpc.<planner>.<field>: spline, iterations, the
+      spread's units; mjx_surrogate.control.sampling_planners).
     horizon: control steps per plan H (None: task.T). steps: control steps of an episode
       (None: task.T; at most task.T with "tvlqr"). max_iter: iLQR iterations per replan.
     replan_hz: how often every planner replans, per second of the system's time (None:
@@ -335,11 +339,14 @@ class MPCConfig:
       for Lorenz (docs/mpc.md).
     n_episodes: episodes per controller and condition (their own keys).
     samples: samples per replan of the sampling MPCs (None: matched to D2C-MPC's median
-      black-box steps per control step, else 64). sampling_sigma: their spread, control
-      units. mppi_temperature: MPPI's temperature as a fraction of the first plan's cost.
-      sampling_knots: 0 draws their perturbations independently at every control step;
-      k >= 1 draws them at k knots spread over the horizon and interpolates linearly
-      between (smooth plans, as hydrax's spline planners; at most the horizon).
+      black-box steps per control step, divided by their iterations, else 64).
+      sampling_sigma: their starting spread (in each planner's sigma_units: by default
+      each actuator's half range where its limits are finite, else control units).
+      mppi_temperature: MPPI's temperature as a fraction of the first plan's cost (unless
+      its own settings give one in cost units). sampling_knots: 0 gives every control
+      step its own value; k >= 1 holds each plan at k knots spread over the horizon, read
+      through the planner's spline (zero, linear or cubic; hydrax's spline planners; at
+      most the horizon). Each sampling planner's own settings may override these.
     refit_weight: > 0 adds, for every SINDy model, SINDy-MPC refitted online before every
       replan on its training transitions and the episode's own, each of these weighing
       refit_weight training ones (``mpc_online``; SINDy-MPC's low-data setting); 0: off.
@@ -361,7 +368,7 @@ class MPCConfig:
     """
 
     controllers: Tuple[str, ...] = (
-        MPC_CONTROLLERS  # d2c, oracle, tvlqr, surrogates, predictive_sampling, mppi
+        MPC_CONTROLLERS  # d2c, oracle, tvlqr, surrogates, predictive_sampling, mppi, cem
     )
     horizon: Optional[int] = None  # control steps per plan H (None: task.T)
     steps: Optional[int] = None  # control steps of an episode (None: task.T)
@@ -373,9 +380,9 @@ class MPCConfig:
     n_episodes: int = 4  # episodes per controller and condition
     data_level: float = 0.1  # the surrogates' training data: perturbation level x U_max
     samples: Optional[int] = None  # sampling MPCs' samples per replan (None: D2C-MPC's budget)
-    sampling_sigma: float = 1.0  # the samples' spread, control units
+    sampling_sigma: float = 1.0  # the samples' starting spread (each planner's sigma_units)
     mppi_temperature: float = 0.01  # MPPI's temperature, a fraction of the first plan's cost
-    sampling_knots: int = 0  # 0: samples at every step; k: at k knots, interpolated
+    sampling_knots: int = 0  # 0: every step its own value; k: plans held at k knots
     refit_weight: float = 0.0  # > 0: surrogates refitted online, an episode's transition weighing this
     refit_updates: int = 20  # MLP refit: optimiser steps before every replan (0: no MLP refit)
     first_plan: Literal["optimum", "zeros"] = "optimum"  # every planner's first warm start

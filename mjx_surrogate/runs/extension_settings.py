@@ -1,9 +1,10 @@
 """Settings an extension brings with it (docs/extending.md).
 
-An identification scheme, a model strategy, a surrogate kind or an experiment kind may declare ``settings``:
+An identification scheme, a model strategy, a surrogate kind, an experiment kind or a
+planner may declare ``settings``:
 a frozen dataclass instance holding its defaults. A config keeps the values given in
 ``Config.extensions`` under ``"<section>.<name>"``: ``solver.<scheme>``,
-``surrogate.<kind>`` or ``experiment.<kind>``, each a dataclass instance or a mapping of
+``surrogate.<kind>``, ``experiment.<kind>`` or ``mpc.<planner>``, each a dataclass instance or a mapping of
 some of its fields (as a run's ``config.json`` writes it). The command line sets a field
 as ``--solver.<scheme>.<field> VALUE``. Before any compile every field is checked against
 its declared type, numbers must be finite, and the settings' own ``check()`` (if any)
@@ -17,6 +18,7 @@ import math
 from typing import Any
 
 from mjx_surrogate.control.model_strategies import MODEL_STRATEGIES
+from mjx_surrogate.control.planners import PLANNERS
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.identification.sysid import SCHEMES
 from mjx_surrogate.runs.config import from_dict
@@ -33,6 +35,7 @@ def declared() -> dict[str, Any]:
         ("solver", MODEL_STRATEGIES),
         ("surrogate", SURROGATES),
         ("experiment", EXPERIMENTS),
+        ("mpc", PLANNERS),
     )
     for section, registry in registries:
         for name, entry in registry.items():
@@ -86,14 +89,18 @@ def settings_of(config: Any, section: str, name: str) -> Any:
 
 def check_extensions(config: Any) -> None:
     """Every entry of ``config.extensions`` belongs to a registered extension with
-    settings, one the config uses, and holds valid values."""
+    settings, one the config uses (a planner's may stand unused: a preset keeps each of
+    its planners' settings when a run picks fewer), and holds valid values."""
     for key, value in config.extensions.items():
         section, _, name = key.partition(".")
         settings_from(_defaults(key), value, key)
+        if section == "mpc":
+            continue
         chosen = {
             "solver": (config.solver.sysid, config.solver.model_strategy),
             "surrogate": config.surrogate.kinds,
             "experiment": (config.experiment.kind,),
+            "mpc": config.mpc.controllers,
         }[section]
         if name not in chosen:
             raise ConfigError(

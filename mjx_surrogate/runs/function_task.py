@@ -74,7 +74,8 @@ def resolve_function_task(tc: TaskConfig, system: FunctionSystem) -> tuple[TaskC
         check_finite("task.u_ref", tc.u_ref)
     u_ref = np.asarray(tc.u_ref if tc.u_ref is not None else base.get("u_ref", np.zeros(system.nu)), float)
     state_error = tc.state_error or base.get("state_error", "euclidean")
-    hinges = tuple(a for a, _ in system.angle_pairs) if state_error == "geodesic" else ()
-    task = make_task(x0, x_goal, Q, Q_f, R, int(T), u_min, u_max, u_ref=u_ref, hinges=hinges)
+    hinges = tuple(a for a, _ in system.angle_pairs) if state_error in ("geodesic", "chordal") else ()
+    chordal = state_error == "chordal"
+    task = make_task(x0, x_goal, Q, Q_f, R, int(T), u_min, u_max, u_ref=u_ref, hinges=hinges, chordal=chordal)
     resolved = resolved_task_config(tc, T, x0, x_goal, Q, Q_f, R, u_min, u_max, u_ref, state_error)
     return resolved, task

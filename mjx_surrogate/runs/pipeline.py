@@ -161,6 +161,16 @@ def unit_goal_cost(task: Task) -> float:
     return 0.5 * float(np.trace(np.asarray(W))) + 0.5 * float(np.sum(np.asarray(w)))
 
 
+def goal_passes(task: Task, X: jax.Array, tolerance: float) -> np.ndarray:
+    """passes [N+1] (bool): the goal test of :func:`goal_test` applied to every state of X
+    [N+1, nx] in turn, as if each were the last."""
+    terminal = has_terminal(task)
+    costs = np.asarray(jax.vmap(lambda x: goal_cost(task, x, terminal))(jnp.asarray(X)), float)
+    start = costs[0]
+    bound = tolerance * (start if start > 0 else unit_goal_cost(task))
+    return np.isfinite(costs) & (costs <= bound)
+
+
 def goal_test(task: Task, X: jax.Array, tolerance: float) -> dict:
     """The goal test in the task's own weighted terms (:func:`tasks.goal_cost`): reached
     when goal_cost(x_T) <= tolerance * goal_cost(x_0); for a start at the goal (a hold

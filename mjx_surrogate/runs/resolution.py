@@ -16,6 +16,7 @@ from jax.sharding import Mesh
 from mjx_surrogate import sharding
 from mjx_surrogate.control.ilqr import ILQRParams
 from mjx_surrogate.control.model_strategies import get_model_strategy
+from mjx_surrogate.control.sampling_planners import SETTINGS as SAMPLING_PLANNERS
 from mjx_surrogate.cost import BLOWUP
 from mjx_surrogate.errors import ConfigError, describe
 from mjx_surrogate.identification.sysid import SysIdParams, get_scheme
@@ -429,6 +430,15 @@ def _resolve_mpc(cfg: Config, system: System, T: int, solver_samples: int):
             "mpc.sampling_knots",
             f"at most the horizon, {m.horizon} steps (0: every step), got {m.sampling_knots}",
         )
+    for name in m.controllers:  # a sampling planner's own knots and elites
+        own = settings_of(cfg, "mpc", name) if name in SAMPLING_PLANNERS else None
+        if own is not None and own.knots is not None and own.knots > m.horizon:
+            raise ConfigError(
+                f"mpc.{name}.knots",
+                f"at most the horizon, {m.horizon} steps (0: every step), got {own.knots}",
+            )
+        if own is not None and getattr(own, "elites", 1) > (own.samples or m.samples or 2**31):
+            raise ConfigError(f"mpc.{name}.elites", f"at most the samples, got {own.elites}")
     if m.replan_hz is not None:
         every = replan_every(m, float(system.dt))
         if every < 1 or m.steps % every:

@@ -138,7 +138,7 @@ def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
         u_ref_default = hold_controls(m, x0, u_min, u_max) if custom else np.zeros(nu)
     u_ref = np.asarray(tc.u_ref if tc.u_ref is not None else u_ref_default)
     state_error = tc.state_error or base.get("state_error", "geodesic")
-    hinges, quats = geodesic_indices(m) if state_error == "geodesic" else ((), ())
+    hinges, quats = geodesic_indices(m) if state_error in ("geodesic", "chordal") else ((), ())
     points = _points(system, tc)
     goals = tc.goals
     task = make_task(
@@ -157,5 +157,6 @@ def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
         points=points,
         hinges=hinges,
         quats=quats,
+        chordal=state_error == "chordal",
     )
     return resolved_task_config(tc, T, x0, x_goal, Q, Q_f, R, u_min, u_max, u_ref, state_error), task

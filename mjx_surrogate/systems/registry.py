@@ -22,7 +22,17 @@ from typing import Callable
 from jax.sharding import Mesh
 
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.systems import allen_cahn, burgers, cartpole, f8, fish, lorenz, pendulum, swimmer
+from mjx_surrogate.systems import (
+    allen_cahn,
+    burgers,
+    cartpole,
+    f8,
+    fish,
+    hydrax_tasks,
+    lorenz,
+    pendulum,
+    swimmer,
+)
 from mjx_surrogate.systems.function import FunctionSystem
 from mjx_surrogate.systems.spec import SystemDefaults
 from mjx_surrogate.systems.system import System, build_system
@@ -123,6 +133,8 @@ def _register_module(name: str, module: ModuleType) -> None:
 
 for _name, _module in (("pendulum", pendulum), ("cartpole", cartpole), ("fish", fish)):
     _register_module(_name, _module)
+register_system("hydrax_pendulum", hydrax_tasks.pendulum_config, hydrax_tasks.PENDULUM_TASKS)
+register_system("hydrax_cartpole", hydrax_tasks.cartpole_config, hydrax_tasks.CARTPOLE_TASKS)
 register_family(
     "swimmer<N> (N >= 2, e.g. swimmer6)", r"^swimmer(\d+)$", swimmer.default_config, swimmer.TASKS
 )
