@@ -84,6 +84,10 @@ CASES = [
     (["smoke_mpc", "--mpc.cem.iterations", "0"], "mpc.cem.iterations"),
     (["smoke_mpc", "--mpc.predictive_sampling.sigma", "nan"], "mpc.predictive_sampling.sigma"),
     (["smoke_mpc", "--mpc.ilqg.sigma", "1"], "--mpc.ilqg.sigma"),  # no such planner
+    (
+        ["smoke_mpc", "--mpc.controllers", "d2c_sampling", "--mpc.d2c_sampling.samples", "1"],
+        "mpc.d2c_sampling.samples",
+    ),
     (["smoke_mpc", "--task.state_error", "chord"], "--task.state_error"),
     (["lorenz_mpc", "--mpc.plants", "mass=1.5"], "mpc.plants[0]"),  # not a keyword of Lorenz's
     (["lorenz_mpc", "--mpc.plants", "dt=0.02"], "mpc.plants[0]"),  # a plant keeps the period

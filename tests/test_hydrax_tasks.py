@@ -157,3 +157,22 @@ def test_every_planner_of_the_pendulum_preset_swings_up_and_holds(tmp_path, monk
     (folder,) = os.listdir(tmp_path / "exact")
     (row,) = json.loads((tmp_path / "exact" / folder / "metrics.json").read_text())["mpc_rows"]
     assert row["in_goal_from_s"] == [None, None], row["in_goal_from_s"]
+
+
+@pytest.mark.slow
+def test_from_zero_controls_at_the_hanging_state_only_the_hybrid_moves():
+    """The hanging pendulum at rest under zero controls is a stationary point of the cost:
+    D2C-MPC's replans never move it (the state stays exactly hanging); with sampled
+    proposals (d2c_sampling) the pendulum swings."""
+    from mjx_surrogate.control import mpc
+    from mjx_surrogate.control.ilqr import ILQRParams
+    from mjx_surrogate.control.mpc_hybrid import hybrid_mpc
+    from mjx_surrogate.identification.sysid import SysIdParams
+
+    system, task = _resolved("pendulum")
+    params, sysid = ILQRParams(max_iter=1, n_alphas=4), SysIdParams(n_samples=3, every=5, design="orthogonal")
+    U0, steps = jnp.zeros((task.T, 1)), 100
+    d2c = mpc.receding_horizon(system, task, U0, jax.random.key(0), steps, params, sysid, 0.0, "d2c")
+    assert np.all(np.asarray(d2c.X) == 0.0)
+    hyb = hybrid_mpc(system, task, U0, jax.random.key(0), steps, params, sysid, jnp.asarray(0.5), 16, 4)
+    assert np.abs(np.asarray(hyb.X)[:, 0]).max() > 1.0

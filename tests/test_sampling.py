@@ -209,3 +209,30 @@ def test_a_planners_own_settings_override_the_shared_ones_in_range_units():
     assert (s.samples, s.knots, s.explore, s.elites) == (40, 0, 10, 3) and float(h.sigma[0]) == 0.5
     s, h, _ = resolved(c, "predictive_sampling")  # no settings of its own: the defaults, in range units
     assert (s.samples, s.knots, s.spline) == (30, 3, "zero") and float(h.sigma[0]) == 1.5
+
+
+def test_the_hybrids_proposals_are_the_warm_start_and_smooth_draws_around_it():
+    from mjx_surrogate.control.mpc_hybrid import proposals
+
+    U = jnp.asarray(np.linspace(-1, 1, H)[:, None])
+    P = np.asarray(proposals(jax.random.key(0), U, 6, 3, "zero", 0.5, -0.8, 0.8))
+    assert P.shape == (6, H, 1)
+    np.testing.assert_array_equal(P[0], np.asarray(U))  # the warm start itself, unclipped
+    tau = splines.knot_times(H, 3)
+    z = np.asarray(jax.random.normal(jax.random.key(0), (5, 3, 1)))
+    expect = np.clip(
+        np.asarray(U) + 0.5 * np.einsum("tk,skj->stj", splines.basis("zero", tau, np.arange(H)), z), -0.8, 0.8
+    )
+    np.testing.assert_allclose(P[1:], expect, atol=1e-12)
+
+
+def test_the_hybrid_with_no_spread_is_d2c_mpc_on_a_linear_system():
+    """sigma 0: every draw is the warm start, so each replan is D2C-MPC's (the linear map
+    identified to round-off): the same closed loop."""
+    from mjx_surrogate.control.mpc_hybrid import hybrid_mpc
+
+    params, sysid = ILQRParams(max_iter=3), SysIdParams(n_samples=6)
+    task, U0 = _task(), jnp.zeros((H, 1))
+    d2c = mpc.receding_horizon(_linear(), task, U0, jax.random.key(0), N, params, sysid, 0.0, "d2c")
+    hyb = hybrid_mpc(_linear(), task, U0, jax.random.key(0), N, params, sysid, jnp.asarray(0.0), 4, 2)
+    np.testing.assert_allclose(np.asarray(hyb.X), np.asarray(d2c.X), atol=1e-8)

@@ -7,7 +7,8 @@ MPCResult}``, one per planner it stands for (the surrogates' kind: one per fitte
 and counts its black-box steps per control step. Every episode runs the same loop,
 :func:`mjx_surrogate.control.episode.episode`. Built in, in the order a study runs them:
 ``d2c``, ``oracle``, ``tvlqr``, ``surrogates``, ``predictive_sampling``, ``mppi``, ``cem``
-(the sampling ones: :mod:`~.sampling_planners`); a new planner is one function plus
+(the sampling ones: :mod:`~.sampling_planners`), ``d2c_sampling`` (:mod:`~.mpc_hybrid`,
+not among the default ``mpc.controllers``); a new planner is one function plus
 :func:`register_planner`, and may bring settings (``--mpc.<name>.<field>``).
 """
 
@@ -19,7 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate.control import mpc, mpc_online, sampling_planners
+from mjx_surrogate.control import mpc, mpc_hybrid, mpc_online, sampling_planners
 from mjx_surrogate.control.ilqr import ILQRParams
 from mjx_surrogate.control.sampling_rules import get_rule
 from mjx_surrogate.errors import registered
@@ -178,5 +179,12 @@ for _name, _kind in {
         )
         for name in ("predictive_sampling", "mppi", "cem")
     },
+    "d2c_sampling": PlannerKind(
+        mpc_hybrid.episodes,
+        mpc_hybrid.black_box_steps,
+        True,
+        "D2C-MPC from the best of its warm start and S - 1 sampled proposals (iLQS)",
+        mpc_hybrid.HybridSettings(),
+    ),
 }.items():
     register_planner(_name, _kind)

@@ -315,7 +315,8 @@ class MPCConfig:
       model of surrogate.kinds, fitted on data.n_traj trajectories around the optimum at
       data_level), "predictive_sampling", "mppi" and "cem" (derivative-free, on the black
       box; each with its own settings, --mpc.<planner>.<field>: spline, iterations, the
-      spread's units; mjx_surrogate.control.sampling_planners).
+      spread's units; mjx_surrogate.control.sampling_planners); not by default,
+      "d2c_sampling" (D2C-MPC from the best of its warm start and sampled proposals).
     horizon: control steps per plan H (None: task.T). steps: control steps of an episode
       (None: task.T; at most task.T with "tvlqr"). max_iter: iLQR iterations per replan.
     replan_hz: how often every planner replans, per second of the system's time (None:

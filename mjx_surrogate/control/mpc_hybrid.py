@@ -1,0 +1,150 @@
+"""D2C-MPC with sampling proposals (planner ``d2c_sampling``), as MuJoCo MPC's iLQS puts
+sampling before iLQG: at every replan, S - 1 smooth perturbations of the warm start's
+controls (drawn at spline knots, ``mpc_sampling``'s splines) are rolled out on the black
+box beside the warm start itself; D2C-MPC's replan (:func:`mpc.ilqr_replan`) then starts
+from the cheapest. Where the warm start wins, the replan is D2C-MPC's own (its policy kept);
+where a draw wins, the replan starts from that draw's controls alone.
+
+What it is for: a start where every local model says the controls do not change the cost
+(a pendulum hanging at rest under zero controls: the cost's gradient vanishes there, and
+D2C-MPC never moves) or a local minimum the draws see past. It costs S x H black-box
+steps per replan on top of D2C-MPC's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import Any, Literal, Optional
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mjx_surrogate.control import mpc, splines
+from mjx_surrogate.control.d2c import problem
+from mjx_surrogate.control.episode import Plan
+from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.control.sampling_planners import spread_scale
+from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.identification import sysid as sid
+from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
+from mjx_surrogate.systems.system import System
+from mjx_surrogate.tasks import Task, at_step, trajectory_cost
+from mjx_surrogate.trajectory import open_loop
+
+
+@dataclasses.dataclass(frozen=True)
+class HybridSettings:
+    """The proposals' settings (``--mpc.d2c_sampling.<field>``): S ``samples`` per replan
+    (the warm start among them), their spread ``sigma`` (None: mpc.sampling_sigma) in
+    ``sigma_units`` (as the sampling planners'), drawn at ``knots`` knots of ``spline``."""
+
+    samples: int = 16
+    sigma: Optional[float] = None
+    sigma_units: Literal["range", "control"] = "range"
+    knots: int = 4
+    spline: Literal["zero", "linear", "cubic"] = "zero"
+
+    def check(self) -> None:
+        if self.samples < 2:
+            raise ConfigError("samples", f"must be >= 2 (the warm start and one draw), got {self.samples}")
+        if self.sigma is not None and self.sigma < 0:
+            raise ConfigError("sigma", f"must be >= 0, or unset, got {self.sigma}")
+        if self.knots < 0:
+            raise ConfigError("knots", f"must be >= 0 (0: every step its own draw), got {self.knots}")
+
+
+def proposals(key: jax.Array, U: jax.Array, n: int, knots: int, spline: str, sigma, lo, hi) -> jax.Array:
+    """[n, H, nu]: U [H, nu] itself and n - 1 draws U + sigma W z, z ~ N(0, I) at ``knots``
+    knots read through ``spline`` (W = I with knots 0), clipped to [lo, hi]."""
+    H, nu = U.shape
+    k = H if knots == 0 else knots
+    z = jax.random.normal(key, (n - 1, k, nu), U.dtype)
+    if knots:
+        W = jnp.asarray(splines.basis(spline, splines.knot_times(H, knots), np.arange(H)), U.dtype)
+        z = jnp.einsum("tk,skj->stj", W, z)
+    return jnp.concatenate([U[None], jnp.clip(U + sigma * z, lo, hi)])
+
+
+@functools.partial(
+    jax.jit, static_argnames=("system", "steps", "plant", "replan_every", "n_samples", "knots", "spline")
+)
+def hybrid_mpc(
+    system: System,
+    task: Task,
+    U0: jax.Array,
+    key: jax.Array,
+    steps: int,
+    params: ILQRParams,
+    sysid: sid.SysIdParams,
+    sigma: jax.Array,
+    n_samples: int = 16,
+    knots: int = 4,
+    spline: str = "zero",
+    process_noise: float | jax.Array = 0.0,
+    plant: System | None = None,
+    progress: ProgressMeter = NO_PROGRESS,
+    replan_every: int = 1,
+) -> mpc.MPCResult:
+    """One episode of D2C-MPC with ``n_samples`` sampling proposals per replan (module
+    docstring); the rest as :func:`mpc.receding_horizon`."""
+    plant_step = (plant if plant is not None else system).step
+    lo, hi = task.u_min, task.u_max
+
+    def replan(x, plan, k, n):
+        k_draw, k_solve = jax.random.split(k)
+        planned = at_step(task, n)
+        U = proposals(k_draw, plan.U, n_samples, knots, spline, sigma, lo, hi)
+        J = jax.vmap(lambda Ui: trajectory_cost(planned, *open_loop(system.step, x, Ui, lo, hi)))(U)
+        best = jnp.argmin(J)
+        start = Plan(U[best], plan.X, jnp.where(best > 0, 0.0, plan.K))  # a draw: its controls alone
+        prob = problem(system, planned.replace(x0=x), sysid, "d2c")._replace(linearize_fine=None)
+        return mpc.ilqr_replan(prob, start, params, k_solve)
+
+    return mpc._ilqr_episode(replan, plant_step, task, U0, key, steps, process_noise, progress, replan_every)
+
+
+def episodes(c: Any) -> dict:
+    """The planner kind's episodes (``c``: a ``planners.PlannerContext``)."""
+    own = c.planner_settings.get("d2c_sampling", HybridSettings())
+    m = c.config.mpc
+    scale = spread_scale(c.plan_task.u_min, c.plan_task.u_max, own.sigma_units)
+    sigma = jnp.asarray((m.sampling_sigma if own.sigma is None else own.sigma) * scale, c.task.x0.dtype)
+
+    def one(plant, k, w, pm):
+        return hybrid_mpc(
+            c.system,
+            c.plan_task,
+            c.U0,
+            k,
+            m.steps,
+            c.params,
+            c.sysid,
+            sigma,
+            own.samples,
+            own.knots,
+            own.spline,
+            w,
+            plant,
+            pm,
+            c.replan_every,
+        )
+
+    return {f"D2C-MPC + sampling (S={own.samples})": one}
+
+
+def black_box_steps(c: Any, result: mpc.MPCResult) -> float:
+    """D2C-MPC's steps per control step plus the proposals' S x H per replan, over the r
+    control steps a replan serves (median over the episodes)."""
+    own = c.planner_settings.get("d2c_sampling", HybridSettings())
+    H = c.config.mpc.horizon
+    per_episode = [
+        (
+            mpc.black_box_steps(jax.tree.map(lambda a: a[e], result), H, c.params.n_alphas, c.sysid)
+            + own.samples * H
+        ).mean()
+        / c.replan_every
+        for e in range(c.config.mpc.n_episodes)
+    ]
+    return float(np.median(per_episode))
