@@ -95,7 +95,7 @@ def spread_scale(lo: np.ndarray, hi: np.ndarray, units: str) -> np.ndarray:
 def resolved(c: PlannerContext, name: str):
     """(SamplingSettings, SamplingHyper, the planner's settings) of planner ``name`` in
     context ``c``: its own settings over the ``mpc`` section's shared ones."""
-    m, own = c.config.mpc, c.planner_settings.get(name, SETTINGS[name])
+    m, own = c.config.mpc, c.planner_settings.get(name, SETTINGS.get(name, SamplingPlannerSettings()))
     samples = own.samples or c.samples
     if own.samples is None and c.samples_matched:  # the budget per replan, over its iterations
         samples = max(2, int(round(c.samples / own.iterations)))
