@@ -67,6 +67,13 @@ class Task:
     chordal: bool = struct.field(pytree_node=False, default=False)
 
 
+def half_ranges(u_min: np.ndarray, u_max: np.ndarray) -> np.ndarray:
+    """[nu] half of each control's range, 1 where a control is unlimited: the scale of a
+    control in the default weights, start noise and sampling spreads."""
+    lo, hi = np.asarray(u_min, float), np.asarray(u_max, float)
+    return np.where(np.isfinite(hi - lo), 0.5 * (hi - lo), 1.0)
+
+
 def at_step(task: Task, n: jax.Array) -> Task:
     """The horizon-T task as planned at control step n of an episode: with a ``deadline``
     D it ends at stage clip(D - n, 0, T) (the horizon shrinks to the task's end; past it

@@ -19,12 +19,12 @@ from typing import Any, Literal, Optional
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-from mjx_surrogate.control import mpc, splines
+from mjx_surrogate.control import mpc
 from mjx_surrogate.control.d2c import problem
 from mjx_surrogate.control.episode import Plan
 from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.control.mpc_sampling import reading
 from mjx_surrogate.control.sampling_planners import spread_scale
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.identification import sysid as sid
@@ -59,11 +59,10 @@ def proposals(key: jax.Array, U: jax.Array, n: int, knots: int, spline: str, sig
     """[n, H, nu]: U [H, nu] itself and n - 1 draws U + sigma W z, z ~ N(0, I) at ``knots``
     knots read through ``spline`` (W = I with knots 0), clipped to [lo, hi]."""
     H, nu = U.shape
-    k = H if knots == 0 else knots
-    z = jax.random.normal(key, (n - 1, k, nu), U.dtype)
-    if knots:
-        W = jnp.asarray(splines.basis(spline, splines.knot_times(H, knots), np.arange(H)), U.dtype)
-        z = jnp.einsum("tk,skj->stj", W, z)
+    z = jax.random.normal(key, (n - 1, knots or H, nu), U.dtype)
+    W = reading(H, knots, spline)
+    if W is not None:
+        z = jnp.einsum("tk,skj->stj", jnp.asarray(W, U.dtype), z)
     return jnp.concatenate([U[None], jnp.clip(U + sigma * z, lo, hi)])
 
 
@@ -134,17 +133,8 @@ def episodes(c: Any) -> dict:
     return {f"D2C-MPC + sampling (S={own.samples})": one}
 
 
-def black_box_steps(c: Any, result: mpc.MPCResult) -> float:
-    """D2C-MPC's steps per control step plus the proposals' S x H per replan, over the r
-    control steps a replan serves (median over the episodes)."""
+def proposal_steps(c: Any) -> float:
+    """The proposals' black-box steps per control step: S x H per replan, over the r
+    control steps a replan serves (D2C-MPC's own are counted as for ``d2c``)."""
     own = c.planner_settings.get("d2c_sampling", HybridSettings())
-    H = c.config.mpc.horizon
-    per_episode = [
-        (
-            mpc.black_box_steps(jax.tree.map(lambda a: a[e], result), H, c.params.n_alphas, c.sysid)
-            + own.samples * H
-        ).mean()
-        / c.replan_every
-        for e in range(c.config.mpc.n_episodes)
-    ]
-    return float(np.median(per_episode))
+    return own.samples * c.config.mpc.horizon / c.replan_every

@@ -68,13 +68,20 @@ def hyper(sigma, temperature=1.0, sigma_min=0.0, dtype=None) -> SamplingHyper:
     return SamplingHyper(*(jnp.asarray(v, dtype) for v in (sigma, temperature, sigma_min)))
 
 
+def reading(H: int, knots: int, spline: str) -> np.ndarray | None:
+    """W [H, knots]: the ``spline`` through ``knots`` knots read at the horizon's H steps;
+    None for knots 0 (W = I, every step its own knot)."""
+    if knots == 0:
+        return None
+    return splines.basis(spline, splines.knot_times(H, knots), np.arange(H))
+
+
 def _matrices(H: int, s: SamplingSettings, r: int = 0):
     """(W [H, k] or None for W = I, M [k, k]: the knots moved on r steps, or None for r 0)."""
     tau = splines.knot_times(H, s.knots)
     kind = "zero" if s.knots == 0 else s.spline
-    W = None if s.knots == 0 else splines.basis(kind, tau, np.arange(H))
     M = splines.basis(kind, tau, tau + r) if r else None
-    return W, M
+    return reading(H, s.knots, s.spline), M
 
 
 def _read(W, mean):

@@ -181,7 +181,7 @@ for _name, _kind in {
     },
     "d2c_sampling": PlannerKind(
         mpc_hybrid.episodes,
-        mpc_hybrid.black_box_steps,
+        lambda c, result: _d2c_steps(c, result) + mpc_hybrid.proposal_steps(c),
         True,
         "D2C-MPC from the best of its warm start and S - 1 sampled proposals (iLQS)",
         mpc_hybrid.HybridSettings(),

@@ -22,7 +22,7 @@ import numpy as np
 from mjx_surrogate.control import mpc_sampling
 from mjx_surrogate.control.mpc_sampling import SamplingHyper, SamplingSettings
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.tasks import trajectory_cost
+from mjx_surrogate.tasks import half_ranges, trajectory_cost
 from mjx_surrogate.trajectory import open_loop
 
 PlannerContext = Any  # mjx_surrogate.control.planners.PlannerContext (which imports this module)
@@ -87,9 +87,7 @@ LABELS = {"predictive_sampling": "predictive sampling", "mppi": "MPPI", "cem": "
 def spread_scale(lo: np.ndarray, hi: np.ndarray, units: str) -> np.ndarray:
     """[nu]: what the spread is multiplied by: each actuator's half range (hi - lo) / 2 where
     both limits are finite ("range"), else 1 (control units)."""
-    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    half = (hi - lo) / 2
-    return np.where((units == "range") & np.isfinite(half), half, 1.0)
+    return half_ranges(lo, hi) if units == "range" else np.ones(np.shape(lo))
 
 
 def resolved(c: PlannerContext, name: str):

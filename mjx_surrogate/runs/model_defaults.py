@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 
 from mjx_surrogate.identification.sysid import SysIdParams
+from mjx_surrogate.tasks import half_ranges
 
 HOLD_T = 50  # control steps of the hold task
 FRICTION_SIGMA_MAX = 2e-5  # the largest default perturbation on a model with dry friction
@@ -88,13 +89,6 @@ def default_init(system_name: str) -> str:
     servos to joint angle 0), "u_ref" for a user's function (the task's control
     reference, zeros unless given), "zeros" for registered ones (the paper's start)."""
     return {"mjcf": "hold", "python": "u_ref"}.get(system_name, "zeros")
-
-
-def half_ranges(u_min: np.ndarray, u_max: np.ndarray) -> np.ndarray:
-    """[nu] half of each control's range, 1 where a control is unlimited: the scale of a
-    control in the default weights and start noise."""
-    lo, hi = np.asarray(u_min, float), np.asarray(u_max, float)
-    return np.where(np.isfinite(hi - lo), 0.5 * (hi - lo), 1.0)
 
 
 def _data_at(m: mujoco.MjModel, x: np.ndarray) -> mujoco.MjData:

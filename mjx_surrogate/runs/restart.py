@@ -21,9 +21,8 @@ from mjx_surrogate.control.effort import multistart_steps, steps_per_identificat
 from mjx_surrogate.control.ilqr import ILQRParams, StopReason
 from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
-from mjx_surrogate.runs.model_defaults import half_ranges
 from mjx_surrogate.systems import System
-from mjx_surrogate.tasks import Task
+from mjx_surrogate.tasks import Task, half_ranges
 from mjx_surrogate.timing import Timed
 
 
