@@ -19,5 +19,7 @@ CONFIG = dataclasses.replace(
     solver=dataclasses.replace(_PREDICT.solver, max_iter=800),
     experiment=ExperimentConfig(kind="control", exact_oracle=False, x64=True),
     data=DataConfig(n_traj=200, levels=(0.05,), n_seeds=1),
-    surrogate=SurrogateConfig(sindy=SindyConfig(libraries=("poly2",)), mlp=MLPConfig(epochs=50)),
+    surrogate=SurrogateConfig(
+        sindy=SindyConfig(libraries=("poly2",)), mlp=MLPConfig(epochs=1000, patience=20)
+    ),
 )

@@ -1,8 +1,8 @@
 """Experiment kind "analysis": the paper's model-convergence, ill-conditioning and variance
 experiments around the task's optimum (paper: the cartpole swing-up).
 
-Stages: ``optimum``, ``convergence``, ``ill_conditioning``, ``variance`` (each drives a step
-meter naming the fit or training it runs), each figure drawn once its stage is written.
+Stages: ``optimum``, ``convergence``, ``ill_conditioning``, ``variance``, ``ltv`` (each drives
+a step meter naming the fit or training it runs), each figure drawn once its stage is written.
 """
 
 from __future__ import annotations
@@ -15,12 +15,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate import progress
-from mjx_surrogate.analysis import spectra
+from mjx_surrogate.analysis import ltv_sampling, spectra
 from mjx_surrogate.identification import data, step_models
 from mjx_surrogate.runs import pipeline, plots
 from mjx_surrogate.runs.config import Config
 from mjx_surrogate.runs.experiment_kinds import analysis_library_specs
-from mjx_surrogate.runs.resolution import Resolved
+from mjx_surrogate.runs.resolution import Resolved, solver_params
 from mjx_surrogate.runs.results import Run
 from mjx_surrogate.surrogates import mlp, sindy
 from mjx_surrogate.surrogates.registry import library_specs, mlp_spec
@@ -97,6 +97,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     _gram_figure(record, s, a_gram)
     _, a_var = record.stage("variance", lambda: _variance(s))
     _variance_figures(record, s, a_var)
+    record.stage("ltv", lambda: _ltv(s))
     record.folder.write_text("analysis_table.md", _table(record.metrics))
     return m_opt["status"]
 
@@ -192,9 +193,13 @@ def _ill_conditioning(s: _Study) -> tuple[dict, dict]:
         for name in a.gram_libraries:
             meter.advance(f"SINDy {name}")
             theta = sindy.design(s.specs[name], tr.x, tr.u)
-            eig = spectra.eigenvalues(sindy.gram(theta))
+            G = np.asarray(sindy.gram(theta), np.float64)
+            eig = spectra.eigenvalues(G)
+            d = np.sqrt(np.where(np.diag(G) > 0, np.diag(G), 1.0))
             gram[f"SINDy {name} {100 * a.gram_sindy_level:g}%"] = {
                 "condition": spectra.condition(eig),
+                # scaled as the LTV solver scales its Gram (mjx_surrogate/analysis/ltv_sampling.py)
+                "condition_unit_diagonal": spectra.condition(spectra.eigenvalues(G / np.outer(d, d))),
                 "n_features": int(theta.shape[1]),
                 "precision": str(theta.dtype),
             }
@@ -343,6 +348,17 @@ def _training(trained, seconds: float) -> dict:
     }
 
 
+def _ltv(s: _Study) -> tuple[dict, dict]:
+    """4. The local LTV regression's Gram, variance and accuracy under each sampling
+    distribution (:mod:`mjx_surrogate.analysis.ltv_sampling`), at the solver's sample count and spread."""
+    _, p = solver_params(s.cfg)
+    with progress.steps("analysis: LTV regression", 1, s.cfg.experiment.progress) as meter:
+        meter.advance(f"{len(ltv_sampling.DISTRIBUTIONS)} distributions x {s.cfg.analysis.n_datasets} seeds")
+        key = jax.random.fold_in(s.keys["var"], 1000)
+        n = s.cfg.analysis.n_datasets
+        return ltv_sampling.measure(s.system, s.X_star, s.U_star, key, n, p.n_samples, p.sigma_x, p.sigma_u)
+
+
 def _one(cfg):
     import dataclasses
 
@@ -362,4 +378,16 @@ def _table(m: dict) -> str:
     for k, v in m["variance"].items():
         if not k.startswith("_"):
             lines += [f"| {k}: {q} | {x:.3g} |" for q, x in v.items()]
+    ltv = {k: v for k, v in (m.get("ltv") or {}).items() if not k.startswith("_")}
+    if ltv:
+        lines += [
+            "\n## The local LTV regression under each sampling distribution\n",
+            "| distribution | [A B] error (median over t) | condition, unit diagonal | projection spread |",
+            "|---|---|---|---|",
+        ]
+        lines += [
+            f"| {k} | {v['model_error']:.3g} | {v['condition_unit_diagonal']:.3g} | "
+            f"{v['projection_spread']:.3g} |"
+            for k, v in ltv.items()
+        ]
     return "\n".join(lines) + "\n"

@@ -40,7 +40,7 @@ def _surrogate_stage(res, X_d2c, U_d2c, U0, J_d2c, level, seed, key, params):
         ds = data.sample(system, X_d2c, U_d2c, key, dc.n_traj, level, dc.x0_sigma, task.u_min, task.u_max)
         train, test = data.split(ds, jax.random.fold_in(key, 1), dc.test_fraction)
         fitted = fit_all(
-            FitContext(cfg, system),
+            FitContext(cfg, system, task.T),
             data.transitions(train),
             data.transitions(test),
             jax.random.fold_in(key, 2),

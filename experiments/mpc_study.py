@@ -191,7 +191,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         train, test = data.split(ds, jax.random.fold_in(k_data, 1), dc.test_fraction)
         train = data.transitions(train)
         fitted = fit_all(
-            FitContext(cfg, system), train, data.transitions(test), jax.random.fold_in(k_data, 2)
+            FitContext(cfg, system, task.T), train, data.transitions(test), jax.random.fold_in(k_data, 2)
         )
         return {label: jax.tree.map(np.asarray, f.model) for label, f in fitted.items()}, train
 

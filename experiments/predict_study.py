@@ -46,7 +46,7 @@ def level_stage(res: Resolved, X_star, U_star, level: float, i: int, key: jax.Ar
         t_data = time.perf_counter() - t0
         train, test = data.split(ds, k_split, dc.test_fraction)
         fitted = fit_all(
-            FitContext(cfg, system), data.transitions(train), data.transitions(test), k_fit, meter
+            FitContext(cfg, system, task.T), data.transitions(train), data.transitions(test), k_fit, meter
         )
         steps = {name: step_models.as_pytree(f.model) for name, f in fitted.items()}
         info = {name: f.info for name, f in fitted.items()}

@@ -74,6 +74,25 @@ RULES: dict[str, Rule] = {
         "some network's mean pairwise cosine between descent directions below {max_cosine}",
         (("max_cosine", 0.99),),
     ),
+    "ltv_gram": Rule(
+        "the paper's",
+        "the local LTV regression's Gram matrix dX' dX is well conditioned and the variance of "
+        "its right-hand side is low",
+        "under every sampling distribution the largest over the seeds of the median over t of "
+        "the Gram's condition number (scaled to a unit diagonal, as the solver solves it) is "
+        "below {max_condition} and below every SINDy library's at the same scaling, and the "
+        "spread of its error projections across seeds, relative to the right-hand side, is "
+        "below every SINDy variance library's",
+        (("max_condition", 100.0),),
+    ),
+    "ltv_distribution": Rule(
+        "the paper's",
+        "the sampling distribution is immaterial to the local LTV estimate, which is accurate",
+        "under every sampling distribution the largest over the seeds of the [A B] error (median "
+        "over t, relative to central finite differences) is below {max_error_pct} %, and the "
+        "distributions' median errors are within a factor {factor} of each other",
+        (("max_error", 0.01), ("factor", 2.0)),
+    ),
     "theory_monomial": Rule(
         "the paper's, Section 3",
         "under N(0, sigma^2) the monomial Gram entry x^(2N) has variance "
@@ -180,6 +199,36 @@ def convergence_claim(rows: dict) -> bool | None:
     effect = hi["relative_spread"] - lo["relative_spread"]
     apart = hi["relative_spread_interval"][0] > lo["relative_spread_interval"][1]
     return bool(effect >= RULES["convergence"].value("min_effect") and apart)
+
+
+def _rows(ltv: dict) -> dict:
+    return {k: v for k, v in (ltv or {}).items() if not k.startswith("_")}
+
+
+def ltv_gram_claim(ltv: dict, ill: dict, var: dict) -> bool | None:
+    """The ``ltv_gram`` rule on the analysis stages ``ltv``, ``ill_conditioning`` and
+    ``variance``; None where a stage (or its unit-diagonal condition) is missing."""
+    rows = _rows(ltv)
+    sindy_c = [v.get("condition_unit_diagonal") for k, v in ill.items() if k.startswith("SINDy")]
+    sindy_v = [v["relative_to_rhs"] for k, v in var.items() if k.startswith("SINDy")]
+    if not rows or not sindy_c or None in sindy_c or not sindy_v:
+        return None
+    cap = min([RULES["ltv_gram"].value("max_condition"), *sindy_c])
+    return all(
+        v["condition_unit_diagonal_interval"][1] < cap and v["projection_spread"] < min(sindy_v)
+        for v in rows.values()
+    )
+
+
+def ltv_distribution_claim(ltv: dict) -> bool | None:
+    """The ``ltv_distribution`` rule on the analysis stage ``ltv``; None where it is missing."""
+    rows = _rows(ltv)
+    if len(rows) < 2:
+        return None
+    t = dict(RULES["ltv_distribution"].thresholds)
+    medians = [v["model_error"] for v in rows.values()]
+    accurate = all(v["model_error_interval"][1] < t["max_error"] for v in rows.values())
+    return bool(accurate and max(medians) <= t["factor"] * min(medians))
 
 
 def rules_table() -> list[str]:

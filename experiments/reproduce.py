@@ -65,7 +65,16 @@ def quick(cfg, name: str):
         system=cfg.system if is_function_system(cfg.system.name) else r(cfg.system, backend="native"),
         solver=r(cfg.solver, max_iter=min(cfg.solver.max_iter, 40)),
         data=r(cfg.data, n_traj=min(cfg.data.n_traj, 40 if name.startswith("fish") else 60), n_seeds=1),
-        surrogate=r(cfg.surrogate, mlp=r(cfg.surrogate.mlp, epochs=2, batch_size=64, checkpoints=())),
+        surrogate=r(
+            cfg.surrogate,
+            mlp=r(
+                cfg.surrogate.mlp,
+                epochs=2,
+                batch_size=64,
+                checkpoints=(),
+                fixed_epochs_beside=min(cfg.surrogate.mlp.fixed_epochs_beside, 2),
+            ),
+        ),
         analysis=r(
             cfg.analysis,
             n_datasets=2,

@@ -31,6 +31,13 @@ CASES = [
     (["smoke_d2c", "--solver.sysid_significance", "nan"], "solver.sysid_significance"),
     (["smoke_predict", "--surrogate.mlp.stop_rel_tol", "1.5"], "surrogate.mlp.stop_rel_tol"),
     (["smoke_predict", "--surrogate.mlp.stop_window", "-1"], "surrogate.mlp.stop_window"),
+    (["smoke_predict", "--surrogate.mlp.patience", "-1"], "surrogate.mlp.patience"),
+    (["cartpole_predict", "--experiment.kind", "analysis"], "surrogate.mlp.patience"),
+    (["smoke_predict", "--surrogate.mlp.validation_fraction", "1"], "surrogate.mlp.validation_fraction"),
+    (
+        ["smoke_predict", "--surrogate.mlp.patience", "5", "--surrogate.mlp.validation_fraction", "0.99"],
+        "surrogate.mlp.batch_size",
+    ),
     (["cartpole_horizon", "--data.n_traj", "3"], "data.n_traj"),
     (["smoke_analysis", "--solver.n_samples", "2"], "solver.n_samples"),
     (["smoke_d2c", "--task.x0", "1e13", "0"], "task.x0"),  # sigma_x is below the resolution at 1e13

@@ -89,3 +89,36 @@ def test_stopping_test_ends_training_where_the_rule_first_holds():
         assert int(one.epochs_run) == n
     full = mlp.train(SPEC._replace(epochs=30, checkpoints=()), keys[0], z, y, z, y)
     assert int(full.epochs_run) == 30 and np.isfinite(np.asarray(full.test_loss)).all()
+
+
+def test_early_stopping_returns_the_best_validation_epochs_network():
+    """With patience P the run stops P epochs after its best validation loss (recomputed
+    here from the returned network) and returns that epoch's network, not the last one;
+    noisy targets and a small training set make the network overfit."""
+    z, y = _data(jax.random.key(10), 1200)
+    y = y + 2.0 * jax.random.normal(jax.random.key(11), y.shape)
+    fit_i, val_i = mlp.validation_split(jax.random.key(12), 1200, 0.5, block=20)
+    spec = mlp.MLPSpec(widths=(64, 64), learning_rate=1e-2, batch_size=32, epochs=300, patience=8)
+    r = mlp.train(spec, jax.random.key(13), z[fit_i], y[fit_i], z[:64], y[:64], z[val_i], y[val_i])
+    n, best = int(r.epochs_run), int(r.best_epoch)
+    va = np.asarray(r.val_loss)
+    assert n < 300 and best == int(np.nanargmin(va)) + 1 and n == best + 8
+    assert np.isfinite(va[:n]).all() and np.isnan(va[n:]).all()
+    norm = r.model.norm
+    ys = (y[val_i] - norm.y_mean) / norm.y_std
+    ys_hat = (r.model.step(z[val_i, :2], z[val_i, 2:]) - norm.y_mean) / norm.y_std
+    returned = float(jnp.mean((ys_hat - ys) ** 2))
+    np.testing.assert_allclose(returned, va[best - 1], rtol=1e-4)
+    assert va[n - 1] > va[best - 1]  # the last epoch's network was worse: it is not the one returned
+    with pytest.raises(ValueError, match="mlp.patience"):
+        mlp.train(spec, jax.random.key(13), z, y, z, y)
+
+
+def test_the_validation_set_is_whole_blocks_drawn_by_the_key():
+    tr, va = mlp.validation_split(jax.random.key(0), 1005, 0.1, block=50)
+    assert len(va) == 2 * 50 and len(tr) == 1005 - 100 and not set(tr) & set(va)
+    assert set(np.unique(va // 50).tolist()) <= set(range(20)) and len(np.unique(va // 50)) == 2
+    assert all(b * 50 + i in set(va) for b in np.unique(va // 50) for i in range(50))
+    assert set(range(1000, 1005)) <= set(tr)  # the trailing partial block trains
+    other = mlp.validation_split(jax.random.key(1), 1005, 0.1, block=50)[1]
+    assert not np.array_equal(va, other)

@@ -164,3 +164,26 @@ def test_the_spread_interval_is_a_bootstrap_over_the_data_sets():
     assert lo < _spread(P) < hi and spread_interval(P, jax.random.key(0)) == [lo, hi]
     same = np.broadcast_to(P[:1], P.shape)  # five identical predictions: no spread at all
     assert max(spread_interval(same, jax.random.key(0))) < 1e-12
+
+
+def test_the_header_names_the_commit_and_the_runs_from_other_commits(tmp_path, monkeypatch):
+    import json
+
+    from mjx_surrogate.runs import results
+
+    monkeypatch.setattr(report, "versions", lambda: {"python": "3", "mjx_surrogate_commit": "abc"})
+    folders = {n: None for n in EXPERIMENTS}
+    for name, commit in (("theory", "abc"), ("pendulum_predict", "old123")):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "versions.json").write_text(json.dumps({"mjx_surrogate_commit": commit}))
+        (tmp_path / name / "metrics.json").write_text(json.dumps({"status": "failed"}))
+        folders[name] = str(tmp_path / name)
+    text = report.render(folders, {}, str(tmp_path / "figures"), str(tmp_path), True, 0.0)
+    head = text[: text.index("## ")]
+    assert "**Code: commit `abc`; written 20" in head
+    assert "1 of the runs below come from another commit (pendulum_predict)" in head
+    assert f"| theory | `{folders['theory']}` | `abc` |" in head
+    del folders["pendulum_predict"]
+    text = report.render(folders, {}, str(tmp_path / "figures"), str(tmp_path), True, 0.0)
+    assert "Every run below comes from this commit." in text
+    assert results.code_revision() != "" and "mjx_surrogate_commit" in results.versions()

@@ -128,6 +128,10 @@ def test_quick_reproduction_produces_its_experiments_figures_and_resumes(tmp_pat
         "convergence test of `configs/cartpole_analysis.py`",
         "### The Hermite basis's variance formula",  # one theory section per printed formula
         "### The conditioning estimate",
+        "### The LTV Gram matrix and its variance",  # the analysis stage ltv
+        "### The sampling distribution and the LTV estimate",
+        "MLP trained 2, 2 epochs; MLP 2 epochs trained 2, 2 epochs (by level)",  # quick: 2 epochs
+        "**Code: commit `",
         "Locality (docs/method.md): median relative spread",
         "Beyond the paper: a PDE",
         "Reduced-order D2C on the viscous Burgers equation",

@@ -226,8 +226,12 @@ class MLPConfig:
     """Flax MLPs (surrogate kind "mlp"); the paper's by default: 32 -> ReLU -> 64 -> ReLU,
     Adam 1e-4, weight decay 1e-6, minibatches of 256. checkpoints: epochs whose
     parameters are kept (analysis). epochs: the most epochs; with stop_window > 0 training
-    stops earlier once the best test loss fell by less than stop_rel_tol (relative) over the
-    last stop_window epochs (the convergence test)."""
+    stops earlier once the best held-out loss fell by less than stop_rel_tol (relative) over
+    the last stop_window epochs (the convergence test). patience > 0: early stopping on a
+    validation set of whole trajectories (validation_fraction of the training ones): stop
+    once its loss has not improved for patience epochs and keep the best epoch's network.
+    fixed_epochs_beside N > 0: also fit the paper's network (all training data, exactly N
+    epochs, the same initialisation), labelled "MLP N epochs"."""
 
     widths: Tuple[int, ...] = (32, 64)
     learning_rate: float = 1e-4
@@ -237,6 +241,9 @@ class MLPConfig:
     checkpoints: Tuple[int, ...] = ()
     stop_window: int = 0
     stop_rel_tol: float = 0.0
+    patience: int = 0
+    validation_fraction: float = 0.1
+    fixed_epochs_beside: int = 0
 
 
 @dataclasses.dataclass(frozen=True)

@@ -96,6 +96,11 @@ def _check_analysis(config, system) -> None:
     """The analyses fit SINDy and MLPs whatever ``surrogate.kinds`` says."""
     analysis_library_specs(config, system)
     get_surrogate("mlp").validate(config, system, training_transitions(config))
+    if config.surrogate.mlp.patience > 0:
+        raise ConfigError(
+            "surrogate.mlp.patience",
+            "the analyses' networks stop by the convergence test (surrogate.mlp.stop_window); set 0",
+        )
 
 
 def _mpc_needs(config) -> frozenset:

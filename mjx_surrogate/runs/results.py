@@ -30,6 +30,7 @@ import math
 import os
 import platform
 import socket
+import subprocess
 import sys
 import tempfile
 import threading
@@ -90,7 +91,28 @@ def versions() -> dict[str, str]:
         except metadata.PackageNotFoundError:
             out[pkg] = "not installed"
     out["XLA_FLAGS"] = os.environ.get("XLA_FLAGS", "")
+    out["mjx_surrogate_commit"] = code_revision()
     return out
+
+
+def code_revision() -> str:
+    """The git commit of the checkout this package runs from (``+dirty`` where its tracked
+    files differ from it), or ``unknown`` outside a git checkout (an installed wheel)."""
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+    def git(*args: str) -> str | None:
+        try:
+            done = subprocess.run(
+                ["git", "-C", root, *args], capture_output=True, text=True, timeout=10, check=True
+            )
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return done.stdout.strip()
+
+    head = git("rev-parse", "--short=12", "HEAD")
+    if not head or git("rev-parse", "--show-toplevel") != os.path.realpath(root):
+        return "unknown"
+    return head + ("+dirty" if git("status", "--porcelain", "--untracked-files=no") else "")
 
 
 def _umask() -> int:

@@ -281,6 +281,13 @@ def _check_surrogates(sc: SurrogateConfig) -> None:
         )
     if not (math.isfinite(mp.stop_rel_tol) and 0 <= mp.stop_rel_tol < 1):
         raise ConfigError("surrogate.mlp.stop_rel_tol", f"must be in [0, 1), got {mp.stop_rel_tol}")
+    for field, v in {"patience": mp.patience, "fixed_epochs_beside": mp.fixed_epochs_beside}.items():
+        if v < 0:
+            raise ConfigError(f"surrogate.mlp.{field}", f"must be >= 0 (0: off), got {v}")
+    if not (math.isfinite(mp.validation_fraction) and 0 < mp.validation_fraction < 1):
+        raise ConfigError(
+            "surrogate.mlp.validation_fraction", f"must be in (0, 1), got {mp.validation_fraction}"
+        )
     if not (math.isfinite(mp.learning_rate) and mp.learning_rate > 0):
         raise ConfigError("surrogate.mlp.learning_rate", f"must be > 0, got {mp.learning_rate}")
     if not mp.widths or any(w < 1 for w in mp.widths):

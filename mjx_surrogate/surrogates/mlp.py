@@ -5,10 +5,13 @@ The paper's network is [x, u] -> 32 -> ReLU -> 64 -> ReLU -> x_next, trained wit
 minibatches of 256 and the mean-squared error. Inputs and targets are standardised with
 the training set's mean and standard deviation; the loss is the MSE of standardised
 targets. Training is one jitted ``lax.while_loop`` over epochs (all of them, or until the
-stopping test of ``MLPSpec`` holds), each a ``lax.scan`` over minibatches of a fresh
+stopping tests of ``MLPSpec`` holds), each a ``lax.scan`` over minibatches of a fresh
 permutation drawn from the key; parameters are kept at chosen
-checkpoint epochs for the analysis. ``train_seeds`` vmaps training over K (key, data set)
-pairs, so K networks train in one program (spread over a device mesh if given).
+checkpoint epochs for the analysis. Early stopping (``patience``) watches the loss on a
+validation set held out of the training data and returns the parameters of its best
+epoch, as Keras's ``EarlyStopping(restore_best_weights=True)`` does. ``train_seeds``
+vmaps training over K (key, data set) pairs, so K networks train in one program (spread
+over a device mesh if given).
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from typing import NamedTuple, Tuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optax
 from flax import nnx, struct
 from jax.sharding import Mesh
@@ -35,6 +39,8 @@ class MLPSpec(NamedTuple):
     checkpoints: Tuple[int, ...] = ()  # epochs (0 = before training) whose params are kept
     stop_window: int = 0  # > 0: stop once the best test loss fell by less than
     stop_rel_tol: float = 0.0  # stop_rel_tol (relative) over the last stop_window epochs
+    patience: int = 0  # > 0: stop once the validation loss has not improved for this many
+    # epochs and return the best validation epoch's parameters (needs a validation set)
 
 
 class Net(nnx.Module):
@@ -76,6 +82,8 @@ class TrainResult(NamedTuple):
     test_loss: jax.Array  # [epochs] full test-set loss after each epoch; NaN after a stop
     checkpoints: nnx.State  # params with a leading [n_checkpoints] axis
     epochs_run: jax.Array  # [] epochs trained (spec.epochs unless the stopping test ended earlier)
+    val_loss: jax.Array | None = None  # [epochs] validation loss after each epoch (with a validation set)
+    best_epoch: jax.Array | None = None  # [] the epoch (1-based) whose parameters are returned
 
 
 def graphdef(spec: MLPSpec, nz: int, nx: int) -> nnx.GraphDef:
@@ -108,13 +116,24 @@ def optimizer(spec: MLPSpec) -> optax.GradientTransformation:
 
 @partial(jax.jit, static_argnames=("spec",))
 def train(
-    spec: MLPSpec, key: jax.Array, z: jax.Array, y: jax.Array, z_test: jax.Array, y_test: jax.Array
+    spec: MLPSpec,
+    key: jax.Array,
+    z: jax.Array,
+    y: jax.Array,
+    z_test: jax.Array,
+    y_test: jax.Array,
+    z_val: jax.Array | None = None,
+    y_val: jax.Array | None = None,
 ) -> TrainResult:
-    """Train one network on z [M, nz] -> y [M, nx]; test losses on z_test, y_test."""
+    """Train one network on z [M, nz] -> y [M, nx]; test losses on z_test, y_test. With a
+    validation set (z_val [V, nz], y_val [V, nx]) the stopping tests watch its loss
+    instead of the test loss; ``spec.patience`` needs one."""
     M, nz = z.shape
     nx = y.shape[-1]
     if M < spec.batch_size:
         raise ValueError(f"mlp.batch_size: {spec.batch_size} exceeds the {M} training transitions")
+    if spec.patience > 0 and z_val is None:
+        raise ValueError("mlp.patience: early stopping needs a validation set (z_val, y_val)")
     gdef = graphdef(spec, nz, nx)
     k_init, k_epochs = jax.random.split(key)
     params = init_params(spec, k_init, nz, nx)
@@ -123,6 +142,11 @@ def train(
     ys = ((y - norm.y_mean) / norm.y_std).astype(jnp.float32)
     zt = ((z_test - norm.z_mean) / norm.z_std).astype(jnp.float32)
     yt = ((y_test - norm.y_mean) / norm.y_std).astype(jnp.float32)
+    if z_val is None:
+        zv, yv = zt, yt
+    else:
+        zv = ((z_val - norm.z_mean) / norm.z_std).astype(jnp.float32)
+        yv = ((y_val - norm.y_mean) / norm.y_std).astype(jnp.float32)
     opt = optimizer(spec)
     n_steps = M // spec.batch_size
     ckpt = jnp.asarray(spec.checkpoints or (0,), jnp.int32)
@@ -140,24 +164,51 @@ def train(
     W = spec.stop_window
 
     def epoch(c):
-        e, p, s, saved, tr, te, best, _ = c
+        e, p, s, saved, tr, te, va, best, kept, at, _ = c
         perm = jax.random.permutation(keys[e], M)[: n_steps * spec.batch_size]
         (p, s), losses = jax.lax.scan(sgd_step, (p, s), perm.reshape(n_steps, spec.batch_size))
         saved = _keep(saved, p, ckpt, e + 1)
         test = loss_fn(p, zt, yt)
-        best = best.at[e].set(jnp.minimum(test, best[e - 1]))  # best[-1] is inf until the end
-        # the stopping test: the best test loss fell by less than stop_rel_tol in W epochs
+        held = test if z_val is None else loss_fn(p, zv, yv)
+        better = held < best[e - 1]  # best[-1] is inf until the end
+        best = best.at[e].set(jnp.minimum(held, best[e - 1]))
+        kept = jax.tree.map(lambda a, b: jnp.where(better, a, b), p, kept)
+        at = jnp.where(better, e + 1, at)
+        # the convergence test: the best held-out loss fell by less than stop_rel_tol in W epochs
         stop = (W > 0) & (e >= W) & (best[e] > (1.0 - spec.stop_rel_tol) * best[jnp.maximum(e - W, 0)])
-        return e + 1, p, s, saved, tr.at[e].set(losses.mean()), te.at[e].set(test), best, stop
+        # early stopping: no better validation loss in the last `patience` epochs
+        stop |= (spec.patience > 0) & (e + 1 - at >= spec.patience)
+        tr, te, va = tr.at[e].set(losses.mean()), te.at[e].set(test), va.at[e].set(held)
+        return e + 1, p, s, saved, tr, te, va, best, kept, at, stop
 
     saved = jax.tree.map(lambda a: jnp.zeros((ckpt.shape[0],) + a.shape, a.dtype), params)
     saved = _keep(saved, params, ckpt, 0)
     nan = jnp.full((spec.epochs,), jnp.nan, jnp.float32)
-    init = (jnp.int32(0), params, opt.init(params), saved, nan, nan, jnp.full_like(nan, jnp.inf), False)
-    e, params, _, saved, tr, te, _, _ = jax.lax.while_loop(
+    inf = jnp.full_like(nan, jnp.inf)
+    init = (jnp.int32(0), params, opt.init(params), saved, nan, nan, nan, inf, params, jnp.int32(0), False)
+    e, params, _, saved, tr, te, va, _, kept, at, _ = jax.lax.while_loop(
         lambda c: (c[0] < spec.epochs) & ~c[-1], epoch, init
     )
-    return TrainResult(MLPModel(params, norm, gdef, spec.increment), tr, te, saved, e)
+    if spec.patience > 0:
+        params = kept
+    else:
+        at = e
+    model = MLPModel(params, norm, gdef, spec.increment)
+    return TrainResult(model, tr, te, saved, e, None if z_val is None else va, at)
+
+
+def validation_split(
+    key: jax.Array, n: int, fraction: float, block: int = 1
+) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (train, validation) of n transitions: the validation set is whole blocks of
+    ``block`` consecutive transitions (a data set's trajectories, so that no trajectory
+    feeds both), ``fraction`` of the blocks (at least one) drawn by ``key``; a trailing
+    partial block stays in training."""
+    blocks = max(n // block, 1)
+    n_val = min(max(1, round(fraction * blocks)), blocks - 1) if blocks > 1 else 0
+    chosen = np.asarray(jax.random.permutation(key, blocks))[:n_val]
+    held = np.isin(np.arange(n) // block, chosen)
+    return np.flatnonzero(~held), np.flatnonzero(held)
 
 
 def _keep(saved, params, ckpt: jax.Array, epoch: jax.Array):
@@ -192,6 +243,4 @@ def unstack(result: TrainResult, i: int) -> TrainResult:
     m = result.model
     take = lambda t: jax.tree.map(lambda a: a[i], t)  # noqa: E731
     model = MLPModel(take(m.params), take(m.norm), m.graphdef, m.increment)
-    return TrainResult(
-        model, result.train_loss[i], result.test_loss[i], take(result.checkpoints), result.epochs_run[i]
-    )
+    return TrainResult(model, *(take(a) for a in result[1:]))

@@ -31,10 +31,13 @@ class Fitted(NamedTuple):
 
 
 class FitContext(NamedTuple):
-    """What a kind may read while fitting: the resolved config and the system."""
+    """What a kind may read while fitting: the resolved config, the system and the length
+    of the data's trajectories (their transitions lie in consecutive blocks of it; None
+    where unknown)."""
 
     config: Any  # mjx_surrogate.runs.config.Config
     system: Any  # mjx_surrogate.systems.System
+    trajectory_length: int | None = None
 
 
 class SurrogateKind(NamedTuple):
@@ -155,28 +158,49 @@ def mlp_spec(config):
         checkpoints=tuple(m.checkpoints),
         stop_window=m.stop_window,
         stop_rel_tol=m.stop_rel_tol,
+        patience=m.patience,
     )
 
 
 def _fit_mlp(ctx: FitContext, train, test, key) -> dict[str, Fitted]:
+    """ "MLP": trained as surrogate.mlp says (with ``patience``, to the minimum of a
+    validation set of whole trajectories held out of ``train``); with
+    ``fixed_epochs_beside`` N also "MLP N epochs", the paper's setting: all of ``train``
+    for exactly N epochs from the same initialisation."""
     from mjx_surrogate.surrogates import mlp
 
+    m = ctx.config.surrogate.mlp
     spec = mlp_spec(ctx.config)
-    r = mlp.train(
-        spec,
-        key,
-        jnp.concatenate([train.x, train.u], -1),
-        mlp.targets(train.x, train.x_next, spec.increment),
-        jnp.concatenate([test.x, test.u], -1),
-        mlp.targets(test.x, test.x_next, spec.increment),
-    )
+    z = jnp.concatenate([train.x, train.u], -1)
+    y = mlp.targets(train.x, train.x_next, spec.increment)
+    tests = (jnp.concatenate([test.x, test.u], -1), mlp.targets(test.x, test.x_next, spec.increment))
+    if spec.patience > 0:
+        block = ctx.trajectory_length or 1
+        k_val = jax.random.fold_in(key, 1)
+        fit_i, val_i = mlp.validation_split(k_val, z.shape[0], m.validation_fraction, block)
+        r = mlp.train(spec, key, z[fit_i], y[fit_i], *tests, z[val_i], y[val_i])
+    else:
+        r = mlp.train(spec, key, z, y, *tests)
+    out = {"MLP": _mlp_fitted(r)}
+    if m.fixed_epochs_beside > 0:
+        fixed = spec._replace(epochs=m.fixed_epochs_beside, patience=0, stop_window=0, checkpoints=())
+        out[f"MLP {m.fixed_epochs_beside} epochs"] = _mlp_fitted(mlp.train(fixed, key, z, y, *tests))
+    return out
+
+
+def _mlp_fitted(r) -> Fitted:
     last = int(r.epochs_run) - 1
     info = {
         "epochs": int(r.epochs_run),
+        "best_epoch": int(r.best_epoch),
         "final_train_loss": float(r.train_loss[last]),
         "final_test_loss": float(r.test_loss[last]),
     }
-    return {"MLP": Fitted(r.model, info, {"train_loss": r.train_loss, "test_loss": r.test_loss})}
+    arrays = {"train_loss": r.train_loss, "test_loss": r.test_loss}
+    if r.val_loss is not None:
+        info["best_validation_loss"] = float(r.val_loss[int(r.best_epoch) - 1])
+        arrays["validation_loss"] = r.val_loss
+    return Fitted(r.model, info, arrays)
 
 
 def _validate_sindy(config, system, n_train: int) -> None:
@@ -184,11 +208,14 @@ def _validate_sindy(config, system, n_train: int) -> None:
 
 
 def _validate_mlp(config, system, n_train: int) -> None:
-    b = config.surrogate.mlp.batch_size
-    if b > n_train:
+    m = config.surrogate.mlp
+    b = m.batch_size
+    kept = n_train if m.patience == 0 else int(n_train * (1 - m.validation_fraction))
+    if b > kept:
+        held = "" if m.patience == 0 else f" left after the validation set ({m.validation_fraction:g})"
         raise ConfigError(
             "surrogate.mlp.batch_size",
-            f"{b} exceeds the {n_train} training transitions (data.n_traj x task.T)",
+            f"{b} exceeds the {kept} training transitions{held} (data.n_traj x task.T)",
         )
 
 
