@@ -17,6 +17,7 @@ import numpy as np
 from mjx_surrogate import progress
 from mjx_surrogate.analysis import ltv_sampling, spectra
 from mjx_surrogate.identification import data, step_models
+from mjx_surrogate.linalg import unit_diagonal
 from mjx_surrogate.runs import pipeline, plots
 from mjx_surrogate.runs.config import Config
 from mjx_surrogate.runs.experiment_kinds import analysis_library_specs
@@ -195,11 +196,10 @@ def _ill_conditioning(s: _Study) -> tuple[dict, dict]:
             theta = sindy.design(s.specs[name], tr.x, tr.u)
             G = np.asarray(sindy.gram(theta), np.float64)
             eig = spectra.eigenvalues(G)
-            d = np.sqrt(np.where(np.diag(G) > 0, np.diag(G), 1.0))
+            scaled = unit_diagonal(G[None])[0][0]  # as the LTV solver scales its Gram
             gram[f"SINDy {name} {100 * a.gram_sindy_level:g}%"] = {
                 "condition": spectra.condition(eig),
-                # scaled as the LTV solver scales its Gram (mjx_surrogate/analysis/ltv_sampling.py)
-                "condition_unit_diagonal": spectra.condition(spectra.eigenvalues(G / np.outer(d, d))),
+                "condition_unit_diagonal": spectra.condition(spectra.eigenvalues(scaled)),
                 "n_features": int(theta.shape[1]),
                 "precision": str(theta.dtype),
             }
@@ -353,7 +353,8 @@ def _ltv(s: _Study) -> tuple[dict, dict]:
     distribution (:mod:`mjx_surrogate.analysis.ltv_sampling`), at the solver's sample count and spread."""
     _, p = solver_params(s.cfg)
     with progress.steps("analysis: LTV regression", 1, s.cfg.experiment.progress) as meter:
-        meter.advance(f"{len(ltv_sampling.DISTRIBUTIONS)} distributions x {s.cfg.analysis.n_datasets} seeds")
+        kinds = ltv_sampling.distributions(p.n_samples, s.system.nx, s.system.nu)
+        meter.advance(f"{len(kinds)} distributions x {s.cfg.analysis.n_datasets} seeds")
         key = jax.random.fold_in(s.keys["var"], 1000)
         n = s.cfg.analysis.n_datasets
         return ltv_sampling.measure(s.system, s.X_star, s.U_star, key, n, p.n_samples, p.sigma_x, p.sigma_u)

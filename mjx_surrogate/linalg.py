@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 
 def spd_solve(A: jax.Array, B: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -43,11 +44,14 @@ def spd_solve(A: jax.Array, B: jax.Array) -> tuple[jax.Array, jax.Array]:
 def unit_diagonal(G: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
     """Gram matrices G [T, m, m] scaled to a unit diagonal: (Gs, s, moved) with
     G = diag(s) Gs diag(s); a zero diagonal entry (a regressor that never moved) keeps
-    s = 1 and gets a unit diagonal in Gs, so its coefficient solves to 0."""
-    d = jnp.diagonal(G, axis1=1, axis2=2)  # [T, m]
+    s = 1 and gets a unit diagonal in Gs, so its coefficient solves to 0. A NumPy G is
+    scaled in NumPy at its own precision (the analysis' float64 SINDy Grams)."""
+    xp = np if isinstance(G, np.ndarray) else jnp
+    d = xp.diagonal(G, axis1=1, axis2=2)  # [T, m]
     moved = d > 0
-    s = jnp.where(moved, jnp.sqrt(d), 1.0)
-    Gs = G / (s[:, :, None] * s[:, None, :]) + jax.vmap(jnp.diag)((~moved).astype(G.dtype))
+    s = xp.where(moved, xp.sqrt(xp.where(moved, d, 1.0)), 1.0)
+    eye = xp.eye(G.shape[-1], dtype=G.dtype)
+    Gs = G / (s[:, :, None] * s[:, None, :]) + eye * (~moved).astype(G.dtype)[:, None, :]
     return Gs, s, moved
 
 

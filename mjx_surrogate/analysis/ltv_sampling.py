@@ -108,6 +108,12 @@ def _interval(v: np.ndarray) -> list[float]:
     return [float(np.min(v)), float(np.max(v))]
 
 
+def distributions(n_samples: int, nx: int, nu: int) -> list[str]:
+    """The distributions measurable at n_samples: the orthogonal design needs
+    n_samples >= nx + nu; below, it is left out (and ``measure`` says so)."""
+    return [k for k in DISTRIBUTIONS if k != "orthogonal" or n_samples >= nx + nu]
+
+
 def measure(
     system, X_star, U_star, key, n_seeds: int, n_samples: int, sigma_x: float, sigma_u: float
 ) -> tuple[dict, dict]:
@@ -116,8 +122,7 @@ def measure(
     T, nu = U_star.shape
     nx = X_star.shape[-1]
     dt = X_star.dtype
-    # the orthogonal design needs n_samples >= nx + nu; below, it is left out and said so
-    kinds = [k for k in DISTRIBUTIONS if k != "orthogonal" or n_samples >= nx + nu]
+    kinds = distributions(n_samples, nx, nu)
     keys = {kind: jax.random.fold_in(key, d) for d, kind in enumerate(DISTRIBUTIONS)}
     draws = [
         perturbations(kind, jax.random.fold_in(keys[kind], k), n_samples, T, nx, nu, sigma_x, sigma_u, dt)
