@@ -304,36 +304,57 @@ def _variance_figures(record: Run, s: _Study, a_var: dict) -> None:
 
 
 def _mlp_directions(cfg, system, task, X_star, U_star, key, spec_mlp, arrays) -> dict:
-    """(1/R) H' Delta before training and once trained, same initial weights, K data sets."""
+    """(1/R) H' Delta before training and once trained: K networks with the same initial
+    weights and batches on K data sets, and the same-data control, K networks whose training
+    seeds differ on the first data set (what the seed alone moves)."""
     a = cfg.analysis
     level = a.gram_mlp_levels[0]
+    K = a.n_datasets
     sets = _datasets(system, task, X_star, U_star, jax.random.fold_in(key, 99), cfg, level)
     z, xn = _common([tr for tr, _ in sets])
     y = mlp.targets(z[..., : system.nx], xn, spec_mlp.increment)
     spec = spec_mlp._replace(checkpoints=(0,))
     zt, xnt = _common([te for _, te in sets])
     yt = mlp.targets(zt[..., : system.nx], xnt, spec_mlp.increment)
-    same = jnp.stack([jax.random.fold_in(key, 5)] * a.n_datasets)  # same init and batches
-    t0 = time.perf_counter()
-    trained = jax.block_until_ready(mlp.train_seeds(spec, same, z, y, zt, yt, mesh=system.mesh))
-    out = {"_mlp_training": _training(trained, time.perf_counter() - t0)}
+    first = lambda v: jnp.broadcast_to(v[:1], v.shape)  # noqa: E731
+    arms = {
+        "data sets": (jnp.stack([jax.random.fold_in(key, 5)] * K), z, y, zt, yt),
+        "same data": (
+            jax.random.split(jax.random.fold_in(key, 6), K),
+            first(z),
+            first(y),
+            first(zt),
+            first(yt),
+        ),
+    }
+    out, G = {}, {}
+    for arm, (keys, za, ya, zta, yta) in arms.items():
+        t0 = time.perf_counter()
+        trained = jax.block_until_ready(mlp.train_seeds(spec, keys, za, ya, zta, yta, mesh=system.mesh))
+        if arm == "data sets":
+            out["_mlp_training"] = _training(trained, time.perf_counter() - t0)
+        for when in ("epoch0", "trained"):
+            rows = []
+            for i in range(K):
+                r = mlp.unstack(trained, i)
+                model = r.model
+                if when == "epoch0":
+                    model = model.replace(params=jax.tree.map(lambda p: p[0], r.checkpoints))
+                zs, ys = spectra.standardise(model, za[i, : a.gram_points], ya[i, : a.gram_points])
+                rows.append(np.asarray(spectra.mlp_descent_direction(model, zs, ys)))
+            G[arm, when] = np.stack(rows)
+    rng = np.random.default_rng(int(jax.random.randint(jax.random.fold_in(key, 7), (), 0, 2**31 - 1)))
     for when in ("epoch0", "trained"):
-        G = []
-        for i in range(a.n_datasets):
-            r = mlp.unstack(trained, i)
-            model = r.model
-            if when == "epoch0":
-                model = model.replace(params=jax.tree.map(lambda p: p[0], r.checkpoints))
-            zs, ys = spectra.standardise(model, z[i, : a.gram_points], y[i, : a.gram_points])
-            G.append(np.asarray(spectra.mlp_descent_direction(model, zs, ys)))
-        G = np.stack(G)
-        cos = spectra.cosine_matrix(G)
-        off = cos[~np.eye(len(G), dtype=bool)]
+        D, C = G["data sets", when], G["same data", when]
         out[f"MLP {100 * level:g}% {'epoch 0' if when == 'epoch0' else 'trained'}"] = {
-            "mean_pairwise_cosine": float(off.mean()),
-            "min_pairwise_cosine": float(off.min()),
+            "mean_pairwise_cosine": spectra.mean_pairwise_cosine(D),
+            "mean_pairwise_cosine_interval": spectra.pairwise_cosine_interval(D, rng),
+            "min_pairwise_cosine": float(spectra.cosine_matrix(D)[~np.eye(K, dtype=bool)].min()),
+            "same_data_cosine": spectra.mean_pairwise_cosine(C),
+            "same_data_cosine_interval": spectra.pairwise_cosine_interval(C, rng),
         }
-        arrays[f"mlp_descent_directions_{when}"] = G
+        arrays[f"mlp_descent_directions_{when}"] = D
+        arrays[f"mlp_descent_directions_{when}_same_data"] = C
     return out
 
 
@@ -378,7 +399,7 @@ def _table(m: dict) -> str:
     lines += ["\n## Variance across data sets\n", "| quantity | value |", "|---|---|"]
     for k, v in m["variance"].items():
         if not k.startswith("_"):
-            lines += [f"| {k}: {q} | {x:.3g} |" for q, x in v.items()]
+            lines += [f"| {k}: {q} | {_g(x)} |" for q, x in v.items()]
     ltv = {k: v for k, v in (m.get("ltv") or {}).items() if not k.startswith("_")}
     if ltv:
         lines += [
@@ -392,3 +413,8 @@ def _table(m: dict) -> str:
             for k, v in ltv.items()
         ]
     return "\n".join(lines) + "\n"
+
+
+def _g(x) -> str:
+    """A number, or an interval [lo, hi], at three significant digits."""
+    return f"[{x[0]:.3g}, {x[1]:.3g}]" if isinstance(x, list) else f"{x:.3g}"

@@ -71,8 +71,11 @@ RULES: dict[str, Rule] = {
     "mlp_variance": Rule(
         "the paper's",
         "different data sets give different descent directions",
-        "some network's mean pairwise cosine between descent directions below {max_cosine}",
-        (("max_cosine", 0.99),),
+        "at epoch 0 and once trained, the mean pairwise cosine between the descent directions "
+        "of networks with the same training seed on different data sets is below {max_cosine} "
+        "and at least {min_effect} below the same-data control's (one data set, the training "
+        "seeds differ), with the 90 % bootstrap intervals over the networks apart",
+        (("max_cosine", 0.99), ("min_effect", 0.1)),
     ),
     "ltv_gram": Rule(
         "the paper's",
@@ -199,6 +202,21 @@ def convergence_claim(rows: dict) -> bool | None:
     effect = hi["relative_spread"] - lo["relative_spread"]
     apart = hi["relative_spread_interval"][0] > lo["relative_spread_interval"][1]
     return bool(effect >= RULES["convergence"].value("min_effect") and apart)
+
+
+def mlp_variance_claim(rows: dict) -> bool | None:
+    """The ``mlp_variance`` rule on the variance stage's MLP rows (epoch 0, trained); None
+    where there are none or they come from before the same-data control was kept."""
+    rows = list(rows.values())
+    if not rows or any("same_data_cosine_interval" not in r for r in rows):
+        return None
+    t = dict(RULES["mlp_variance"].thresholds)
+    return all(
+        r["mean_pairwise_cosine"] < t["max_cosine"]
+        and r["same_data_cosine"] - r["mean_pairwise_cosine"] >= t["min_effect"]
+        and r["mean_pairwise_cosine_interval"][1] < r["same_data_cosine_interval"][0]
+        for r in rows
+    )
 
 
 def _rows(ltv: dict) -> dict:

@@ -187,3 +187,49 @@ def test_the_header_names_the_commit_and_the_runs_from_other_commits(tmp_path, m
     text = report.render(folders, {}, str(tmp_path / "figures"), str(tmp_path), True, 0.0)
     assert "Every run below comes from this commit." in text
     assert results.code_revision() != "" and "mjx_surrogate_commit" in results.versions()
+
+
+def _dirs(cos_data, ci_data, cos_seed, ci_seed):
+    row = {
+        "mean_pairwise_cosine": cos_data,
+        "mean_pairwise_cosine_interval": ci_data,
+        "same_data_cosine": cos_seed,
+        "same_data_cosine_interval": ci_seed,
+    }
+    return {"MLP 5% epoch 0": row, "MLP 5% trained": row}
+
+
+def test_the_mlp_variance_rule_needs_the_data_to_move_directions_more_than_the_seed():
+    from experiments.report_rules import mlp_variance_claim
+
+    assert mlp_variance_claim(_dirs(0.2, [0.1, 0.3], 0.8, [0.7, 0.9])) is True
+    # the measured epoch 0: the data sets' directions agree (0.992); the old rule looked only
+    # for some point below 0.99, which the trained point's near-zero gradient always gave
+    assert mlp_variance_claim(_dirs(0.992, [0.99, 0.995], 0.3, [0.2, 0.4])) is False
+    # directions differ as much when only the seed changes: no sign of the data's variance
+    assert mlp_variance_claim(_dirs(0.0, [-0.1, 0.1], 0.05, [-0.05, 0.15])) is False
+    # a large effect whose intervals overlap
+    assert mlp_variance_claim(_dirs(0.2, [-0.2, 0.6], 0.8, [0.5, 0.95])) is False
+    # apart intervals, but the seed-only cosine is higher by 0.05, under the effect asked
+    assert mlp_variance_claim(_dirs(0.5, [0.45, 0.52], 0.55, [0.53, 0.6])) is False
+    one = _dirs(0.2, [0.1, 0.3], 0.8, [0.7, 0.9])
+    one["MLP 5% epoch 0"] = dict(one["MLP 5% epoch 0"], mean_pairwise_cosine=0.995)
+    assert mlp_variance_claim(one) is False  # it must hold at both points
+    assert mlp_variance_claim({"MLP 5% trained": {"mean_pairwise_cosine": 0.1}}) is None
+
+
+def test_the_pairwise_cosine_interval_is_a_bootstrap_over_distinct_pairs():
+    import numpy as np
+
+    from mjx_surrogate.analysis import spectra
+
+    rng = np.random.default_rng(0)
+    V = rng.normal(size=(6, 40)) + 2.0  # a common direction plus noise
+    lo, hi = spectra.pairwise_cosine_interval(V, np.random.default_rng(1))
+    assert lo < spectra.mean_pairwise_cosine(V) < hi
+    # identical rows: every distinct pair has cosine 1 (a row paired with itself is skipped,
+    # so a resample cannot pull the mean above or below it)
+    same = np.broadcast_to(V[:1], V.shape)
+    np.testing.assert_allclose(spectra.pairwise_cosine_interval(same, np.random.default_rng(1)), 1.0)
+    orth = np.eye(5)  # orthogonal rows: cosine 0 between every distinct pair, never the diagonal
+    np.testing.assert_allclose(spectra.pairwise_cosine_interval(orth, np.random.default_rng(1)), 0.0)

@@ -105,3 +105,24 @@ def cosine_matrix(V: np.ndarray) -> np.ndarray:
     n = np.linalg.norm(V, axis=1, keepdims=True)
     U = V / np.where(n > 0, n, 1.0)
     return U @ U.T
+
+
+def mean_pairwise_cosine(V: np.ndarray) -> float:
+    """Mean cosine over the distinct pairs of rows of V [S, n]."""
+    C = cosine_matrix(V)
+    return float(C[~np.eye(len(C), dtype=bool)].mean())
+
+
+def pairwise_cosine_interval(V: np.ndarray, rng: np.random.Generator, n_boot: int = 1000) -> list[float]:
+    """A 90 % bootstrap interval of :func:`mean_pairwise_cosine` over the S rows of V [S, n]:
+    the rows resampled with replacement, each resample's mean taken over pairs of distinct
+    draws (a row paired with its own copy would add a cosine of 1)."""
+    C = cosine_matrix(V)
+    S = len(C)
+    boot = []
+    for _ in range(n_boot):
+        i = rng.integers(0, S, S)
+        distinct = i[:, None] != i[None, :]
+        if distinct.any():
+            boot.append(C[np.ix_(i, i)][distinct].mean())
+    return [float(np.quantile(boot, 0.05)), float(np.quantile(boot, 0.95))]
