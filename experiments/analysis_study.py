@@ -316,16 +316,10 @@ def _mlp_directions(cfg, system, task, X_star, U_star, key, spec_mlp, arrays) ->
     spec = spec_mlp._replace(checkpoints=(0,))
     zt, xnt = _common([te for _, te in sets])
     yt = mlp.targets(zt[..., : system.nx], xnt, spec_mlp.increment)
-    first = lambda v: jnp.broadcast_to(v[:1], v.shape)  # noqa: E731
+    first = [jnp.broadcast_to(v[:1], v.shape) for v in (z, y, zt, yt)]  # data set 0, K times
     arms = {
         "data sets": (jnp.stack([jax.random.fold_in(key, 5)] * K), z, y, zt, yt),
-        "same data": (
-            jax.random.split(jax.random.fold_in(key, 6), K),
-            first(z),
-            first(y),
-            first(zt),
-            first(yt),
-        ),
+        "same data": (jax.random.split(jax.random.fold_in(key, 6), K), *first),
     }
     out, G = {}, {}
     for arm, (keys, za, ya, zta, yta) in arms.items():
@@ -349,7 +343,7 @@ def _mlp_directions(cfg, system, task, X_star, U_star, key, spec_mlp, arrays) ->
         out[f"MLP {100 * level:g}% {'epoch 0' if when == 'epoch0' else 'trained'}"] = {
             "mean_pairwise_cosine": spectra.mean_pairwise_cosine(D),
             "mean_pairwise_cosine_interval": spectra.pairwise_cosine_interval(D, rng),
-            "min_pairwise_cosine": float(spectra.cosine_matrix(D)[~np.eye(K, dtype=bool)].min()),
+            "min_pairwise_cosine": float(spectra.pairwise_cosines(D).min()),
             "same_data_cosine": spectra.mean_pairwise_cosine(C),
             "same_data_cosine_interval": spectra.pairwise_cosine_interval(C, rng),
         }

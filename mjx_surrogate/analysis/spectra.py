@@ -107,10 +107,15 @@ def cosine_matrix(V: np.ndarray) -> np.ndarray:
     return U @ U.T
 
 
+def pairwise_cosines(V: np.ndarray) -> np.ndarray:
+    """The cosines of the distinct (ordered) pairs of rows of V [S, n]: [S (S - 1)]."""
+    C = cosine_matrix(V)
+    return C[~np.eye(len(C), dtype=bool)]
+
+
 def mean_pairwise_cosine(V: np.ndarray) -> float:
     """Mean cosine over the distinct pairs of rows of V [S, n]."""
-    C = cosine_matrix(V)
-    return float(C[~np.eye(len(C), dtype=bool)].mean())
+    return float(pairwise_cosines(V).mean())
 
 
 def pairwise_cosine_interval(V: np.ndarray, rng: np.random.Generator, n_boot: int = 1000) -> list[float]:
