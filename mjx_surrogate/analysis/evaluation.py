@@ -33,6 +33,7 @@ class Replay(NamedTuple):
     final_error_closed: jax.Array
 
 
+@system_jit(static_argnames=("system",))
 def replay(system: System, task: Task, X: jax.Array, U: jax.Array, K: jax.Array) -> Replay:
     """Execute the nominal X [T+1, nx], U [T, nu] with gains K [T, nu, nx] on the black box,
     open and closed loop, controls clipped to the task's limits."""
@@ -181,12 +182,13 @@ def prediction_errors(step_t: step_models.StepT, test: Dataset) -> tuple[dict, n
     trajectory's RMSE) and diverged (fraction of trajectories whose prediction went
     non-finite). RMSEs that are not finite are reported as None.
     """
-    ok = np.asarray(jnp.isfinite(test.X).all((1, 2)))
-    X, U = test.X[ok], test.U[ok]
+    X, U = np.asarray(test.X), np.asarray(test.U)  # the finite test trajectories, picked on the host
+    ok = np.isfinite(X).all((1, 2))
+    X, U = X[ok], U[ok]
     if not isinstance(step_t, jax.tree_util.Partial):
         step_t = jax.tree_util.Partial(step_t)
     pred, one = _predictions(step_t, X, U)
-    err_multi = np.asarray((pred - X) ** 2)
+    err_multi = (np.asarray(pred) - X) ** 2
     per_traj = np.sqrt(err_multi.reshape(err_multi.shape[0], -1).mean(1))
     finite = np.isfinite(per_traj)
     out = {

@@ -23,6 +23,7 @@ import jax
 import jax.numpy as jnp
 
 
+@jax.jit
 def relative_spread(X: jax.Array, X_star: jax.Array) -> jax.Array:
     """Median over trajectories of max_t ||x_t - x*_t|| / max_t ||x*_t - x*_0||;
     X [N, T+1, nx], X* [T+1, nx]. Non-finite trajectories count as +inf."""

@@ -79,7 +79,7 @@ def _regressions(system, X, U, dx0, dU):
 def _conditions(G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Condition numbers [..., T] of the Grams G [..., T, m, m], raw and at a unit diagonal."""
     flat = G.reshape(-1, *G.shape[-2:])
-    scaled = np.asarray(unit_diagonal(jnp.asarray(flat))[0])
+    scaled = unit_diagonal(flat)[0]  # NumPy in, NumPy at its precision out
 
     def cond(M):
         w = np.linalg.eigvalsh(M.astype(np.float64))
@@ -136,7 +136,7 @@ def measure(
     A_ref, B_ref = sysid.finite_difference_jacobians(system.step, X_star, U_star)
     W_ref = jnp.concatenate([A_ref, B_ref], -1)
     W = np.concatenate([A, B], -1)
-    err = np.stack([np.asarray(relative_frobenius(jnp.asarray(w), W_ref)) for w in W])  # [D*K, T]
+    err = np.asarray(relative_frobenius(jnp.asarray(W), W_ref[None]))  # [D*K, T]
     raw, scaled = _conditions(G)  # [D*K, T]
     shape = (len(kinds), n_seeds)
     err, raw, scaled = (a.reshape(*shape, T) for a in (err, raw, scaled))

@@ -12,6 +12,8 @@ to a factor 2). Everything here is evaluated in the dtype of its inputs: pass fl
 
 from __future__ import annotations
 
+from functools import partial
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -59,6 +61,7 @@ def standardise(model: MLPModel, z: jax.Array, y: jax.Array) -> tuple[jax.Array,
     return ((z - n.z_mean) / n.z_std).astype(jnp.float32), ((y - n.y_mean) / n.y_std).astype(jnp.float32)
 
 
+@partial(jax.jit, static_argnames=("dtype", "evaluate_in"))
 def mlp_jacobian(model: MLPModel, zs: jax.Array, dtype=jnp.float64, evaluate_in=None) -> jax.Array:
     """H [R * nx, n_theta]: d h(z_i, theta) / d theta stacked over the points zs [R, nz],
     computed in the network's own precision (or ``evaluate_in``), returned as ``dtype``."""
@@ -68,6 +71,7 @@ def mlp_jacobian(model: MLPModel, zs: jax.Array, dtype=jnp.float64, evaluate_in=
     return J.reshape(-1, flat.shape[0]).astype(dtype)
 
 
+@jax.jit
 def mlp_gram(model: MLPModel, zs: jax.Array) -> jax.Array:
     """(1/R) H' H [n_theta, n_theta], the Jacobian evaluated at the trained parameters in
     float64 where enabled: the null space of the ReLU units' scaling symmetries is then exact
@@ -83,6 +87,7 @@ def gram_rank_tolerance(n_rows: int, n_cols: int, dtype) -> float:
     return float(max(n_rows, n_cols) * jnp.finfo(dtype).eps)
 
 
+@jax.jit
 def mlp_descent_direction(model: MLPModel, zs: jax.Array, ys: jax.Array) -> jax.Array:
     """(1/R) H' Delta [n_theta], Delta = ys - h(zs) (both standardised)."""
     h, flat = _flat_apply(model)
@@ -91,6 +96,7 @@ def mlp_descent_direction(model: MLPModel, zs: jax.Array, ys: jax.Array) -> jax.
     return H.T @ delta / zs.shape[0]
 
 
+@jax.jit
 def error_projections(thetas: list[jax.Array], ys: list[jax.Array], coef: jax.Array) -> jax.Array:
     """(1/R_s) Theta_s' (Y_s - Theta_s C) for data sets s = 1..S: [S, P, nx].
 

@@ -45,6 +45,7 @@ class Transitions(NamedTuple):
     x_next: jax.Array  # [M, nx]
 
 
+@jax.jit
 def u_max(U_star: jax.Array, lo: jax.Array | None = None, hi: jax.Array | None = None) -> jax.Array:
     """U_max [nu]: the actuator limit max(|lo|, |hi|) where both are finite, else the
     largest |u*| per channel over the horizon (1 where u* is all zero)."""

@@ -47,11 +47,17 @@ class LTVModel(NamedTuple):
 def fit_ltv(data: Dataset, X_nom: jax.Array, U_nom: jax.Array) -> LTVModel:
     """The paper's local model from a data set: for each t, least squares of
     x_{t+1} - X_{t+1} on [x_t - X_t, u_t - U_t] over the data set's trajectories."""
-    ok = jnp.isfinite(data.X).all((1, 2))
-    dX = (data.X - X_nom)[ok]
-    dU = (data.U - U_nom)[ok]
+    dX, dU = _finite_deviations(data, X_nom, U_nom)
     A, B = sysid.fit_from_trajectories(dX, dU)
     return LTVModel(X_nom, U_nom, A, B)
+
+
+def _finite_deviations(data: Dataset, X_nom: jax.Array, U_nom: jax.Array) -> tuple[np.ndarray, np.ndarray]:
+    """dX [n, T+1, nx], dU [n, T, nu] of the data set's finite trajectories from the nominal
+    (NumPy: the selection's shape depends on the data)."""
+    X = np.asarray(data.X)
+    ok = np.isfinite(X).all((1, 2))
+    return X[ok] - np.asarray(X_nom), np.asarray(data.U)[ok] - np.asarray(U_nom)
 
 
 def fit_reduced_ltv(data: Dataset, X_nom: jax.Array, U_nom: jax.Array, rank_tol: float) -> LTVModel:
@@ -59,8 +65,7 @@ def fit_reduced_ltv(data: Dataset, X_nom: jax.Array, U_nom: jax.Array, rank_tol:
     (:func:`mjx_surrogate.identification.sysid_reduced.fit_in_snapshot_basis`), returned in full order."""
     from mjx_surrogate.identification import sysid_reduced
 
-    ok = jnp.isfinite(data.X).all((1, 2))
-    A, B, V = sysid_reduced.fit_in_snapshot_basis((data.X - X_nom)[ok], (data.U - U_nom)[ok], rank_tol)
+    A, B, V = sysid_reduced.fit_in_snapshot_basis(*_finite_deviations(data, X_nom, U_nom), rank_tol)
     return LTVModel(X_nom, U_nom, *sysid_reduced.lift_model(A, B, V))
 
 
@@ -99,6 +104,7 @@ def one_step(step_t: StepT, X: jax.Array, U: jax.Array) -> jax.Array:
     return jax.vmap(lambda x, u: per_t(ts, x[:-1], u))(X, U)
 
 
+@jax.jit
 def rmse(pred: jax.Array, true: jax.Array) -> jax.Array:
     """Root-mean-square error over everything but the last (state) axis, per coordinate
     averaged: sqrt(mean((pred - true)^2)); non-finite predictions count as +inf."""

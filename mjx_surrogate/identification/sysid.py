@@ -29,6 +29,7 @@ function plus one :func:`register_scheme` call; docs/extending.md):
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Any, Callable, NamedTuple
 
 import jax
@@ -132,6 +133,7 @@ def _trajectory_statistics(dX: jax.Array, dU: jax.Array, w: jax.Array | None, p:
     return _statistics(Z, jnp.swapaxes(dX[:, 1:], 0, 1), w, p)
 
 
+@jax.jit
 def fit_from_trajectories(dX: jax.Array, dU: jax.Array) -> tuple[jax.Array, jax.Array]:
     """Regress dX[:, t+1] on [dX[:, t], dU[:, t]]: dX [n, T+1, nx], dU [n, T, nu]."""
     G, F = _trajectory_statistics(dX, dU, None)
@@ -303,6 +305,7 @@ def exact_jacobians(step: Callable, X: jax.Array, U: jax.Array) -> tuple[jax.Arr
     return jax.vmap(jax.jacfwd(step, argnums=(0, 1)))(X[:-1], U)
 
 
+@partial(jax.jit, static_argnames=("step", "eps"))
 def finite_difference_jacobians(
     step: Callable, X: jax.Array, U: jax.Array, eps: float | None = None
 ) -> tuple[jax.Array, jax.Array]:

@@ -238,7 +238,8 @@ def train_seeds(
     return sharding.map_batch(many, mesh, keys, z, y, z_test, y_test)
 
 
-def unstack(result: TrainResult, i: int) -> TrainResult:
+@jax.jit
+def unstack(result: TrainResult, i: int | jax.Array) -> TrainResult:
     """The i-th network of a ``train_seeds`` result."""
     m = result.model
     take = lambda t: jax.tree.map(lambda a: a[i], t)  # noqa: E731

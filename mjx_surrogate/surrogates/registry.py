@@ -14,6 +14,7 @@ from typing import Any, Callable, NamedTuple, Protocol
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from mjx_surrogate.errors import ConfigError, registered
 
@@ -171,9 +172,8 @@ def _fit_mlp(ctx: FitContext, train, test, key) -> dict[str, Fitted]:
 
     m = ctx.config.surrogate.mlp
     spec = mlp_spec(ctx.config)
-    z = jnp.concatenate([train.x, train.u], -1)
-    y = mlp.targets(train.x, train.x_next, spec.increment)
-    tests = (jnp.concatenate([test.x, test.u], -1), mlp.targets(test.x, test.x_next, spec.increment))
+    z, y = _pairs(train.x, train.u, train.x_next, spec.increment)  # NumPy: the splits index it on the host
+    tests = _pairs(test.x, test.u, test.x_next, spec.increment)
     if spec.patience > 0:
         block = ctx.trajectory_length or 1
         k_val = jax.random.fold_in(key, 1)
@@ -186,6 +186,14 @@ def _fit_mlp(ctx: FitContext, train, test, key) -> dict[str, Fitted]:
         fixed = spec._replace(epochs=m.fixed_epochs_beside, patience=0, stop_window=0, checkpoints=())
         out[f"MLP {m.fixed_epochs_beside} epochs"] = _mlp_fitted(mlp.train(fixed, key, z, y, *tests))
     return out
+
+
+def _pairs(x: jax.Array, u: jax.Array, x_next: jax.Array, increment: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The MLP's inputs z = [x, u] [n, nx + nu] and targets [n, nx] of transitions, as NumPy."""
+    from mjx_surrogate.surrogates import mlp
+
+    x = np.asarray(x)
+    return np.concatenate([x, np.asarray(u)], -1), mlp.targets(x, np.asarray(x_next), increment)
 
 
 def _mlp_fitted(r) -> Fitted:
