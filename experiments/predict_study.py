@@ -61,8 +61,7 @@ def level_stage(res: Resolved, X_star, U_star, level: float, i: int, key: jax.Ar
             info["LTV reduced"] = {"fit_s": time.perf_counter() - t0}
         meter.advance("prediction errors")
         per_model, arrays = {}, {}
-        test_X = np.asarray(test.X)
-        arrays[f"level{i}_test_X"] = test_X[np.isfinite(test_X).all((1, 2))][0]
+        arrays[f"level{i}_test_X"] = data.finite_trajectories(test).X[0]
         for name, step_t in steps.items():
             m, pred = prediction_errors(step_t, test)
             per_model[name] = {**m, **info[name]}

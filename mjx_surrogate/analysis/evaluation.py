@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate.identification import step_models
-from mjx_surrogate.identification.data import Dataset, u_max
+from mjx_surrogate.identification.data import Dataset, finite_trajectories, u_max
 from mjx_surrogate.systems import System
 from mjx_surrogate.systems.system_jit import system_jit
 from mjx_surrogate.tasks import Task, trajectory_cost
@@ -182,9 +182,7 @@ def prediction_errors(step_t: step_models.StepT, test: Dataset) -> tuple[dict, n
     trajectory's RMSE) and diverged (fraction of trajectories whose prediction went
     non-finite). RMSEs that are not finite are reported as None.
     """
-    X, U = np.asarray(test.X), np.asarray(test.U)  # the finite test trajectories, picked on the host
-    ok = np.isfinite(X).all((1, 2))
-    X, U = X[ok], U[ok]
+    X, U = finite_trajectories(test)
     if not isinstance(step_t, jax.tree_util.Partial):
         step_t = jax.tree_util.Partial(step_t)
     pred, one = _predictions(step_t, X, U)

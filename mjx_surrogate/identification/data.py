@@ -117,6 +117,14 @@ def _split(data: Dataset, key: jax.Array, n_test: int) -> tuple[Dataset, Dataset
     return take(train), take(test)
 
 
+def finite_trajectories(data: Dataset) -> Dataset:
+    """The trajectories of ``data`` with every state finite, as NumPy (picked on the host:
+    how many are kept depends on the data)."""
+    X = np.asarray(data.X)
+    ok = np.isfinite(X).all((1, 2))
+    return Dataset(X[ok], np.asarray(data.U)[ok])
+
+
 def transitions(data: Dataset) -> Transitions:
     """Flatten [N, T, ...] into M = N*T transitions, dropping any with a non-finite entry.
 

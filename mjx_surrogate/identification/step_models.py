@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate.identification import sysid
-from mjx_surrogate.identification.data import Dataset
+from mjx_surrogate.identification.data import Dataset, finite_trajectories
 from mjx_surrogate.systems.system import System
 from mjx_surrogate.trajectory import simulate_t
 
@@ -53,11 +53,9 @@ def fit_ltv(data: Dataset, X_nom: jax.Array, U_nom: jax.Array) -> LTVModel:
 
 
 def _finite_deviations(data: Dataset, X_nom: jax.Array, U_nom: jax.Array) -> tuple[np.ndarray, np.ndarray]:
-    """dX [n, T+1, nx], dU [n, T, nu] of the data set's finite trajectories from the nominal
-    (NumPy: the selection's shape depends on the data)."""
-    X = np.asarray(data.X)
-    ok = np.isfinite(X).all((1, 2))
-    return X[ok] - np.asarray(X_nom), np.asarray(data.U)[ok] - np.asarray(U_nom)
+    """dX [n, T+1, nx], dU [n, T, nu] of the data set's finite trajectories from the nominal."""
+    X, U = finite_trajectories(data)
+    return X - np.asarray(X_nom), U - np.asarray(U_nom)
 
 
 def fit_reduced_ltv(data: Dataset, X_nom: jax.Array, U_nom: jax.Array, rank_tol: float) -> LTVModel:
