@@ -7,6 +7,13 @@ D2C status, cost, iterations, goal test, run and compile time apart; the FD orac
 from the same start and the gap; with ``--seeds N``, the spread of D2C's cost over N keys.
 
     python benchmarks/thirdparty.py [--seeds 4] [--models hopper ant]
+
+With ``--hold``, instead: every dm_control suite model and gymnasium asset with controls
+through its ``hold`` task and the documented defaults, one D2C iteration each, checked as
+the suite checks its chosen few (``tests/test_thirdparty.py``'s ``check_hold_solve``: the
+cost never rises, the controls stay in the ctrlrange, the cost replays with
+``mujoco.rollout``, the verdict is true); a row per model, ``FAILED`` and the failing check
+where one fails (exit status 1).
 """
 
 from __future__ import annotations
@@ -31,14 +38,42 @@ def _timed(fn, *args):
     return out, t1 - t0, time.perf_counter() - t1
 
 
+def _hold_sweep(models: list[str] | None) -> int:
+    """The hold sweep (``--hold``); returns the exit status."""
+    from test_thirdparty import HOLD_MODELS, check_hold_solve, hold_config
+
+    print("| model | status | cost (start) | goal reached | checks | s (compile included) |")
+    print("|---|---|---|---|---|---|")
+    failed = 0
+    for model in HOLD_MODELS:
+        if models and not any(m in model for m in models):
+            continue
+        if hold_config(model) is None:
+            print(f"| {model} | wheel not downloadable |")
+            continue
+        t0 = time.perf_counter()
+        try:
+            m = check_hold_solve(model)
+            row = f"{m['status']} | {m['cost']:.4g} ({m['cost_start']:.4g}) "
+            row += f"| {'yes' if m['goal']['reached'] else 'no'} | passed"
+        except AssertionError as e:
+            failed += 1
+            row = f"| | | FAILED: {str(e).splitlines()[0][:120]}"
+        print(f"| {model} | {row} | {time.perf_counter() - t0:.1f} |", flush=True)
+    return 1 if failed else 0
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--seeds", type=int, default=1, help="D2C keys per model (spread of the cost)")
     ap.add_argument("--models", nargs="*", default=None, help="substrings of case names (default: all)")
+    ap.add_argument("--hold", action="store_true", help="every suite model's hold task, one D2C iteration")
     a = ap.parse_args()
     from mjx_surrogate.runtime import configure_runtime
 
     configure_runtime(x64=True)
+    if a.hold:
+        sys.exit(_hold_sweep(a.models))
     import functools
 
     import jax

@@ -45,7 +45,8 @@ class Task:
     error. ``deadline`` (static): the control step of an
     episode at which the task ends, for a receding horizon that shrinks to it (None: the
     horizon recedes); ``end``: the stage within the horizon at which it ends (an int32
-    scalar, 0 .. T; None: T), set by :func:`at_step`."""
+    scalar, 0 .. T; None: T), set by :func:`at_step`. ``gauss_newton`` (static): point goals
+    and a chordal error get Gauss-Newton's Hessian (:func:`task_cost`), else the exact one."""
 
     x0: jax.Array
     x_goal: jax.Array
@@ -65,6 +66,7 @@ class Task:
     deadline: int | None = struct.field(pytree_node=False, default=None)
     end: jax.Array | None = None
     chordal: bool = struct.field(pytree_node=False, default=False)
+    gauss_newton: bool = struct.field(pytree_node=False, default=True)
 
 
 def half_ranges(u_min: np.ndarray, u_max: np.ndarray) -> np.ndarray:
@@ -180,10 +182,13 @@ def task_cost(task: Task) -> cost_lib.Cost:
     """The task's cost as the solver's :class:`~mjx_surrogate.cost.Cost` (timed where the
     task ends within its horizon); with point goals, their Hessian is Gauss-Newton's
     (:func:`point_goal_derivatives`), and so is a chordal state error's
-    (:func:`chordal_derivatives`)."""
+    (:func:`chordal_derivatives`), unless ``task.gauss_newton`` is off (then every term is
+    differentiated exactly)."""
     derivatives = None if task.points is None else (lambda X, U: point_goal_derivatives(task, X, U))
     if task.chordal and task.hinges:
         derivatives = lambda X, U: chordal_derivatives(task, X, U)  # noqa: E731
+    if not task.gauss_newton:
+        derivatives = None
     if task.end is not None:
         return cost_lib.Cost(
             lambda x, u, t: stage_cost(task, x, u, t), lambda x: final_cost(task, x), derivatives, True
@@ -292,6 +297,7 @@ def make_task(
     hinges: tuple = (),
     quats: tuple = (),
     chordal: bool = False,
+    gauss_newton: bool = True,
 ) -> Task:
     """Assemble a :class:`Task` from array-likes (shapes checked by ``resolution.resolve``)."""
     dtype = dtype or jnp.result_type(float)
@@ -318,4 +324,5 @@ def make_task(
         quats=tuple(int(i) for i in quats),
         points=points if k else None,
         chordal=bool(chordal),
+        gauss_newton=bool(gauss_newton),
     )

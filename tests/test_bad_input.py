@@ -96,6 +96,7 @@ CASES = [
         "mpc.d2c_sampling.samples",
     ),
     (["smoke_mpc", "--task.state_error", "chord"], "--task.state_error"),
+    (["smoke_mpc", "--task.hessian", "newton"], "--task.hessian"),
     (["lorenz_mpc", "--mpc.plants", "mass=1.5"], "mpc.plants[0]"),  # not a keyword of Lorenz's
     (["lorenz_mpc", "--mpc.plants", "dt=0.02"], "mpc.plants[0]"),  # a plant keeps the period
     (["smoke_mpc", "--mpc.plants", "heavier"], "mpc.plants[0]"),

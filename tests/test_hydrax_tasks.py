@@ -88,6 +88,17 @@ def test_the_chordal_error_squares_to_the_angle_cost_and_its_derivatives_are_gau
     # the exact Hessian's hinge entry is Q cos d (negative below the horizontal); J'QJ's Q cos^2(d/2)
     np.testing.assert_allclose(np.asarray(exact[2])[:, 1, 1], Q[1, 1] * np.cos(d[:-1]), atol=1e-12)
     assert np.all(np.linalg.eigvalsh(np.asarray(gn[2])) >= -1e-12)
+    # task.hessian "exact" (a config field, resolved into the task) is that exact Hessian
+    cfg = Config(
+        system=SystemConfig(name="hydrax_pendulum"), task=TaskConfig(preset="hydrax_pendulum_swingup")
+    )
+    for hessian, gauss_newton in (("gauss_newton", True), ("exact", False)):
+        res = resolve(dataclasses.replace(cfg, task=dataclasses.replace(cfg.task, hessian=hessian)))
+        assert res.task.gauss_newton is gauss_newton and res.config.task.hessian == hessian
+        assert (task_cost(res.task).derivatives is None) is not gauss_newton
+    exact_task = dataclasses.replace(task, gauss_newton=False)
+    exact_again = cost_derivatives(task_cost(exact_task), X, U)[2]
+    np.testing.assert_array_equal(np.asarray(exact_again), np.asarray(exact[2]))
 
 
 def test_predictive_sampling_passes_hydrax_s_own_open_loop_test():
@@ -120,16 +131,15 @@ def test_predictive_sampling_passes_hydrax_s_own_open_loop_test():
 
 
 @pytest.mark.slow
-def test_every_planner_of_the_pendulum_preset_swings_up_and_holds(tmp_path, monkeypatch):
+def test_every_planner_of_the_pendulum_preset_swings_up_and_holds(tmp_path):
     """hydrax_pendulum_mpc cut to 6 s and 2 episodes: every planner is in the goal from
     before 5.5 s to the end in every episode; D2C-MPC with the exact (indefinite) Hessian
-    of the chordal cost is not (it pumps below the horizontal: docs/mpc.md)."""
+    of the chordal cost (``--task.hessian exact``) is not (it pumps below the horizontal:
+    docs/mpc.md)."""
     import json
     import os
 
     from experiments import run as cli
-    from mjx_surrogate import tasks
-    from mjx_surrogate.control import d2c
 
     args = ["hydrax_pendulum_mpc", "--mpc.steps", "300", "--mpc.n_episodes", "2", "--experiment.no_video"]
     assert cli.main(args + ["--out", str(tmp_path / "gn")]) == 0
@@ -141,19 +151,8 @@ def test_every_planner_of_the_pendulum_preset_swings_up_and_holds(tmp_path, monk
             r["controller"],
             r["in_goal_from_s"],
         )
-    exact = tasks.task_cost
-
-    def without_gauss_newton(task):
-        cost = exact(task)
-        return cost._replace(derivatives=None) if task.chordal else cost
-
-    try:  # D2C's problem (the MPC's replans) with the exact Hessian; no program reused
-        jax.clear_caches()
-        monkeypatch.setattr(d2c, "task_cost", without_gauss_newton)
-        assert cli.main(args + ["--mpc.controllers", "d2c", "--out", str(tmp_path / "exact")]) == 0
-    finally:
-        monkeypatch.undo()
-        jax.clear_caches()
+    exact = ["--mpc.controllers", "d2c", "--task.hessian", "exact", "--out", str(tmp_path / "exact")]
+    assert cli.main(args + exact) == 0
     (folder,) = os.listdir(tmp_path / "exact")
     (row,) = json.loads((tmp_path / "exact" / folder / "metrics.json").read_text())["mpc_rows"]
     assert row["in_goal_from_s"] == [None, None], row["in_goal_from_s"]

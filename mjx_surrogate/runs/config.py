@@ -96,6 +96,10 @@ class TaskConfig:
       hinge's error d measured by its chord 2 sin(d / 2): the angle costs 2 (1 - cos d),
       hydrax's swing-up cost); None: the preset's, else geodesic.
     goals: PointGoal terms on sites or bodies, added to the quadratic cost.
+    hessian: the solver's Hessian of the point goals and of a chordal error: "gauss_newton"
+      (J'WJ of their residuals, MuJoCo MPC's treatment; positive semi-definite) or "exact"
+      (second derivatives throughout; the chordal angle term's is negative below the
+      horizontal, docs/mpc.md).
     goal_tolerance: the goal counts as reached when the terminal cost is at most this
       fraction of the terminal cost at x0 (docs/results.md).
     """
@@ -118,6 +122,7 @@ class TaskConfig:
     state_error: Optional[Literal["euclidean", "geodesic", "chordal"]] = None
     goals: Tuple[PointGoal, ...] = ()
     goal_tolerance: float = 0.01
+    hessian: Literal["gauss_newton", "exact"] = "gauss_newton"
 
 
 @dataclasses.dataclass(frozen=True)

@@ -76,6 +76,7 @@ def resolve_function_task(tc: TaskConfig, system: FunctionSystem) -> tuple[TaskC
     state_error = tc.state_error or base.get("state_error", "euclidean")
     hinges = tuple(a for a, _ in system.angle_pairs) if state_error in ("geodesic", "chordal") else ()
     chordal = state_error == "chordal"
-    task = make_task(x0, x_goal, Q, Q_f, R, int(T), u_min, u_max, u_ref=u_ref, hinges=hinges, chordal=chordal)
+    shape = dict(u_ref=u_ref, hinges=hinges, chordal=chordal, gauss_newton=tc.hessian == "gauss_newton")
+    task = make_task(x0, x_goal, Q, Q_f, R, int(T), u_min, u_max, **shape)
     resolved = resolved_task_config(tc, T, x0, x_goal, Q, Q_f, R, u_min, u_max, u_ref, state_error)
     return resolved, task

@@ -143,4 +143,5 @@ def resolved_task_config(tc, T, x0, x_goal, Q, Q_f, R, u_min, u_max, u_ref, stat
         state_error=state_error,
         goals=tc.goals,
         goal_tolerance=tc.goal_tolerance,
+        hessian=tc.hessian,
     )

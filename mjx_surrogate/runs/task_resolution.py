@@ -158,5 +158,6 @@ def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
         hinges=hinges,
         quats=quats,
         chordal=state_error == "chordal",
+        gauss_newton=tc.hessian == "gauss_newton",
     )
     return resolved_task_config(tc, T, x0, x_goal, Q, Q_f, R, u_min, u_max, u_ref, state_error), task
