@@ -68,7 +68,9 @@ def test_the_oracles_jacobians_name_their_method(pendulum, monkeypatch):
     system, task, U0 = pendulum
     chunked.solve_exact(system, task, U0, P)
     chunked.solve_exact(system, task, U0, P, jacobians="finite_difference")
-    assert seen == ["exact", "finite_difference"]
+    assert seen == ["jacfwd", "finite_difference"]  # the method is the oracle's own name
+    with pytest.raises(ValueError, match="'jacrev': valid: jacfwd, finite_difference"):
+        chunked.solve_exact(system, task, U0, P, jacobians="jacrev")
 
 
 def _callback_targets(lowered) -> list[str]:

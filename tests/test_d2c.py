@@ -146,10 +146,10 @@ def test_an_unknown_method_or_oracle_is_refused_not_solved_as_the_exact_oracle()
     _, system, task = resolve(
         Config(system=SystemConfig(name="pendulum"), task=TaskConfig(preset="pendulum_d2c"))
     )
-    with pytest.raises(ValueError, match="'exakt': valid: d2c, exact, finite_difference"):
-        d2c.problem(system, task, SysIdParams(), "exakt")
-    for refused in (lambda: d2c.oracle_method("jacrev"), lambda: d2c.exact_linearize(system, "jacrev")):
+    with pytest.raises(ValueError, match="'exact': valid: d2c, jacfwd, finite_difference"):
+        d2c.problem(system, task, SysIdParams(), "exact")  # one vocabulary: the oracles' own names
+    for refused in (lambda: d2c.check_oracle("jacrev"), lambda: d2c.exact_linearize(system, "jacrev")):
         with pytest.raises(ValueError, match="'jacrev': valid: jacfwd, finite_difference"):
             refused()
-    assert d2c.problem(system, task, SysIdParams(), "exact").trial_rollouts is None  # the names still work
-    assert d2c.oracle_method("finite_difference") == "finite_difference"
+    assert d2c.problem(system, task, SysIdParams(), "jacfwd").trial_rollouts is None  # the names still work
+    assert d2c.check_oracle("finite_difference") == "finite_difference"

@@ -257,6 +257,7 @@ def test_a_registered_model_strategy_with_its_setting_runs_from_the_command_line
     }
 
 
+@pytest.mark.slow
 def test_a_registered_planner_runs_beside_d2c_mpc_from_the_command_line(tmp_path):
     """The page's open-loop planner in an MPC run: its row sits in the table and the
     verdict's input, and its episodes apply the first plan as it stands (the offline

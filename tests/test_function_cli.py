@@ -190,6 +190,7 @@ FAILS_LATER = PENDULUM.replace(
 )
 
 
+@pytest.mark.slow
 def test_a_black_box_that_turns_nan_mid_solve_keeps_its_last_finite_iterate(tmp_path, capsys):
     """A host step that returns NaN after 8,000 calls (the solve takes about 15,000): the
     solve ends ``diverged`` at the iteration where it did, keeping the last finite iterate

@@ -66,7 +66,7 @@ def test_d2c_reaches_the_jacfwd_oracle_on_the_f8_through_the_api():
     d2c = chunked.solve(
         s, task, U0, jax.random.key(0), params, SysIdParams(1e-6, 1e-6, n_samples=8), "d2c"
     ).out
-    exact = chunked.solve(s, task, U0, jax.random.key(0), params, SysIdParams(), "exact").out
+    exact = chunked.solve(s, task, U0, jax.random.key(0), params, SysIdParams(), "jacfwd").out
     metrics, _ = pipeline.summary(d2c, s, task)
     assert (
         metrics["status"] == "converged" and metrics["goal"]["reached"] and metrics["controls_within_limits"]
@@ -112,7 +112,7 @@ def test_a_host_function_has_no_exact_oracle():
     host = from_numpy(numpy_lorenz_step, 3, 1, 0.01, name="numpy_lorenz")
     task = lorenz.switch_task(T=5)
     with pytest.raises(ms_config_error()) as err:
-        chunked.solve(host, task, jnp.zeros((5, 1)), jax.random.key(0), ILQRParams(), SysIdParams(), "exact")
+        chunked.solve(host, task, jnp.zeros((5, 1)), jax.random.key(0), ILQRParams(), SysIdParams(), "jacfwd")
     assert "experiment.oracle" in str(err.value) and "finite_difference" in str(err.value)
 
 

@@ -73,6 +73,7 @@ def test_mpc_on_a_linear_system_is_the_receding_horizon_lqr(controller):
     assert r.plan_cost.shape == (N,) and np.all(np.asarray(r.iterations) >= 1)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("planner", ["d2c", "surrogate"])
 def test_a_horizon_that_shrinks_to_the_tasks_end_is_the_finite_horizon_lqr(planner):
     """A task that ends 15 steps after the episode's start (deadline 15), planned over

@@ -99,6 +99,7 @@ def _hidden_lever():
     return system, task, calls
 
 
+@pytest.mark.slow
 def test_a_stationary_solve_is_restarted_from_spread_starts_with_their_budget_counted():
     from mjx_surrogate.control import chunked
     from mjx_surrogate.control.ilqr import StopReason

@@ -226,6 +226,7 @@ def test_the_hybrids_proposals_are_the_warm_start_and_smooth_draws_around_it():
     np.testing.assert_allclose(P[1:], expect, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_the_hybrid_with_no_spread_is_d2c_mpc_on_a_linear_system():
     """sigma 0: every draw is the warm start, so each replan is D2C-MPC's (the linear map
     identified to round-off): the same closed loop."""

@@ -187,15 +187,22 @@ def test_a_task_that_ends_within_its_horizon_costs_and_differentiates_as_written
     X, U = jnp.asarray(X), jnp.asarray(U)
     plain = task.replace(deadline=None)
     assert at_step(plain, 4) is plain and task_cost(task).timed is False
+    # one program for the stages' end as an argument; the reference's per end (a Python loop)
+    derivatives = jax.jit(lambda e, X, U: (trajectory_cost(e, X, U), cost_derivatives(task_cost(e), X, U)))
+    reference = jax.jit(
+        lambda task, end, X, U: (
+            _ending_reference(task, end, X, U),
+            jax.grad(_ending_reference, (2, 3))(task, end, X, U),
+            jax.hessian(_ending_reference, (2, 3))(task, end, X, U),
+        ),
+        static_argnums=1,
+    )
     for n, end in [(3, 6), (5, 4), (8, 1), (9, 0), (12, 0)]:
         ended = at_step(task, jnp.asarray(n))
         assert int(ended.end) == end and task_cost(ended).timed
-        ref = lambda X, U, end=end: _ending_reference(task, end, X, U)  # noqa: E731
-        assert float(trajectory_cost(ended, X, U)) == pytest.approx(float(ref(X, U)), rel=1e-12)
-        derivatives = jax.jit(lambda X, U, e=ended: cost_derivatives(task_cost(e), X, U))
-        lx, lu, lxx, luu, lux, Vx, Vxx = derivatives(X, U)
-        gX, gU = jax.grad(ref, (0, 1))(X, U)
-        (hXX, hXU), (_, hUU) = jax.hessian(ref, (0, 1))(X, U)
+        J, (lx, lu, lxx, luu, lux, Vx, Vxx) = derivatives(ended, X, U)
+        J_ref, (gX, gU), ((hXX, hXU), (_, hUU)) = reference(task, end, X, U)
+        assert float(J) == pytest.approx(float(J_ref), rel=1e-12)
         T = task.T
         np.testing.assert_allclose(lx, gX[:T], atol=1e-10)
         np.testing.assert_allclose(Vx, gX[T], atol=1e-10)

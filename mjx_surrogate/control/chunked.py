@@ -34,7 +34,7 @@ import numpy as np
 from mjx_surrogate import progress as progress_lib
 from mjx_surrogate import sharding
 from mjx_surrogate.control import d2c
-from mjx_surrogate.control.d2c import best_of, oracle_method, problem
+from mjx_surrogate.control.d2c import best_of, check_oracle, problem
 from mjx_surrogate.control.ilqr import (
     ILQRParams,
     SolveState,
@@ -131,7 +131,7 @@ def solve(
     progress: progress_lib.ProgressMeter = progress_lib.NO_PROGRESS,
     chunk_s: float = 0.5,
 ) -> Timed:
-    """One solve ("d2c", "exact" or "finite_difference", as :func:`mjx_surrogate.control.d2c.problem`)
+    """One solve ("d2c", "jacfwd" or "finite_difference", as :func:`mjx_surrogate.control.d2c.problem`)
     from U0 [T, nu] or [S, T, nu], driven in chunks of about ``chunk_s`` seconds; returns
     :class:`~mjx_surrogate.timing.Timed`: the result, the compile time of both programs and
     the run time. ``progress`` is updated and polled for stop requests between chunks."""
@@ -172,9 +172,8 @@ def _one_program(system, task, U0, key, params, sysid, method, progress) -> Time
         return compile_then_run(d2c.solve_multistart, (system,), (task, U0, key, params, sysid), **kw)
     if method == "d2c":
         return compile_then_run(d2c.solve_d2c, (system,), (task, U0, key, params, sysid, progress), **kw)
-    jacobians = "jacfwd" if method == "exact" else "finite_difference"
     return compile_then_run(
-        d2c.solve_exact, (system,), (task, U0, params, progress), static_kwargs={"jacobians": jacobians}, **kw
+        d2c.solve_exact, (system,), (task, U0, params, progress), static_kwargs={"jacobians": method}, **kw
     )
 
 
@@ -188,5 +187,5 @@ def solve_exact(
     chunk_s: float = 0.5,
 ) -> Timed:
     """:func:`solve` of the exact-Jacobian oracle (:func:`mjx_surrogate.control.d2c.solve_exact`)."""
-    method = oracle_method(jacobians)
+    method = check_oracle(jacobians)
     return solve(system, task, U0, jax.random.key(0), params, sid.SysIdParams(), method, progress, chunk_s)

@@ -37,7 +37,7 @@ from mjx_surrogate.systems.system_jit import system_jit
 from mjx_surrogate.tasks import Task, task_cost
 
 ORACLES = ("jacfwd", "finite_difference")
-METHODS = ("d2c", "exact", "finite_difference")  # problem()'s: D2C and the two oracles
+METHODS = ("d2c", *ORACLES)  # problem()'s: D2C and the two oracles, by the oracles' own names
 
 
 def exact_linearize(system: System, jacobians: str = "jacfwd") -> sid.LinearizeFn:
@@ -54,7 +54,7 @@ def exact_linearize(system: System, jacobians: str = "jacfwd") -> sid.LinearizeF
 
 def problem(system: System, task: Task, sysid: sid.SysIdParams, method: str) -> Problem:
     """The iLQR problem of one solve: "d2c" on the black box (LTV models, the backend's own
-    line-search rollouts), "exact" on the MJX step with ``jax.jacfwd`` Jacobians, or
+    line-search rollouts), "jacfwd" on the MJX step with ``jax.jacfwd`` Jacobians, or
     "finite_difference" on the black box with coordinate central differences."""
     fine, rank = None, None
     if method == "d2c":
@@ -64,7 +64,7 @@ def problem(system: System, task: Task, sysid: sid.SysIdParams, method: str) -> 
             fine = sid.ltv_linearize(system, fine_sysid)
     elif method == "finite_difference":
         step, linearize, closed = system.step, exact_linearize(system, method), system.closed_loop
-    elif method == "exact":
+    elif method == "jacfwd":
         step, linearize, closed = system.exact_step, exact_linearize(system), None
     else:
         raise ValueError(f"method {method!r}: valid: {', '.join(METHODS)}")
@@ -130,15 +130,15 @@ def solve_exact(
 ) -> ILQRResult:
     """iLQR from U0 [T, nu] with exact Jacobians (the oracle): ``jacobians`` is "jacfwd"
     (through the MJX step) or "finite_difference" (of the black-box step)."""
-    method = oracle_method(jacobians)
-    return _solve(system, task, U0, jax.random.key(0), params, sid.SysIdParams(), method, progress)
+    check_oracle(jacobians)
+    return _solve(system, task, U0, jax.random.key(0), params, sid.SysIdParams(), jacobians, progress)
 
 
-def oracle_method(jacobians: str) -> str:
-    """The :func:`problem` method of an oracle's ``jacobians`` ("jacfwd" or "finite_difference")."""
+def check_oracle(jacobians: str) -> str:
+    """``jacobians`` if it names an oracle ("jacfwd" or "finite_difference"), else ValueError."""
     if jacobians not in ORACLES:
         raise ValueError(f"jacobians {jacobians!r}: valid: {', '.join(ORACLES)}")
-    return "exact" if jacobians == "jacfwd" else "finite_difference"
+    return jacobians
 
 
 class MultiStart(NamedTuple):

@@ -33,7 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate.control.d2c import oracle_method, problem
+from mjx_surrogate.control.d2c import problem
 from mjx_surrogate.control.effort import simulation_curve, steps_per_identification
 from mjx_surrogate.control.episode import Plan, episode, first_plan
 from mjx_surrogate.control.ilqr import ILQRParams, Problem, ilqr_advance, ilqr_init, ilqr_result
@@ -81,7 +81,7 @@ def receding_horizon(
     stop it (:func:`episode`)."""
     if controller not in CONTROLLERS:
         raise ValueError(f"controller: one of {', '.join(CONTROLLERS)}, got {controller!r}")
-    method = "d2c" if controller == "d2c" else oracle_method(controller)
+    method = controller  # problem()'s names: "d2c" and the oracles'
     plant_step = (plant if plant is not None else system).step
 
     def replan(x, plan, k, n):
