@@ -184,11 +184,11 @@ def task_cost(task: Task) -> cost_lib.Cost:
     (:func:`point_goal_derivatives`), and so is a chordal state error's
     (:func:`chordal_derivatives`), unless ``task.gauss_newton`` is off (then every term is
     differentiated exactly)."""
-    derivatives = None if task.points is None else (lambda X, U: point_goal_derivatives(task, X, U))
-    if task.chordal and task.hinges:
+    derivatives = None  # autodiff of every term
+    if task.gauss_newton and task.chordal and task.hinges:
         derivatives = lambda X, U: chordal_derivatives(task, X, U)  # noqa: E731
-    if not task.gauss_newton:
-        derivatives = None
+    elif task.gauss_newton and task.points is not None:
+        derivatives = lambda X, U: point_goal_derivatives(task, X, U)  # noqa: E731
     if task.end is not None:
         return cost_lib.Cost(
             lambda x, u, t: stage_cost(task, x, u, t), lambda x: final_cost(task, x), derivatives, True

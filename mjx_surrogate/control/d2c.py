@@ -130,8 +130,8 @@ def solve_exact(
 ) -> ILQRResult:
     """iLQR from U0 [T, nu] with exact Jacobians (the oracle): ``jacobians`` is "jacfwd"
     (through the MJX step) or "finite_difference" (of the black-box step)."""
-    check_oracle(jacobians)
-    return _solve(system, task, U0, jax.random.key(0), params, sid.SysIdParams(), jacobians, progress)
+    method = check_oracle(jacobians)
+    return _solve(system, task, U0, jax.random.key(0), params, sid.SysIdParams(), method, progress)
 
 
 def check_oracle(jacobians: str) -> str:

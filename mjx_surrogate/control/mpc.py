@@ -81,12 +81,12 @@ def receding_horizon(
     stop it (:func:`episode`)."""
     if controller not in CONTROLLERS:
         raise ValueError(f"controller: one of {', '.join(CONTROLLERS)}, got {controller!r}")
-    method = controller  # problem()'s names: "d2c" and the oracles'
     plant_step = (plant if plant is not None else system).step
 
     def replan(x, plan, k, n):
         # knotted models (sysid.every > 1) stay knotted: no hand-over to every-step ones
-        prob = problem(system, at_step(task, n).replace(x0=x), sysid, method)._replace(linearize_fine=None)
+        prob = problem(system, at_step(task, n).replace(x0=x), sysid, controller)  # "d2c" or an oracle
+        prob = prob._replace(linearize_fine=None)
         return ilqr_replan(prob, plan, params, k)
 
     return _ilqr_episode(replan, plant_step, task, U0, key, steps, process_noise, progress, replan_every)
