@@ -119,7 +119,14 @@ def run(
                 def one(x0, task=task, plant=plant, sampling=sampling, spread=spread):
                     start = task.replace(x0=x0)
                     return mpc_sampling.sampling_mpc(
-                        system, start, U0, jax.random.key(0), steps, sampling, spread, 0.0, plant
+                        system,
+                        start,
+                        U0,
+                        key=jax.random.key(0),
+                        steps=steps,
+                        settings=sampling,
+                        hyper=spread,
+                        plant=plant,
                     )
             else:
 
@@ -128,13 +135,12 @@ def run(
                         system,
                         task.replace(x0=x0),
                         U0,
-                        jax.random.key(0),
-                        steps,
-                        params,
-                        sid,
-                        0.0,
-                        controller,
-                        plant,
+                        key=jax.random.key(0),
+                        steps=steps,
+                        params=params,
+                        sysid=sid,
+                        controller=controller,
+                        plant=plant,
                     )
 
             # one episode from the task's start, or a batch of episodes (vmap) from starts around it

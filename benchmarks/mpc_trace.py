@@ -52,7 +52,9 @@ def main(argv: list[str] | None = None) -> None:
     U0 = jnp.zeros((m.horizon, system.nu))
     keys = jax.random.split(jax.random.key(cfg.experiment.seed), a.episodes)
     if a.planner == "d2c":
-        one = lambda k: mpc.receding_horizon(system, plan_task, U0, k, m.steps, params, sysid, 0.01)  # noqa: E731
+        one = lambda k: mpc.receding_horizon(  # noqa: E731
+            system, plan_task, U0, key=k, steps=m.steps, params=params, sysid=sysid, process_noise=0.01
+        )
     else:
         from mjx_surrogate.surrogates.library import LibrarySpec
         from mjx_surrogate.surrogates.sindy import fit
@@ -60,7 +62,9 @@ def main(argv: list[str] | None = None) -> None:
         Z = np.random.default_rng(0).normal(size=(50, system.nx + system.nu))
         x, u = jnp.asarray(Z[:, : system.nx]), jnp.asarray(Z[:, system.nx :])
         model = fit(LibrarySpec(degree=1), x, u, jax.vmap(system.step)(x, u))
-        one = lambda k: mpc.surrogate_mpc(model, system, plan_task, U0, k, m.steps, params, 0.01)  # noqa: E731
+        one = lambda k: mpc.surrogate_mpc(  # noqa: E731
+            model, plan_task, U0, plant=system, key=k, steps=m.steps, params=params, process_noise=0.01
+        )
     times = {"trace": [], "lower": [], "compile": []}
     digest = None
     for _ in range(a.repeats):

@@ -54,7 +54,9 @@ def _controller(controller: str, context: PlannerContext, res, record, plants, k
         for label, one in planners.items():
             for pi, (name, plant) in enumerate(plants.items()):
                 batch = jax.jit(  # the meter closed over by the vmap: one stop answer per batch
-                    lambda keys, w, pm, plant=plant, one=one: jax.vmap(lambda k: one(plant, k, w, pm))(keys)
+                    lambda keys, w, pm, plant=plant, one=one: jax.vmap(
+                        lambda k: one(plant=plant, key=k, process_noise=w, progress=pm)
+                    )(keys)
                 )
                 compiled = {}  # once per planner and plant, for every noise level
                 for ni, noise in enumerate(m.process_noise):

@@ -171,7 +171,20 @@ def test_from_zero_controls_at_the_hanging_state_only_the_hybrid_moves():
     system, task = _resolved("pendulum")
     params, sysid = ILQRParams(max_iter=1, n_alphas=4), SysIdParams(n_samples=3, every=5, design="orthogonal")
     U0, steps = jnp.zeros((task.T, 1)), 100
-    d2c = mpc.receding_horizon(system, task, U0, jax.random.key(0), steps, params, sysid, 0.0, "d2c")
+    d2c = mpc.receding_horizon(
+        system, task, U0, key=jax.random.key(0), steps=steps, params=params, sysid=sysid
+    )
     assert np.all(np.asarray(d2c.X) == 0.0)
-    hyb = hybrid_mpc(system, task, U0, jax.random.key(0), steps, params, sysid, jnp.asarray(0.5), 16, 4)
+    hyb = hybrid_mpc(
+        system,
+        task,
+        U0,
+        key=jax.random.key(0),
+        steps=steps,
+        params=params,
+        sysid=sysid,
+        sigma=jnp.asarray(0.5),
+        n_samples=16,
+        knots=4,
+    )
     assert np.abs(np.asarray(hyb.X)[:, 0]).max() > 1.0

@@ -51,12 +51,11 @@ def test_mpc_on_a_linear_system_is_the_receding_horizon_lqr(controller):
         _linear(),
         _task(),
         jnp.zeros((H, 1)),
-        jax.random.key(0),
-        N,
-        ILQRParams(max_iter=3),
-        SID,
-        0.0,
-        controller,
+        key=jax.random.key(0),
+        steps=N,
+        params=ILQRParams(max_iter=3),
+        sysid=SID,
+        controller=controller,
     )
     K0 = _lqr_first_gain(A, B, H)
     X = [np.array([1.0, 0.0])]
@@ -85,10 +84,10 @@ def test_a_horizon_that_shrinks_to_the_tasks_end_is_the_finite_horizon_lqr(plann
     task = _task().replace(deadline=N)
     U0, key, params = jnp.zeros((H, 1)), jax.random.key(0), ILQRParams(max_iter=3)
     if planner == "d2c":
-        r = mpc.receding_horizon(_linear(), task, U0, key, N, params, SID, 0.0, "d2c")
+        r = mpc.receding_horizon(_linear(), task, U0, key=key, steps=N, params=params, sysid=SID)
     else:
         model = _LinearModel(jnp.asarray(A), jnp.asarray(B))
-        r = mpc.surrogate_mpc(model, _linear(), task, U0, key, N, params)
+        r = mpc.surrogate_mpc(model, task, U0, plant=_linear(), key=key, steps=N, params=params)
     X = [np.array([1.0, 0.0])]
     U = []
     for n in range(N):
@@ -96,7 +95,7 @@ def test_a_horizon_that_shrinks_to_the_tasks_end_is_the_finite_horizon_lqr(plann
         X.append(A @ X[-1] + B @ U[-1])
     np.testing.assert_allclose(np.asarray(r.X), np.array(X), atol=1e-8)
     np.testing.assert_allclose(np.asarray(r.U), np.array(U), atol=1e-8)
-    receding = mpc.receding_horizon(_linear(), _task(), U0, key, N, params, SID, 0.0, "d2c")
+    receding = mpc.receding_horizon(_linear(), _task(), U0, key=key, steps=N, params=params, sysid=SID)
     assert np.max(np.abs(np.asarray(receding.U) - np.array(U))) > 1e-3
 
 
@@ -111,12 +110,28 @@ def test_between_replans_the_plant_steps_under_the_plans_feedback_policy(planner
     params = ILQRParams(max_iter=3)
     if planner == "d2c":
         res = mpc.receding_horizon(
-            _linear(), _task(), jnp.zeros((H, 1)), key, N, params, SID, w, "d2c", replan_every=r
+            _linear(),
+            _task(),
+            jnp.zeros((H, 1)),
+            key=key,
+            steps=N,
+            params=params,
+            sysid=SID,
+            process_noise=w,
+            replan_every=r,
         )
     else:
         model = _LinearModel(jnp.asarray(A), jnp.asarray(B))
         res = mpc.surrogate_mpc(
-            model, _linear(), _task(), jnp.zeros((H, 1)), key, N, params, w, replan_every=r
+            model,
+            _task(),
+            jnp.zeros((H, 1)),
+            plant=_linear(),
+            key=key,
+            steps=N,
+            params=params,
+            process_noise=w,
+            replan_every=r,
         )
     P, gains = Q_F, []
     for _ in range(H):  # K_{H-1}, ..., K_0
@@ -133,7 +148,9 @@ def test_between_replans_the_plant_steps_under_the_plans_feedback_policy(planner
     np.testing.assert_allclose(np.asarray(res.X), np.array(X), atol=1e-7)
     assert res.plan_cost.shape == res.iterations.shape == (N // r,)
     with pytest.raises(ValueError, match="replan_every: a divisor of the 30 steps, got 4"):
-        mpc.receding_horizon(_linear(), _task(), jnp.zeros((H, 1)), key, N, params, SID, replan_every=4)
+        mpc.receding_horizon(
+            _linear(), _task(), jnp.zeros((H, 1)), key=key, steps=N, params=params, sysid=SID, replan_every=4
+        )
 
 
 class _LinearModel(NamedTuple):
@@ -153,7 +170,13 @@ def test_surrogate_mpc_with_the_true_model_is_the_receding_horizon_lqr():
     plant = _linear()
     exact = _LinearModel(jnp.asarray(A), jnp.asarray(B))
     r = mpc.surrogate_mpc(
-        exact, plant, _task(), jnp.zeros((H, 1)), jax.random.key(0), N, ILQRParams(max_iter=3)
+        exact,
+        _task(),
+        jnp.zeros((H, 1)),
+        plant=plant,
+        key=jax.random.key(0),
+        steps=N,
+        params=ILQRParams(max_iter=3),
     )
     K0 = _lqr_first_gain(A, B, H)
     X = [np.array([1.0, 0.0])]
@@ -162,7 +185,13 @@ def test_surrogate_mpc_with_the_true_model_is_the_receding_horizon_lqr():
     np.testing.assert_allclose(np.asarray(r.X), np.array(X), atol=1e-8)
     wrong = _LinearModel(jnp.asarray(A), jnp.asarray(3.0 * B))
     w = mpc.surrogate_mpc(
-        wrong, plant, _task(), jnp.zeros((H, 1)), jax.random.key(0), N, ILQRParams(max_iter=3)
+        wrong,
+        _task(),
+        jnp.zeros((H, 1)),
+        plant=plant,
+        key=jax.random.key(0),
+        steps=N,
+        params=ILQRParams(max_iter=3),
     )
     Xw, Uw = np.asarray(w.X), np.asarray(w.U)
     np.testing.assert_allclose(Xw[1:], Xw[:-1] @ A.T + Uw @ B.T, atol=1e-12)
@@ -177,7 +206,7 @@ def test_tracking_is_the_tvlqr_loop_with_the_planners_noise_draws():
     K = rng.normal(size=(N, 1, 2)) * 0.3
     task = _task().replace(u_min=jnp.array([-0.8]), u_max=jnp.array([0.8]))
     r = mpc.tracking(
-        _linear(), task, jnp.asarray(X_ref), jnp.asarray(U_ref), jnp.asarray(K), jax.random.key(3)
+        task, jnp.asarray(X_ref), jnp.asarray(U_ref), jnp.asarray(K), plant=_linear(), key=jax.random.key(3)
     )
     x, X, U = np.array([1.0, 0.0]), [], []
     for n in range(N):
@@ -187,9 +216,25 @@ def test_tracking_is_the_tvlqr_loop_with_the_planners_noise_draws():
     np.testing.assert_allclose(np.asarray(r.X), np.array(X + [x]), atol=1e-12)
     np.testing.assert_allclose(np.asarray(r.U), np.array(U), atol=1e-12)
     key, noise = jax.random.key(5), 0.1
-    tr = mpc.tracking(_linear(), task, jnp.asarray(X_ref), jnp.asarray(U_ref), jnp.asarray(K), key, noise)
+    tr = mpc.tracking(
+        task,
+        jnp.asarray(X_ref),
+        jnp.asarray(U_ref),
+        jnp.asarray(K),
+        plant=_linear(),
+        key=key,
+        process_noise=noise,
+    )
     rh = mpc.receding_horizon(
-        _linear(), _task(), jnp.zeros((H, 1)), key, N, ILQRParams(max_iter=2), SID, noise, "jacfwd"
+        _linear(),
+        _task(),
+        jnp.zeros((H, 1)),
+        key=key,
+        steps=N,
+        params=ILQRParams(max_iter=2),
+        sysid=SID,
+        process_noise=noise,
+        controller="jacfwd",
     )
     residual = lambda e: np.asarray(e.X[1:]) - np.asarray(e.X[:-1]) @ A.T - np.asarray(e.U) @ B.T  # noqa: E731
     np.testing.assert_allclose(residual(tr), residual(rh), atol=1e-12)
@@ -203,7 +248,16 @@ def test_the_plant_is_stepped_with_the_episodes_noise_and_the_model_is_not_the_p
     step = lambda x, u: A @ x + 0.5 * B @ u  # noqa: E731
     task, U0, params = _task(), jnp.zeros((H, 1)), ILQRParams(max_iter=3)
     run = lambda noise, key: mpc.receding_horizon(  # noqa: E731
-        model, task, U0, key, N, params, SID, noise, "jacfwd", plant
+        model,
+        task,
+        U0,
+        key=key,
+        steps=N,
+        params=params,
+        sysid=SID,
+        process_noise=noise,
+        controller="jacfwd",
+        plant=plant,
     )
     quiet = run(0.0, jax.random.key(1))
     X, U = np.asarray(quiet.X), np.asarray(quiet.U)
@@ -239,7 +293,14 @@ def test_black_box_steps_are_the_calls_the_black_box_received(every, replan_ever
     system = from_numpy(step, 2, 1, 0.1, vectorized=True)
     params, sysid = ILQRParams(max_iter=3), SID.replace(every=every)
     r = mpc.receding_horizon(
-        system, _task(), jnp.zeros((H, 1)), jax.random.key(0), 5, params, sysid, replan_every=replan_every
+        system,
+        _task(),
+        jnp.zeros((H, 1)),
+        key=jax.random.key(0),
+        steps=5,
+        params=params,
+        sysid=sysid,
+        replan_every=replan_every,
     )
     per_replan = mpc.black_box_steps(r, H, params.n_alphas, sysid)
     assert per_replan.shape == (5 // replan_every,) and np.all(per_replan > 0)
@@ -259,7 +320,7 @@ def test_black_box_steps_are_the_calls_the_black_box_received(every, replan_ever
 def test_episodes_batch_by_vmap_and_a_new_start_does_not_recompile():
     system, task, U0, params = _linear(), _task(), jnp.zeros((H, 1)), ILQRParams(max_iter=3)
     one = lambda x0, key: mpc.receding_horizon(  # noqa: E731
-        system, task.replace(x0=x0), U0, key, N, params, SID, 0.01, "d2c"
+        system, task.replace(x0=x0), U0, key=key, steps=N, params=params, sysid=SID, process_noise=0.01
     )
     x0s = jnp.array([[1.0, 0.0], [-0.5, 0.2], [0.3, -1.0]])
     keys = jax.random.split(jax.random.key(3), 3)
@@ -272,9 +333,39 @@ def test_episodes_batch_by_vmap_and_a_new_start_does_not_recompile():
         assert float(batch.cost[i]) == pytest.approx(float(s.cost), rel=1e-9)
 
 
+def test_every_episode_function_takes_all_but_its_plan_by_name():
+    """What is planned on, the task and the first plan positionally, the rest keyword-only:
+    a positional key or step count is refused (TypeError) instead of landing in a wrong slot."""
+    import inspect
+
+    from mjx_surrogate.control import episode, mpc_hybrid, mpc_online
+
+    leading = {
+        mpc.receding_horizon: ["system", "task", "U0"],
+        mpc.surrogate_mpc: ["model", "task", "U0"],
+        mpc.tracking: ["task", "X_ref", "U_ref", "K"],
+        mpc_sampling.sampling_mpc: ["system", "task", "U0"],
+        mpc_hybrid.hybrid_mpc: ["system", "task", "U0"],
+        mpc_online.refitted_sindy_mpc: ["model", "offline", "task", "U0"],
+        mpc_online.refitted_mlp_mpc: ["model", "offline", "task", "U0"],
+        episode.episode: ["replan"],
+    }
+    for fn, names in leading.items():
+        params = list(inspect.signature(fn).parameters.values())
+        positional = [p.name for p in params if p.kind is not inspect.Parameter.KEYWORD_ONLY]
+        assert positional == names, (fn, positional)
+        assert {"key", "steps"} <= {p.name for p in params if p.kind is inspect.Parameter.KEYWORD_ONLY} or (
+            fn is mpc.tracking
+        )
+    with pytest.raises(TypeError):
+        mpc.receding_horizon(_linear(), _task(), jnp.zeros((H, 1)), jax.random.key(0), 2)
+
+
 def test_an_unknown_controller_is_refused():
     with pytest.raises(ValueError, match="controller: one of d2c, jacfwd, finite_difference"):
-        mpc.receding_horizon(_linear(), _task(), jnp.zeros((H, 1)), jax.random.key(0), 2, controller="mppi")
+        mpc.receding_horizon(
+            _linear(), _task(), jnp.zeros((H, 1)), key=jax.random.key(0), steps=2, controller="mppi"
+        )
 
 
 @pytest.mark.slow
@@ -292,12 +383,11 @@ def test_d2c_mpc_swings_the_mujoco_pendulum_up_as_the_oracles_mpc_does():
         system,
         task,
         jnp.zeros((40, 1)),
-        jax.random.key(0),
-        80,
-        params,
-        namespace["sysid"],
-        0.0,
-        "finite_difference",
+        key=jax.random.key(0),
+        steps=80,
+        params=params,
+        sysid=namespace["sysid"],
+        controller="finite_difference",
     )
     assert d2c.X.shape == (81, 2) and np.max(np.abs(np.asarray(d2c.X[-1]))) < 1e-3
     assert float(d2c.cost) == pytest.approx(float(oracle.cost), rel=1e-4)
@@ -372,15 +462,15 @@ def test_a_stop_inside_a_batch_of_episodes_skips_its_remaining_steps(controller)
                 plant,
                 task,
                 U0,
-                k,
-                N,
-                mpc_sampling.SamplingSettings(samples=8),
-                mpc_sampling.hyper(0.5),
+                key=k,
+                steps=N,
+                settings=mpc_sampling.SamplingSettings(samples=8),
+                hyper=mpc_sampling.hyper(0.5),
                 progress=meter,
             )
         else:
             one = lambda k: mpc.receding_horizon(  # noqa: E731
-                plant, task, U0, k, N, ILQRParams(max_iter=3), SID, 0.0, "d2c", None, meter
+                plant, task, U0, key=k, steps=N, params=ILQRParams(max_iter=3), sysid=SID, progress=meter
             )
         return jax.vmap(one)(keys)
 
@@ -420,6 +510,13 @@ def test_a_long_episode_reports_about_polls_per_episode_times():
         progress._BARS[int(meter.meter_id)] = bar
         settings, spread = mpc_sampling.SamplingSettings(samples=4), mpc_sampling.hyper(0.5)
         mpc_sampling.sampling_mpc(
-            _linear(), _task(), jnp.zeros((H, 1)), jax.random.key(0), steps, settings, spread, progress=meter
+            _linear(),
+            _task(),
+            jnp.zeros((H, 1)),
+            key=jax.random.key(0),
+            steps=steps,
+            settings=settings,
+            hyper=spread,
+            progress=meter,
         )
     assert bar.seen == list(range(1, steps + 1, 2))

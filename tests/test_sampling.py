@@ -104,10 +104,10 @@ def test_zero_spread_applies_the_first_plan_moved_on_between_replans(replan_ever
             _linear(),
             _task(),
             U0,
-            jax.random.key(0),
-            N,
-            SamplingSettings(rule, 8),
-            hyper(0.0),
+            key=jax.random.key(0),
+            steps=N,
+            settings=SamplingSettings(rule, 8),
+            hyper=hyper(0.0),
             replan_every=replan_every,
         )
         assert r.plan_cost.shape == (N // replan_every,)
@@ -125,7 +125,9 @@ def test_between_replans_the_plant_gets_the_splines_controls():
     at those steps, so with linear knots and no spread they continue U0's line."""
     U0 = jnp.asarray((0.1 * np.arange(H) - 0.3)[:, None])
     s = SamplingSettings(samples=4, knots=3, spline="linear")
-    r = mpc_sampling.sampling_mpc(_linear(), _task(), U0, jax.random.key(0), 9, s, hyper(0.0), replan_every=3)
+    r = mpc_sampling.sampling_mpc(
+        _linear(), _task(), U0, key=jax.random.key(0), steps=9, settings=s, hyper=hyper(0.0), replan_every=3
+    )
     np.testing.assert_allclose(np.asarray(r.U)[:, 0], 0.1 * np.arange(9) - 0.3, atol=1e-12)
 
 
@@ -135,23 +137,30 @@ def test_every_rule_beats_no_control_and_none_beats_the_lqr():
     beyond the horizon, as hydrax clips its knots)."""
     system, task, U0 = _linear(), _task(3.0), jnp.zeros((H, 1))
     idle = mpc_sampling.sampling_mpc(
-        system, task, U0, jax.random.key(4), N, SamplingSettings(samples=2), hyper(0.0)
+        system,
+        task,
+        U0,
+        key=jax.random.key(4),
+        steps=N,
+        settings=SamplingSettings(samples=2),
+        hyper=hyper(0.0),
     )
     lqr = mpc.receding_horizon(
         system,
         task,
         U0,
-        jax.random.key(0),
-        N,
-        ILQRParams(max_iter=3),
-        SysIdParams(n_samples=6),
-        0.0,
-        "jacfwd",
+        key=jax.random.key(0),
+        steps=N,
+        params=ILQRParams(max_iter=3),
+        sysid=SysIdParams(n_samples=6),
+        controller="jacfwd",
     )
     for rule in RULES:
         for knots, spline in ((0, "zero"), (4, "cubic")):
             s = SamplingSettings(rule, 64, knots, spline, iterations=2)
-            r = mpc_sampling.sampling_mpc(system, task, U0, jax.random.key(4), N, s, hyper(2.0, 1.0, 0.1))
+            r = mpc_sampling.sampling_mpc(
+                system, task, U0, key=jax.random.key(4), steps=N, settings=s, hyper=hyper(2.0, 1.0, 0.1)
+            )
             assert float(lqr.cost) <= float(r.cost) < 0.5 * float(idle.cost), (rule, knots, float(r.cost))
 
 
@@ -166,7 +175,9 @@ def test_black_box_steps_are_the_calls_the_black_box_received():
     for rule, iterations in (("predictive_sampling", 1), ("mppi", 1), ("cem", 3)):
         calls.clear()
         s = SamplingSettings(rule, 16, iterations=iterations)
-        mpc_sampling.sampling_mpc(system, _task(), jnp.zeros((H, 1)), jax.random.key(0), 5, s, hyper(1.0))
+        mpc_sampling.sampling_mpc(
+            system, _task(), jnp.zeros((H, 1)), key=jax.random.key(0), steps=5, settings=s, hyper=hyper(1.0)
+        )
         assert sum(calls) == 5 + 5 * mpc_sampling.black_box_steps(s, H), (rule, sum(calls))
 
 
@@ -234,6 +245,19 @@ def test_the_hybrid_with_no_spread_is_d2c_mpc_on_a_linear_system():
 
     params, sysid = ILQRParams(max_iter=3), SysIdParams(n_samples=6)
     task, U0 = _task(), jnp.zeros((H, 1))
-    d2c = mpc.receding_horizon(_linear(), task, U0, jax.random.key(0), N, params, sysid, 0.0, "d2c")
-    hyb = hybrid_mpc(_linear(), task, U0, jax.random.key(0), N, params, sysid, jnp.asarray(0.0), 4, 2)
+    d2c = mpc.receding_horizon(
+        _linear(), task, U0, key=jax.random.key(0), steps=N, params=params, sysid=sysid
+    )
+    hyb = hybrid_mpc(
+        _linear(),
+        task,
+        U0,
+        key=jax.random.key(0),
+        steps=N,
+        params=params,
+        sysid=sysid,
+        sigma=jnp.asarray(0.0),
+        n_samples=4,
+        knots=2,
+    )
     np.testing.assert_allclose(np.asarray(hyb.X), np.asarray(d2c.X), atol=1e-8)

@@ -42,12 +42,13 @@ def shifted(plan, steps: int = 1):
 
 def episode(
     replan,
+    *,
     plant_step,
     x0: jax.Array,
     plan0,
     key: jax.Array,
     steps: int,
-    process_noise,
+    process_noise: float | jax.Array = 0.0,
     memory=None,
     observe=None,
     progress: ProgressMeter = NO_PROGRESS,
@@ -55,8 +56,9 @@ def episode(
     limits: tuple | None = None,
     shift=None,
 ):
-    """The receding-horizon loop every planner shares: ``replan(x, plan, key, n) -> (plan,
-    info)`` at control step n from the measured x and the previous plan shifted by
+    """The receding-horizon loop every planner shares (every argument but ``replan``
+    keyword-only): ``replan(x, plan, key, n) -> (plan, info)`` at control step n from the
+    measured x and the previous plan shifted by
     ``replan_every`` = r steps (``plan0``: the first one's warm start; a :class:`Plan` or U
     [H, nu], leaves with the control steps leading), every r control steps; in between the
     plant steps at its own rate under the plan: u_{n+j} = U[j] + K[j] (x_{n+j} - X[j]) for a

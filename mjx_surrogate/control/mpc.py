@@ -65,6 +65,7 @@ def receding_horizon(
     system: System,
     task: Task,
     U0: jax.Array,
+    *,
     key: jax.Array,
     steps: int,
     params: ILQRParams = ILQRParams(max_iter=5),
@@ -77,8 +78,9 @@ def receding_horizon(
 ) -> MPCResult:
     """One MPC episode of ``steps`` control steps from ``task.x0``, the first plan warm-started
     from U0 [H, nu] (H = task.T), replanning every ``replan_every`` control steps and
-    applying the plan's policy in between; ``progress`` counts its control steps and can
-    stop it (:func:`episode`)."""
+    applying the plan's policy in between, on ``plant`` (default: ``system``); ``progress``
+    counts its control steps and can stop it (:func:`episode`). Arguments after U0 are
+    keyword-only, as for every episode function of the package."""
     if controller not in CONTROLLERS:
         raise ValueError(f"controller: one of {', '.join(CONTROLLERS)}, got {controller!r}")
     plant_step = (plant if plant is not None else system).step
@@ -89,15 +91,26 @@ def receding_horizon(
         prob = prob._replace(linearize_fine=None)
         return ilqr_replan(prob, plan, params, k)
 
-    return _ilqr_episode(replan, plant_step, task, U0, key, steps, process_noise, progress, replan_every)
+    return _ilqr_episode(
+        replan,
+        plant_step,
+        task,
+        U0,
+        key=key,
+        steps=steps,
+        process_noise=process_noise,
+        progress=progress,
+        replan_every=replan_every,
+    )
 
 
 @functools.partial(jax.jit, static_argnames=("plant", "steps", "replan_every"))
 def surrogate_mpc(
     model,
-    plant: System,
     task: Task,
     U0: jax.Array,
+    *,
+    plant: System,
     key: jax.Array,
     steps: int,
     params: ILQRParams = ILQRParams(max_iter=5),
@@ -112,21 +125,31 @@ def surrogate_mpc(
     def replan(x, plan, k, n):
         return surrogate_replan(model, at_step(task, n), x, plan, params, k)
 
-    return _ilqr_episode(replan, plant.step, task, U0, key, steps, process_noise, progress, replan_every)
+    return _ilqr_episode(
+        replan,
+        plant.step,
+        task,
+        U0,
+        key=key,
+        steps=steps,
+        process_noise=process_noise,
+        progress=progress,
+        replan_every=replan_every,
+    )
 
 
 def _ilqr_episode(
-    replan, plant_step, task, U0, key, steps, process_noise, progress, replan_every
+    replan, plant_step, task, U0, *, key, steps, process_noise, progress, replan_every
 ) -> MPCResult:
     """:func:`episode` of an iLQR planner from U0, its policy clipped to the task's limits."""
     X, U, (plan_cost, its, ident) = episode(
         replan,
-        plant_step,
-        task.x0,
-        first_plan(U0, task.x0),
-        key,
-        steps,
-        process_noise,
+        plant_step=plant_step,
+        x0=task.x0,
+        plan0=first_plan(U0, task.x0),
+        key=key,
+        steps=steps,
+        process_noise=process_noise,
         progress=progress,
         replan_every=replan_every,
         limits=(task.u_min, task.u_max),
@@ -136,11 +159,12 @@ def _ilqr_episode(
 
 @functools.partial(jax.jit, static_argnames=("plant",))
 def tracking(
-    plant: System,
     task: Task,
     X_ref: jax.Array,
     U_ref: jax.Array,
     K: jax.Array,
+    *,
+    plant: System,
     key: jax.Array,
     process_noise: float | jax.Array = 0.0,
 ) -> MPCResult:

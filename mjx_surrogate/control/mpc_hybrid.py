@@ -73,6 +73,7 @@ def hybrid_mpc(
     system: System,
     task: Task,
     U0: jax.Array,
+    *,
     key: jax.Array,
     steps: int,
     params: ILQRParams,
@@ -101,7 +102,17 @@ def hybrid_mpc(
         prob = problem(system, planned.replace(x0=x), sysid, "d2c")._replace(linearize_fine=None)
         return mpc.ilqr_replan(prob, start, params, k_solve)
 
-    return mpc._ilqr_episode(replan, plant_step, task, U0, key, steps, process_noise, progress, replan_every)
+    return mpc._ilqr_episode(
+        replan,
+        plant_step,
+        task,
+        U0,
+        key=key,
+        steps=steps,
+        process_noise=process_noise,
+        progress=progress,
+        replan_every=replan_every,
+    )
 
 
 def episodes(c: Any) -> dict:
@@ -111,23 +122,23 @@ def episodes(c: Any) -> dict:
     scale = spread_scale(c.plan_task.u_min, c.plan_task.u_max, own.sigma_units)
     sigma = jnp.asarray((m.sampling_sigma if own.sigma is None else own.sigma) * scale, c.task.x0.dtype)
 
-    def one(plant, k, w, pm):
+    def one(*, plant, key, process_noise, progress):
         return hybrid_mpc(
             c.system,
             c.plan_task,
             c.U0,
-            k,
-            m.steps,
-            c.params,
-            c.sysid,
-            sigma,
-            own.samples,
-            own.knots,
-            own.spline,
-            w,
-            plant,
-            pm,
-            c.replan_every,
+            key=key,
+            steps=m.steps,
+            params=c.params,
+            sysid=c.sysid,
+            sigma=sigma,
+            n_samples=own.samples,
+            knots=own.knots,
+            spline=own.spline,
+            process_noise=process_noise,
+            plant=plant,
+            progress=progress,
+            replan_every=c.replan_every,
         )
 
     return {f"D2C-MPC + sampling (S={own.samples})": one}

@@ -2,8 +2,9 @@
 
 A planner kind (:class:`PlannerKind`) turns the study's context (:class:`PlannerContext`:
 the system, the offline task and its horizon-H copy, the offline optimum, the first plan,
-the solver's settings) into its episodes, ``{label: episode(plant, key, noise, meter) ->
-MPCResult}``, one per planner it stands for (the surrogates' kind: one per fitted model),
+the solver's settings) into its episodes, ``{label: episode(*, plant, key, process_noise,
+progress) -> MPCResult}`` (keyword-only), one per planner it stands for (the surrogates'
+kind: one per fitted model),
 and counts its black-box steps per control step. Every episode runs the same loop,
 :func:`mjx_surrogate.control.episode.episode`. Built in, in the order a study runs them:
 ``d2c``, ``oracle``, ``tvlqr``, ``surrogates``, ``predictive_sampling``, ``mppi``, ``cem``
@@ -53,7 +54,7 @@ class PlannerContext(NamedTuple):
     planner_settings: dict = {}  # name -> the run's values of that planner's own settings
 
 
-Episode = Callable[..., mpc.MPCResult]  # (plant, key, process_noise, meter) -> MPCResult
+Episode = Callable[..., mpc.MPCResult]  # (*, plant, key, process_noise, progress) -> MPCResult
 
 
 class PlannerKind(NamedTuple):
@@ -88,9 +89,20 @@ def _replanning(name: str):
         method = "d2c" if name == "d2c" else c.config.experiment.oracle
         N = c.config.mpc.steps
 
-        def one(plant, k, w, pm):
+        def one(*, plant, key, process_noise, progress):
             return mpc.receding_horizon(
-                c.system, c.plan_task, c.U0, k, N, c.params, c.sysid, w, method, plant, pm, c.replan_every
+                c.system,
+                c.plan_task,
+                c.U0,
+                key=key,
+                steps=N,
+                params=c.params,
+                sysid=c.sysid,
+                process_noise=process_noise,
+                controller=method,
+                plant=plant,
+                progress=progress,
+                replan_every=c.replan_every,
             )
 
         return {"D2C-MPC" if name == "d2c" else f"oracle MPC ({method})": one}
@@ -116,7 +128,11 @@ def _tracking(c: PlannerContext) -> dict[str, Episode]:
     N = c.config.mpc.steps
     X, U, K = (jnp.asarray(c.optimum[k]) for k in ("X_star", "U_star", "K_star"))
     ref = (X[: N + 1], U[:N], K[:N])
-    return {"TVLQR tracking": lambda plant, k, w, pm: mpc.tracking(plant, c.task, *ref, k, w)}
+
+    def one(*, plant, key, process_noise, progress):
+        return mpc.tracking(c.task, *ref, plant=plant, key=key, process_noise=process_noise)
+
+    return {"TVLQR tracking": one}
 
 
 def _surrogates(c: PlannerContext) -> dict[str, Episode]:
@@ -125,33 +141,58 @@ def _surrogates(c: PlannerContext) -> dict[str, Episode]:
     m, N, params = c.config.mpc, c.config.mpc.steps, c.params
     models, train = c.fit()
 
+    common = dict(steps=N, params=params, replan_every=c.replan_every)
+
     def on_model(model):
-        return lambda plant, k, w, pm: mpc.surrogate_mpc(
-            model, plant, c.plan_task, c.U0, k, N, params, w, pm, c.replan_every
-        )
+        def one(*, plant, key, process_noise, progress):
+            return mpc.surrogate_mpc(
+                model,
+                c.plan_task,
+                c.U0,
+                plant=plant,
+                key=key,
+                process_noise=process_noise,
+                progress=progress,
+                **common,
+            )
+
+        return one
 
     def refitted_sindy(model):
-        return lambda plant, k, w, pm: mpc_online.refitted_sindy_mpc(
-            model, train, plant, c.plan_task, c.U0, k, N, params, w, m.refit_weight, pm, c.replan_every
-        )
+        def one(*, plant, key, process_noise, progress):
+            return mpc_online.refitted_sindy_mpc(
+                model,
+                train,
+                c.plan_task,
+                c.U0,
+                plant=plant,
+                key=key,
+                process_noise=process_noise,
+                progress=progress,
+                weight=m.refit_weight,
+                **common,
+            )
+
+        return one
 
     def refitted_mlp(model, spec):
-        return lambda plant, k, w, pm: mpc_online.refitted_mlp_mpc(
-            model,
-            train,
-            plant,
-            c.plan_task,
-            c.U0,
-            k,
-            N,
-            spec,
-            m.refit_updates,
-            params,
-            w,
-            m.refit_weight,
-            pm,
-            c.replan_every,
-        )
+        def one(*, plant, key, process_noise, progress):
+            return mpc_online.refitted_mlp_mpc(
+                model,
+                train,
+                c.plan_task,
+                c.U0,
+                plant=plant,
+                key=key,
+                process_noise=process_noise,
+                progress=progress,
+                spec=spec,
+                updates=m.refit_updates,
+                weight=m.refit_weight,
+                **common,
+            )
+
+        return one
 
     out = {f"{label} MPC": on_model(model) for label, model in models.items()}
     for label, model in models.items():

@@ -140,9 +140,19 @@ def sampling_episodes(name: str):
         settings, hyper, own = resolved(c, name)
         N = c.config.mpc.steps
 
-        def one(plant, k, w, pm):
+        def one(*, plant, key, process_noise, progress):
             return mpc_sampling.sampling_mpc(
-                c.system, c.plan_task, c.U0, k, N, settings, hyper, w, plant, pm, c.replan_every
+                c.system,
+                c.plan_task,
+                c.U0,
+                key=key,
+                steps=N,
+                settings=settings,
+                hyper=hyper,
+                process_noise=process_noise,
+                plant=plant,
+                progress=progress,
+                replan_every=c.replan_every,
             )
 
         return {label(name, settings, own): one}
