@@ -52,6 +52,7 @@ def doc(tmp_path_factory):
     experiment_kinds.EXPERIMENTS.pop("random_controls")
     registry._SYSTEMS.pop("tilted_pendulum")
     registry._TASKS.pop("tilted_up")
+    registry._FUNCTION_FAMILIES.pop("gym:<id> (a gymnasium environment)")
     sys.modules.pop(module.__name__)
 
 
@@ -62,6 +63,7 @@ def test_the_page_registers_each_kind_of_extension(doc):
     )
     assert declared["solver.coordinate"] == doc.CoordinateSettings(step=1e-4)
     assert "tilted_pendulum" in registry._SYSTEMS and "tilted_up" in registry._TASKS
+    assert "gym:<id> (a gymnasium environment)" in registry.system_names()
 
 
 @pytest.mark.slow
@@ -199,6 +201,90 @@ def test_a_registered_system_solves_from_the_command_line(tmp_path):
     assert np.allclose(system.mj_model.opt.gravity, [4.905, 0, -8.496])
     assert metrics["status"] == "converged"
     assert abs(float(arrays["d2c_X"][-1, 0])) < 0.05  # upright at the end
+
+
+GYM_PENDULUM = ["--task.preset", "custom", "--task.x0", "3.14159", "0", "--task.x_goal", "0", "0"]
+GYM_PENDULUM += [
+    "--task.T",
+    "100",
+    "--task.Q_diag",
+    "0",
+    "0",
+    "--task.Q_f_diag",
+    "100",
+    "100",
+    "--task.R_diag",
+    "0.01",
+]
+
+
+@pytest.mark.slow
+def test_a_gymnasium_environment_is_a_black_box_from_the_command_line(tmp_path):
+    """The page's third kind of black box, run as the page says with the defaults
+    (gymnasium's Pendulum-v1 from hanging, its own step): D2C reaches the upright goal
+    inside the action bounds, and the controls replayed through a fresh environment's own
+    API land on the run's final state."""
+    gymnasium = pytest.importorskip("gymnasium")
+    argv = ["--out", str(tmp_path), "--system.name", "gym:Pendulum-v1", *GYM_PENDULUM]
+    argv += ["--experiment.kind", "d2c", "--experiment.name", "gym", "--experiment.exact-oracle", "False"]
+    assert cli.main(argv) == 0
+    (path,) = glob.glob(str(tmp_path / "*_gym"))
+    metrics, arrays = load_run(path)
+    d2c = metrics["d2c"]
+    assert metrics["status"] == "converged" and d2c["goal"]["reached"] and d2c["controls_within_limits"], d2c
+    U, X = np.asarray(arrays["d2c_U"]), np.asarray(arrays["d2c_X"])
+    assert np.all(np.abs(U) <= 2.0)  # Pendulum-v1's max_torque
+    env = gymnasium.make("Pendulum-v1").unwrapped
+    env.reset(seed=1)
+    env.state = np.array([3.14159, 0.0])
+    for u in U:
+        env.step(u.astype(np.float32))
+    np.testing.assert_allclose(env.state, X[-1], rtol=1e-6, atol=1e-6)
+
+
+def test_a_gymnasium_mujoco_environment_steps_as_mujoco_does(doc):
+    """The page's MuJoCo branch (``set_state``): one step of gym:InvertedPendulum-v5 from a
+    tilted state is the environment's frame_skip of ``mujoco.mj_step`` with the control."""
+    import mujoco
+
+    pytest.importorskip("gymnasium")
+    system = registry.make_function_system("gym:InvertedPendulum-v5")
+    assert (system.nx, system.nu) == (4, 1) and np.allclose(system.u_max, 3.0)
+    x, u = np.array([0.1, 0.2, -0.3, 0.5]), np.array([1.5])
+    got = np.asarray(jax.jit(system.step)(jnp.asarray(x), jnp.asarray(u)))
+    env = doc.gymnasium.make("InvertedPendulum-v5").unwrapped
+    model, data = env.model, mujoco.MjData(env.model)
+    data.qpos[:], data.qvel[:], data.ctrl[:] = x[:2], x[2:], u
+    for _ in range(env.frame_skip):
+        mujoco.mj_step(model, data)
+    np.testing.assert_allclose(got, np.concatenate([data.qpos, data.qvel]), rtol=1e-12, atol=1e-12)
+    assert system.dt == pytest.approx(env.dt)
+
+
+@pytest.mark.parametrize(
+    "env_id, message",
+    [
+        ("CartPole-v1", "system.name: 'CartPole-v1' acts in Discrete(2); D2C needs continuous controls"),
+        ("Nope-v0", "system.name: no gymnasium environment 'Nope-v0'"),
+    ],
+)
+def test_a_gymnasium_environment_the_kind_refuses_exits_2_naming_the_field(
+    doc, tmp_path, capsys, env_id, message
+):
+    pytest.importorskip("gymnasium")
+    argv = [
+        "--out",
+        str(tmp_path),
+        "--system.name",
+        f"gym:{env_id}",
+        *GYM_PENDULUM,
+        "--experiment.kind",
+        "d2c",
+    ]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"error: {message}"), err
+    assert not list(tmp_path.iterdir())
 
 
 @pytest.mark.parametrize(

@@ -15,11 +15,11 @@ from mjx_surrogate.systems.function import from_numpy
 
 gymnasium = pytest.importorskip("gymnasium")
 
-# id: (start, goal state of the task, horizon). Pendulum-v1: upright (theta = 0) at rest
-# from hanging. MountainCarContinuous-v0: from its reset position, aiming just past its
-# flag; the environment's own goal (position >= goal_position, 0.45) is checked below.
+# id: (start, goal state of the task, horizon). MountainCarContinuous-v0: from its reset
+# position, aiming just past its flag; the environment's own goal (position >=
+# goal_position, 0.45) is checked below. Pendulum-v1 swings up from the command line as a
+# kind of black box of its own (docs/extending.md, tests/test_extending.py).
 CASES = {
-    "Pendulum-v1": ([np.pi, 0.0], [0.0, 0.0], 100),
     "MountainCarContinuous-v0": ([-0.5, 0.0], [0.5, 0.0], 200),
 }
 

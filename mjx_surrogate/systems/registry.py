@@ -17,7 +17,7 @@ import functools
 import os
 import re
 from types import ModuleType
-from typing import Callable
+from typing import Any, Callable
 
 from jax.sharding import Mesh
 
@@ -76,19 +76,22 @@ def register_function_system(
 def register_function_family(
     label: str,
     pattern: str,
-    make: Callable[[int], FunctionSystem],
+    make: Callable[[Any], FunctionSystem],
     tasks: dict[str, TaskPreset] | None = None,
+    parse: Callable[[str], Any] = int,
 ) -> None:
-    """Register function black boxes with a size in their name (``pattern``: one integer
-    group, e.g. the grid of a PDE, ``burgers256``); ``make(size)`` builds one."""
-    _FUNCTION_FAMILIES[label] = (re.compile(pattern), make)
+    """Register function black boxes named by ``pattern``, a regular expression with one
+    group: ``make(parse(group))`` builds one. The default reads a size (the grid of a PDE,
+    ``burgers256``); ``parse=str`` passes the text itself (an environment's id: a kind of
+    black box, docs/extending.md)."""
+    _FUNCTION_FAMILIES[label] = (re.compile(pattern), make, parse)
     _TASKS.update(tasks or {})
 
 
-def _function_family(name: str) -> tuple[Callable[[int], FunctionSystem], int] | None:
-    for pattern, make in _FUNCTION_FAMILIES.values():
+def _function_family(name: str) -> tuple[Callable[[Any], FunctionSystem], Any] | None:
+    for pattern, make, parse in _FUNCTION_FAMILIES.values():
         if m := pattern.match(name):
-            return make, int(m.group(1))
+            return make, parse(m.group(1))
     return None
 
 
