@@ -146,3 +146,24 @@ def test_a_jax_function_without_derivatives_and_bad_limits_are_refused():
         s.exact_jacobians_batch
     with pytest.raises(ConfigError, match="system.u_min"):
         from_jax(lambda x, u: x + u, 1, 1, 0.1, u_min=1.0, u_max=-1.0)
+
+
+def test_a_registered_black_box_is_built_once_per_name_and_mesh():
+    """One cache, keyed by what the system is: the same name and mesh give the same object
+    (its jitted programs reused), through the registry and through a config alike; a mesh
+    gives a copy spread over it."""
+    from jax.sharding import Mesh
+
+    from mjx_surrogate import sharding
+    from mjx_surrogate.runs.config import SystemConfig
+    from mjx_surrogate.runs.resolution import build_system_from_config
+    from mjx_surrogate.systems import registry
+
+    plain = registry.make_function_system("lorenz")
+    assert registry.make_function_system("lorenz") is plain and plain.mesh is None
+    assert build_system_from_config(SystemConfig(name="lorenz")) is plain
+    mesh = Mesh(np.asarray(jax.devices()), (sharding.AXIS,))  # every device (one here)
+    spread = build_system_from_config(SystemConfig(name="lorenz"), mesh)
+    assert spread is registry.make_function_system("lorenz", mesh) and spread is not plain
+    assert spread.backend == "jax" and spread.mesh is mesh  # a JAX function: the whole mesh
+    assert (spread.name, spread.nx, spread.nu, spread.dt) == (plain.name, plain.nx, plain.nu, plain.dt)

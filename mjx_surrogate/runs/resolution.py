@@ -46,6 +46,7 @@ from mjx_surrogate.runs.validation import validate_static
 from mjx_surrogate.surrogates.registry import get_surrogate
 from mjx_surrogate.systems import FunctionSystem, System, from_mjcf, make_system
 from mjx_surrogate.systems.entry import entry_builder, entry_source, load_entry, source_digest
+from mjx_surrogate.systems.function import on_mesh
 from mjx_surrogate.systems.plant import check_plant
 from mjx_surrogate.systems.registry import (
     USER_FUNCTION,
@@ -89,13 +90,11 @@ def _substeps(sc: SystemConfig) -> int | None:
     return n
 
 
-_REGISTERED: dict = {}  # (system config, float64?, mesh) -> System, registered systems only
-
-
 def build_system_from_config(sc: SystemConfig, mesh: Mesh | None = None) -> System | FunctionSystem:
     """The system of ``sc``, its batched work spread over ``mesh``. A registered system is
-    built once per process, precision and mesh: a System is immutable and hashes by
-    identity, so experiments of one process (a reproduction, a notebook) share its
+    built once per process, precision and mesh (the registry's cache,
+    :func:`~mjx_surrogate.systems.registry.make_system`): a System is immutable and hashes
+    by identity, so experiments of one process (a reproduction, a notebook) share its
     compiled programs. A user's MJCF or function, whose files may change between calls,
     is built afresh."""
     if is_function_system(sc.name):
@@ -109,39 +108,25 @@ def build_system_from_config(sc: SystemConfig, mesh: Mesh | None = None) -> Syst
         )
     if sc.mjcf_path:
         raise ConfigError("system.mjcf_path", f"only valid with system.name='mjcf', not {sc.name!r}")
-    key = (repr(sc), bool(jax.config.jax_enable_x64), mesh)
-    if key not in _REGISTERED:
-        _REGISTERED[key] = make_system(sc.name, sc.backend, substeps, sc.timestep, sc.native_threads, mesh)
-    return _REGISTERED[key]
+    return make_system(sc.name, sc.backend, substeps, sc.timestep, sc.native_threads, mesh)
 
 
 def _function_system(sc: SystemConfig, mesh: Mesh | None) -> FunctionSystem:
     """A function black box: registered (built once per process and mesh) or the user's
     entry point, whose file must still be the one a replayed run recorded."""
-    if sc.name == USER_FUNCTION:
-        if sc.source_sha256 is not None:
-            path = entry_source(sc.entry)
-            now = source_digest(path)
-            if now != sc.source_sha256:
-                raise ConfigError(
-                    "system.source_sha256",
-                    f"{path!r} has changed since the run (SHA-256 {str(now)[:12]}, recorded "
-                    f"{sc.source_sha256[:12]}); restore the file (the run folder keeps a copy) or unset "
-                    "system.source_sha256 to run the new code",
-                )
-        system = load_entry(sc.entry)
-    else:
-        key = (sc.name, mesh)
-        if key in _REGISTERED:
-            return _REGISTERED[key]
-        system = make_function_system(sc.name)
-    if mesh is not None:  # a host function runs on one device per process, as native MuJoCo
-        system = dataclasses.replace(
-            system, mesh=mesh if system.backend == "jax" else sharding.one_device_per_process(mesh)
-        )
     if sc.name != USER_FUNCTION:
-        _REGISTERED[(sc.name, mesh)] = system
-    return system
+        return make_function_system(sc.name, mesh)
+    if sc.source_sha256 is not None:
+        path = entry_source(sc.entry)
+        now = source_digest(path)
+        if now != sc.source_sha256:
+            raise ConfigError(
+                "system.source_sha256",
+                f"{path!r} has changed since the run (SHA-256 {str(now)[:12]}, recorded "
+                f"{sc.source_sha256[:12]}); restore the file (the run folder keeps a copy) or unset "
+                "system.source_sha256 to run the new code",
+            )
+    return on_mesh(load_entry(sc.entry), mesh)
 
 
 def check_magnitude(field: str, x, dtype, sigma_x: float) -> None:

@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh
 
+from mjx_surrogate import sharding
 from mjx_surrogate.errors import ConfigError
 
 StepFn = Callable[[jax.Array, jax.Array], jax.Array]
@@ -197,6 +198,17 @@ def host_step(
         return jax.pure_callback(on_host, out, x, u, vmap_method="broadcast_all")
 
     return step
+
+
+def on_mesh(system: FunctionSystem, mesh: Mesh | None) -> FunctionSystem:
+    """``system`` with its batched work spread over ``mesh`` (None: as it is): a JAX
+    function over every device of the mesh, a host function on one device per process
+    (as native MuJoCo)."""
+    if mesh is None:
+        return system
+    return dataclasses.replace(
+        system, mesh=mesh if system.backend == "jax" else sharding.one_device_per_process(mesh)
+    )
 
 
 def from_numpy(

@@ -33,7 +33,7 @@ from mjx_surrogate.systems import (
     pendulum,
     swimmer,
 )
-from mjx_surrogate.systems.function import FunctionSystem
+from mjx_surrogate.systems.function import FunctionSystem, on_mesh
 from mjx_surrogate.systems.spec import SystemDefaults
 from mjx_surrogate.systems.system import System, build_system
 from mjx_surrogate.tasks import TaskPreset
@@ -100,12 +100,13 @@ def is_function_system(name: str) -> bool:
     return name in _FUNCTIONS or name == USER_FUNCTION or _function_family(name) is not None
 
 
-def make_function_system(name: str) -> FunctionSystem:
-    """A registered function black box, built once per process (so that its jitted
-    programs are reused)."""
+def make_function_system(name: str, mesh: Mesh | None = None) -> FunctionSystem:
+    """A registered function black box, its batched work spread over ``mesh``
+    (:func:`~.function.on_mesh`), built once per process and mesh: the same name and mesh
+    give the same object, so that programs jitted on it are reused."""
     if name not in _FUNCTIONS and _function_family(name) is None:
         raise ConfigError("system.name", f"unknown system {name!r}; valid: {', '.join(system_names())}")
-    return _built_function(name)
+    return _built_function(name, mesh)
 
 
 def function_builder(name: str) -> Callable[..., FunctionSystem]:
@@ -120,7 +121,9 @@ def function_builder(name: str) -> Callable[..., FunctionSystem]:
 
 
 @functools.lru_cache(maxsize=None)
-def _built_function(name: str) -> FunctionSystem:
+def _built_function(name: str, mesh: Mesh | None = None) -> FunctionSystem:
+    if mesh is not None:
+        return on_mesh(_built_function(name), mesh)
     if name in _FUNCTIONS:
         return _FUNCTIONS[name]()
     make, size = _function_family(name)
