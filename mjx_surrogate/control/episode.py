@@ -40,6 +40,17 @@ def shifted(plan, steps: int = 1):
     return jax.tree.map(lambda a: jnp.concatenate([a[steps:], jnp.repeat(a[-1:], steps, axis=0)]), plan)
 
 
+def bound_episode(fn, *args, **fixed):
+    """A planner's episode, ``episode(*, plant, key, process_noise, progress)``: the
+    episode function ``fn`` (e.g. ``receding_horizon``) with its positional ``args`` and
+    settings ``fixed`` bound, what each episode brings passed by name."""
+
+    def one(*, plant, key, process_noise, progress):
+        return fn(*args, plant=plant, key=key, process_noise=process_noise, progress=progress, **fixed)
+
+    return one
+
+
 def episode(
     replan,
     *,

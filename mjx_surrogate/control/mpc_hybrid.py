@@ -22,7 +22,7 @@ import jax.numpy as jnp
 
 from mjx_surrogate.control import mpc
 from mjx_surrogate.control.d2c import problem
-from mjx_surrogate.control.episode import Plan
+from mjx_surrogate.control.episode import Plan, bound_episode
 from mjx_surrogate.control.ilqr import ILQRParams
 from mjx_surrogate.control.mpc_sampling import reading
 from mjx_surrogate.control.sampling_planners import spread_scale
@@ -122,24 +122,20 @@ def episodes(c: Any) -> dict:
     scale = spread_scale(c.plan_task.u_min, c.plan_task.u_max, own.sigma_units)
     sigma = jnp.asarray((m.sampling_sigma if own.sigma is None else own.sigma) * scale, c.task.x0.dtype)
 
-    def one(*, plant, key, process_noise, progress):
-        return hybrid_mpc(
-            c.system,
-            c.plan_task,
-            c.U0,
-            key=key,
-            steps=m.steps,
-            params=c.params,
-            sysid=c.sysid,
-            sigma=sigma,
-            n_samples=own.samples,
-            knots=own.knots,
-            spline=own.spline,
-            process_noise=process_noise,
-            plant=plant,
-            progress=progress,
-            replan_every=c.replan_every,
-        )
+    one = bound_episode(
+        hybrid_mpc,
+        c.system,
+        c.plan_task,
+        c.U0,
+        steps=m.steps,
+        params=c.params,
+        sysid=c.sysid,
+        sigma=sigma,
+        n_samples=own.samples,
+        knots=own.knots,
+        spline=own.spline,
+        replan_every=c.replan_every,
+    )
 
     return {f"D2C-MPC + sampling (S={own.samples})": one}
 

@@ -22,6 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate.control import mpc, mpc_hybrid, mpc_online, sampling_planners
+from mjx_surrogate.control.episode import bound_episode
 from mjx_surrogate.control.ilqr import ILQRParams
 from mjx_surrogate.control.sampling_rules import get_rule
 from mjx_surrogate.errors import registered
@@ -87,24 +88,17 @@ def _replanning(name: str):
 
     def episodes(c: PlannerContext) -> dict[str, Episode]:
         method = "d2c" if name == "d2c" else c.config.experiment.oracle
-        N = c.config.mpc.steps
-
-        def one(*, plant, key, process_noise, progress):
-            return mpc.receding_horizon(
-                c.system,
-                c.plan_task,
-                c.U0,
-                key=key,
-                steps=N,
-                params=c.params,
-                sysid=c.sysid,
-                process_noise=process_noise,
-                controller=method,
-                plant=plant,
-                progress=progress,
-                replan_every=c.replan_every,
-            )
-
+        one = bound_episode(
+            mpc.receding_horizon,
+            c.system,
+            c.plan_task,
+            c.U0,
+            steps=c.config.mpc.steps,
+            params=c.params,
+            sysid=c.sysid,
+            controller=method,
+            replan_every=c.replan_every,
+        )
         return {"D2C-MPC" if name == "d2c" else f"oracle MPC ({method})": one}
 
     return episodes
@@ -144,55 +138,25 @@ def _surrogates(c: PlannerContext) -> dict[str, Episode]:
     common = dict(steps=N, params=params, replan_every=c.replan_every)
 
     def on_model(model):
-        def one(*, plant, key, process_noise, progress):
-            return mpc.surrogate_mpc(
-                model,
-                c.plan_task,
-                c.U0,
-                plant=plant,
-                key=key,
-                process_noise=process_noise,
-                progress=progress,
-                **common,
-            )
-
-        return one
+        return bound_episode(mpc.surrogate_mpc, model, c.plan_task, c.U0, **common)
 
     def refitted_sindy(model):
-        def one(*, plant, key, process_noise, progress):
-            return mpc_online.refitted_sindy_mpc(
-                model,
-                train,
-                c.plan_task,
-                c.U0,
-                plant=plant,
-                key=key,
-                process_noise=process_noise,
-                progress=progress,
-                weight=m.refit_weight,
-                **common,
-            )
-
-        return one
+        return bound_episode(
+            mpc_online.refitted_sindy_mpc, model, train, c.plan_task, c.U0, weight=m.refit_weight, **common
+        )
 
     def refitted_mlp(model, spec):
-        def one(*, plant, key, process_noise, progress):
-            return mpc_online.refitted_mlp_mpc(
-                model,
-                train,
-                c.plan_task,
-                c.U0,
-                plant=plant,
-                key=key,
-                process_noise=process_noise,
-                progress=progress,
-                spec=spec,
-                updates=m.refit_updates,
-                weight=m.refit_weight,
-                **common,
-            )
-
-        return one
+        return bound_episode(
+            mpc_online.refitted_mlp_mpc,
+            model,
+            train,
+            c.plan_task,
+            c.U0,
+            spec=spec,
+            updates=m.refit_updates,
+            weight=m.refit_weight,
+            **common,
+        )
 
     out = {f"{label} MPC": on_model(model) for label, model in models.items()}
     for label, model in models.items():

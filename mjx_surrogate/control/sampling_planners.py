@@ -20,6 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate.control import mpc_sampling
+from mjx_surrogate.control.episode import bound_episode
 from mjx_surrogate.control.mpc_sampling import SamplingHyper, SamplingSettings
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.tasks import half_ranges, trajectory_cost
@@ -138,23 +139,16 @@ def sampling_episodes(name: str):
 
     def episodes(c: PlannerContext) -> dict:
         settings, hyper, own = resolved(c, name)
-        N = c.config.mpc.steps
-
-        def one(*, plant, key, process_noise, progress):
-            return mpc_sampling.sampling_mpc(
-                c.system,
-                c.plan_task,
-                c.U0,
-                key=key,
-                steps=N,
-                settings=settings,
-                hyper=hyper,
-                process_noise=process_noise,
-                plant=plant,
-                progress=progress,
-                replan_every=c.replan_every,
-            )
-
+        one = bound_episode(
+            mpc_sampling.sampling_mpc,
+            c.system,
+            c.plan_task,
+            c.U0,
+            steps=c.config.mpc.steps,
+            settings=settings,
+            hyper=hyper,
+            replan_every=c.replan_every,
+        )
         return {label(name, settings, own): one}
 
     return episodes
