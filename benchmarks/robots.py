@@ -88,6 +88,28 @@ TASKS = {
     "quadruped (hold)": (("dm_control", "quadruped.xml"), {"preset": "hold"}, {}, None),
     "hopper (hold)": (("gymnasium", "hopper.xml"), {"preset": "hold"}, {}, None),
     "humanoid gym (hold)": (("gymnasium", "humanoid.xml"), {"preset": "hold"}, {}, None),
+    # the spinner's hinge to 1 rad: from the hold start the finger touches nothing (a
+    # stationary start, restarted from spread starts by solver.stationary_restarts)
+    "finger (spin)": (
+        ("dm_control", "finger.xml"),
+        {
+            "preset": "custom",
+            "T": 50,
+            "x_goal": (0.0, 0.0, 1.0, 0.0, 0.0, 0.0),
+            "Q_diag": (0.0,) * 6,
+            "Q_f_diag": (0.0, 0.0, 100.0, 0.0, 0.0, 1.0),
+            "R_diag": (0.01, 0.01),
+        },
+        {"control_dt": 0.02},
+        None,
+    ),
+    # contact-rich motion: the torso 0.2 m forward at its height in 1 s (the feet must move)
+    "walker (forward)": (
+        ("dm_control", "walker.xml"),
+        {"preset": "custom", "T": 50},
+        {"control_dt": 0.02},
+        ("body", "torso", None, (0.2, 0.0, 0.0)),
+    ),
     "manipulator (reach)": (
         ("dm_control", "manipulator.xml"),
         {"preset": "custom", "T": 50},
