@@ -23,6 +23,10 @@ MJX with ``--backend mjx``, for a GPU):
 
 ``--significance T`` sets ``solver.sysid_significance`` (the t-test, off by default);
 ``--sigma S`` sets ``solver.sigma_x`` and ``sigma_u`` (default: the model's default).
+``--reference-starts N`` (default 0) also solves D2C and the oracle from N starts spread
+around D2C's (``runs.restart.spread_starts``, a quarter of each actuator's half range) and
+reports the best cost of all 2 N + 2 solves as the reference, with D2C's gap to it: on
+contact tasks the oracle from one start stalls and is no ceiling.
 """
 
 from __future__ import annotations
@@ -190,8 +194,53 @@ def task_config(name: str, significance: float = 0.0, backend: str = "native", s
     )
 
 
+REFERENCE_SPREAD = 0.25  # of each actuator's half range, around D2C's start
+
+
+def best_reference(res, d2c_out, oracle_out, U0, params, sysid, n: int, key) -> dict:
+    """The best of D2C and the oracle from U0 and from ``n`` spread starts each: its cost,
+    which solve gave it, and every start's cost per method."""
+    import jax
+    import numpy as np
+
+    from mjx_surrogate.control import chunked
+    from mjx_surrogate.runs.restart import spread_starts
+
+    _, system, task = res
+    U0s = spread_starts(task, U0, key, n, REFERENCE_SPREAD)
+    costs = {
+        "d2c": [float(d2c_out.cost)]
+        + list(map(float, np.asarray(chunked.solve(system, task, U0s, key, params, sysid, "d2c").out.costs))),
+        "oracle": [float(oracle_out.cost)]
+        + list(
+            map(
+                float,
+                np.asarray(
+                    chunked.solve(
+                        system, task, U0s, jax.random.key(0), params, sysid, "finite_difference"
+                    ).out.costs
+                ),
+            )
+        ),
+    }
+    method, i = min(
+        ((m, j) for m in costs for j, c in enumerate(costs[m]) if np.isfinite(c)),
+        key=lambda mj: costs[mj[0]][mj[1]],
+    )
+    return {
+        "cost": costs[method][i],
+        "from": f"{method}, {'the same start' if i == 0 else f'spread start {i}'}",
+        "starts": n,
+        "costs": costs,
+    }
+
+
 def run_task(
-    name: str, significance: float = 0.0, backend: str = "native", sigma: float | None = None
+    name: str,
+    significance: float = 0.0,
+    backend: str = "native",
+    sigma: float | None = None,
+    reference_starts: int = 0,
 ) -> dict | None:
     import jax
     import jax.numpy as jnp
@@ -209,7 +258,7 @@ def run_task(
     res = resolve(cfg)
     rc, system, task = res
     d2c = pipeline.solve_config(res)
-    params, _ = solver_params(rc)
+    params, sysid = solver_params(rc)
     oracle = chunked.solve_exact(system, task, d2c.U0, params, jacobians="finite_difference")
     tol = rc.task.goal_tolerance
     m_d, X = pipeline.summary(d2c.timed.out, system, task, tol)
@@ -239,8 +288,13 @@ def run_task(
         "d2c_run_s": d2c.timed.run_s,
         "oracle_compile_s": oracle.compile_s,
         "oracle_run_s": oracle.run_s,
-        "wall_s": time.perf_counter() - t0,
     }
+    if reference_starts > 0:
+        key = jax.random.fold_in(jax.random.key(rc.experiment.seed), 1)
+        ref = best_reference(res, out, oracle.out, d2c.U0, params, sysid, reference_starts, key)
+        row["reference"] = ref
+        row["gap_to_reference"] = (m_d["cost"] - ref["cost"]) / abs(ref["cost"]) if ref["cost"] else None
+    row["wall_s"] = time.perf_counter() - t0
     return row
 
 
@@ -254,16 +308,25 @@ def table(rows: list[dict]) -> str:
         "| 1 % noise closed (gain scale) / open; full gains | D2C compile, run s | oracle run s |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
+    with_ref = any("reference" in r for r in rows)
+    if with_ref:
+        out[0] += " best reference (from) | gap to it |"
+        out[1] += "---|---|"
     for r in rows:
         d, o = r["d2c"], r["oracle"]
         gap = "n/a" if r["gap"] is None else f"{100 * r['gap']:+.2f} %"
+        ref = ""
+        if with_ref:
+            rf, g = r.get("reference"), r.get("gap_to_reference")
+            ref = " n/a | n/a |" if rf is None else f" {rf['cost']:.5g} ({rf['from']}) | "
+            ref += "" if rf is None else ("n/a |" if g is None else f"{100 * g:+.2f} % |")
         out.append(
             f"| {r['task']} | {r['nx']}, {r['nu']} | {d['cost']:.5g} ({d['status']}, {d['iterations']}) "
             f"| {o['cost']:.5g} ({o['status']}, {o['iterations']}) | {gap} "
             f"| {_yes(r['d2c_goal'])} / {_yes(r['oracle_goal'])} "
             f"| {r['noise_1pc_closed']:.4g} ({r['gains_scale']:g}) / {r['noise_1pc_open']:.4g}; "
             f"{r['noise_1pc_closed_full_gains']:.4g} "
-            f"| {r['d2c_compile_s']:.1f}, {r['d2c_run_s']:.1f} | {r['oracle_run_s']:.1f} |"
+            f"| {r['d2c_compile_s']:.1f}, {r['d2c_run_s']:.1f} | {r['oracle_run_s']:.1f} |" + ref
         )
     return "\n".join(out)
 
@@ -278,15 +341,23 @@ def main() -> None:
     ap.add_argument(
         "--backend", default="native", choices=("native", "mjx"), help="the black box: native MuJoCo or MJX"
     )
+    ap.add_argument(
+        "--reference-starts",
+        type=int,
+        default=0,
+        help="also solve D2C and the oracle from this many spread starts; the best is the reference",
+    )
     ap.add_argument("--out", default=None, help="also write the rows as JSON here")
     a = ap.parse_args()
+    if a.reference_starts < 0:
+        ap.error(f"--reference-starts: a number of starts >= 0, got {a.reference_starts}")
     from mjx_surrogate.runtime import configure_runtime
 
     configure_runtime(x64=True)
     names = [n for n in TASKS if a.tasks is None or any(s in n for s in a.tasks)]
     rows = []
     for name in names:
-        row = run_task(name, a.significance, a.backend, a.sigma)
+        row = run_task(name, a.significance, a.backend, a.sigma, a.reference_starts)
         if row is None:
             print(f"{name}: model not reachable, skipped", file=sys.stderr)
             continue
