@@ -114,6 +114,13 @@ TASKS = {
         {"control_dt": 0.02},
         ("body", "torso", None, (0.2, 0.0, 0.0)),
     ),
+    # contact-rich: from qpos0, 1.5 m up in the air, land and end with the torso at 1.2 m
+    "humanoid (land)": (
+        ("dm_control", "humanoid.xml"),
+        {"preset": "custom", "T": 50},
+        {"control_dt": 0.02},
+        ("body", "torso", None, (0.0, 0.0, -0.3)),
+    ),
     "manipulator (reach)": (
         ("dm_control", "manipulator.xml"),
         {"preset": "custom", "T": 50},
