@@ -215,20 +215,14 @@ def best_reference(res, d2c_out, oracle_out, U0, params, sysid, n: int, key) -> 
 
     _, system, task = res
     U0s = spread_starts(task, U0, key, n, REFERENCE_SPREAD)
+
+    def from_starts(first, method: str, k) -> list[float]:  # [the same start, then U0s]
+        spread = chunked.solve(system, task, U0s, k, params, sysid, method).out.costs
+        return [float(first.cost)] + [float(c) for c in np.asarray(spread)]
+
     costs = {
-        "d2c": [float(d2c_out.cost)]
-        + list(map(float, np.asarray(chunked.solve(system, task, U0s, key, params, sysid, "d2c").out.costs))),
-        "oracle": [float(oracle_out.cost)]
-        + list(
-            map(
-                float,
-                np.asarray(
-                    chunked.solve(
-                        system, task, U0s, jax.random.key(0), params, sysid, "finite_difference"
-                    ).out.costs
-                ),
-            )
-        ),
+        "d2c": from_starts(d2c_out, "d2c", key),
+        "oracle": from_starts(oracle_out, "finite_difference", jax.random.key(0)),
     }
     method, i = min(
         ((m, j) for m in costs for j, c in enumerate(costs[m]) if np.isfinite(c)),
