@@ -224,12 +224,12 @@ def best_reference(res, d2c_out, oracle_out, U0, params, sysid, n: int, key) -> 
         "d2c": from_starts(d2c_out, "d2c", key),
         "oracle": from_starts(oracle_out, "finite_difference", jax.random.key(0)),
     }
-    method, i = min(
-        ((m, j) for m in costs for j, c in enumerate(costs[m]) if np.isfinite(c)),
-        key=lambda mj: costs[mj[0]][mj[1]],
-    )
+    finite = [(c, m, j) for m in costs for j, c in enumerate(costs[m]) if np.isfinite(c)]
+    if not finite:
+        return {"cost": None, "from": "no finite solve", "starts": n, "costs": costs}
+    cost, method, i = min(finite)
     return {
-        "cost": costs[method][i],
+        "cost": cost,
         "from": f"{method}, {'the same start' if i == 0 else f'spread start {i}'}",
         "starts": n,
         "costs": costs,
@@ -319,8 +319,8 @@ def table(rows: list[dict]) -> str:
         ref = ""
         if with_ref:
             rf, g = r.get("reference"), r.get("gap_to_reference")
-            ref = " n/a | n/a |" if rf is None else f" {rf['cost']:.5g} ({rf['from']}) | "
-            ref += "" if rf is None else ("n/a |" if g is None else f"{100 * g:+.2f} % |")
+            best = "n/a" if rf is None or rf["cost"] is None else f"{rf['cost']:.5g} ({rf['from']})"
+            ref = f" {best} | {'n/a' if g is None else f'{100 * g:+.2f} %'} |"
         out.append(
             f"| {r['task']} | {r['nx']}, {r['nu']} | {d['cost']:.5g} ({d['status']}, {d['iterations']}) "
             f"| {o['cost']:.5g} ({o['status']}, {o['iterations']}) | {gap} "
