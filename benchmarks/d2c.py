@@ -71,6 +71,7 @@ def bench(
     from mjx_surrogate.control.d2c import solve_d2c, solve_exact
     from mjx_surrogate.runs.pipeline import initial_controls, simulation_metrics
     from mjx_surrogate.runs.resolution import resolve, solver_params
+    from mjx_surrogate.tasks import weight_matrix
     from mjx_surrogate.timing import compile_then_run
 
     cfg = load_config(f"{name}_d2c")
@@ -129,7 +130,8 @@ def bench(
         row.update(polish_cost=float(p.out.cost), polish_iters=int(p.out.iterations))
     if numpy_ref:
         step = d2c_numpy.NativeStepper(system.mj_model, system.substeps, nthread=2)
-        a = [np.asarray(v, np.float64) for v in (task.x0, task.x_goal, task.Q, task.Q_f, task.R)]
+        Q, Q_f = weight_matrix(task.Q), weight_matrix(task.Q_f)
+        a = [np.asarray(v, np.float64) for v in (task.x0, task.x_goal, Q, Q_f, task.R)]
         times = []
         for _ in range(max(1, repeats)):
             t0 = time.perf_counter()

@@ -17,10 +17,11 @@ from mjx_surrogate.control import chunked
 from mjx_surrogate.control.d2c import exact_linearize
 from mjx_surrogate.identification import sysid, sysid_reduced
 from mjx_surrogate.linalg import ltv_relative_error
-from mjx_surrogate.runs import pipeline, plots
+from mjx_surrogate.runs import memory, pipeline, plots
 from mjx_surrogate.runs.resolution import Resolved, solver_params
 from mjx_surrogate.runs.results import Interrupted, Run
 from mjx_surrogate.systems.system import actuated_state_indices
+from mjx_surrogate.tasks import weight_diagonal
 
 
 def ltv_error(system, X, U, K, key, sid_params, jacobians: str = "jacfwd") -> dict:
@@ -65,7 +66,7 @@ def _solve_arrays(prefix: str, result, X_bb) -> dict:
 def _shown_states(task, mj_model) -> list[int] | None:
     """The state coordinates of the trajectory figure: those the cost weighs, then the
     actuated ones; at most 16."""
-    w = np.diagonal(np.asarray(task.Q)) + np.diagonal(np.asarray(task.Q_f))
+    w = weight_diagonal(task.Q) + weight_diagonal(task.Q_f)
     weighted = [int(i) for i in np.nonzero(w > 0)[0][:8]]
     actuated = list(actuated_state_indices(mj_model)) if mj_model is not None else []
     return list(dict.fromkeys(weighted + actuated))[:16] or None
@@ -160,7 +161,9 @@ def _exact(
     cfg, system, task = res
     ex, sc = cfg.experiment, cfg.solver
     if not ex.exact_oracle:
-        record.set("exact", {"skipped": "experiment.exact_oracle is false (a user model's default)"})
+        record.set(
+            "exact", {"skipped": memory.oracle_off_reason(cfg.system.name, task, system.nx, system.nu)}
+        )
         return None
     U0 = jnp.asarray(a_d2c["d2c_U0"])
 

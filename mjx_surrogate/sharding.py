@@ -131,3 +131,16 @@ def sum_over_batch(fn: Callable, mesh: Mesh | None, batched: Any, rest: tuple = 
         out_specs=P(),
         check_vma=False,
     )(padded, weights, rest)
+
+
+CHUNK_NUMBERS = 2**24  # numbers per array of one chunk of :func:`vmap_in_chunks` (128 MiB in float64)
+
+
+def vmap_in_chunks(fn: Callable, xs: Any, numbers_per_item: int) -> Any:
+    """``jax.vmap(fn)(xs)`` over the leading axis, in sequential chunks (``lax.map``'s
+    ``batch_size``) where the whole batch's arrays, ``numbers_per_item`` numbers an item,
+    would exceed :data:`CHUNK_NUMBERS`: a grid of many cells keeps its peak memory to a
+    chunk's; a batch that fits is the plain vmap."""
+    B = jax.tree.leaves(xs)[0].shape[0]
+    k = max(1, CHUNK_NUMBERS // max(1, numbers_per_item))
+    return jax.vmap(fn)(xs) if k >= B else jax.lax.map(fn, xs, batch_size=k)

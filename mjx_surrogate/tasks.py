@@ -38,7 +38,9 @@ PointsFn = Callable[[jax.Array], jax.Array]  # x [nx] -> goal point positions [k
 
 @struct.dataclass
 class Task:
-    """x0, x_goal [nx]; Q, Q_f [nx, nx]; R [nu, nu]; u_min, u_max, u_ref [nu] (limits may be
+    """x0, x_goal [nx]; Q, Q_f [nx, nx], or [nx] for a diagonal (held as its diagonal, so that
+    a grid of many cells has no nx x nx array: :func:`quadratic`); R [nu, nu]; u_min, u_max,
+    u_ref [nu] (limits may be
     +-inf); point goals: targets [k, 3], weights, final_weights [k] and ``points`` (static).
     ``hinges`` (qpos indices wrapped, or measured by their chord where ``chordal``) and
     ``quats`` (first qpos index of each quaternion) are empty for the Euclidean state
@@ -67,6 +69,22 @@ class Task:
     end: jax.Array | None = None
     chordal: bool = struct.field(pytree_node=False, default=False)
     gauss_newton: bool = struct.field(pytree_node=False, default=True)
+
+
+def quadratic(e: jax.Array, W: jax.Array) -> jax.Array:
+    """e' W e for e [n] and a weight W [n, n] or its diagonal [n]."""
+    return (e * W) @ e if W.ndim == 1 else e @ W @ e
+
+
+def weight_matrix(W) -> np.ndarray | jax.Array:
+    """A weight [n, n] or its diagonal [n] as the matrix [n, n] (for small systems only)."""
+    return jnp.diag(W) if jnp.ndim(W) == 1 else W
+
+
+def weight_diagonal(W) -> np.ndarray:
+    """The diagonal [n] of a weight [n, n] or [n] (host-side, NumPy)."""
+    W = np.asarray(W)
+    return W if W.ndim == 1 else np.diagonal(W)
 
 
 def half_ranges(u_min: np.ndarray, u_max: np.ndarray) -> np.ndarray:
@@ -130,13 +148,13 @@ def _point_terms(task: Task, x: jax.Array, weights: jax.Array) -> jax.Array:
 def running_cost(task: Task, x: jax.Array, u: jax.Array) -> jax.Array:
     """l(x, u) for x [nx], u [nu] (module docstring)."""
     e, du = state_error(task, x), u - task.u_ref
-    return 0.5 * e @ task.Q @ e + 0.5 * du @ task.R @ du + _point_terms(task, x, task.weights)
+    return 0.5 * quadratic(e, task.Q) + 0.5 * du @ task.R @ du + _point_terms(task, x, task.weights)
 
 
 def terminal_cost(task: Task, x: jax.Array) -> jax.Array:
     """l_f(x) for x [nx]."""
     e = state_error(task, x)
-    return 0.5 * e @ task.Q_f @ e + _point_terms(task, x, task.final_weights)
+    return 0.5 * quadratic(e, task.Q_f) + _point_terms(task, x, task.final_weights)
 
 
 def has_terminal(task: Task) -> bool:
@@ -151,7 +169,7 @@ def goal_cost(task: Task, x: jax.Array, terminal: bool | None = None) -> jax.Arr
     if terminal if terminal is not None else has_terminal(task):
         return terminal_cost(task, x)
     e = state_error(task, x)
-    return 0.5 * e @ task.Q @ e + _point_terms(task, x, task.weights)
+    return 0.5 * quadratic(e, task.Q) + _point_terms(task, x, task.weights)
 
 
 def effort_cost(task: Task, u: jax.Array) -> jax.Array:
@@ -165,10 +183,15 @@ def stage_cost(task: Task, x: jax.Array, u: jax.Array, t: jax.Array) -> jax.Arra
     l(x, u) before the end, l_f(x) and the effort at it, the effort alone after it."""
     before, at_end = t < task.end, t == task.end
     # the state weights of the stage: Q before the end, Q_f at it (one error, one points call)
-    Q = jnp.where(before, task.Q, 0.0) + jnp.where(at_end, task.Q_f, 0.0)
+    Q, Q_f = (
+        (task.Q, task.Q_f)
+        if task.Q.ndim == task.Q_f.ndim
+        else (weight_matrix(task.Q), weight_matrix(task.Q_f))
+    )
+    Q = jnp.where(before, Q, 0.0) + jnp.where(at_end, Q_f, 0.0)
     w = jnp.where(before, task.weights, 0.0) + jnp.where(at_end, task.final_weights, 0.0)
     e = state_error(task, x)
-    return 0.5 * e @ Q @ e + _point_terms(task, x, w) + effort_cost(task, u)
+    return 0.5 * quadratic(e, Q) + _point_terms(task, x, w) + effort_cost(task, u)
 
 
 def final_cost(task: Task, x: jax.Array) -> jax.Array:
@@ -245,12 +268,13 @@ def chordal_derivatives(task: Task, X: jax.Array, U: jax.Array):
     e = jax.vmap(lambda x: state_error(task, x))(X)  # [T+1, nx]
     J = jnp.where(chord, jnp.cos((X - task.x_goal) / 2.0), 1.0)  # de/dx, diagonal
     T = U.shape[0]
+    Q, Q_f = weight_matrix(task.Q), weight_matrix(task.Q_f)
     if task.end is None:
-        Qs, QT = jnp.broadcast_to(task.Q, (T,) + task.Q.shape), task.Q_f
+        Qs, QT = jnp.broadcast_to(Q, (T,) + Q.shape), Q_f
     else:
         t = jnp.arange(T)[:, None, None]
-        Qs = jnp.where(t < task.end, task.Q, 0.0) + jnp.where(t == task.end, task.Q_f, 0.0)
-        QT = jnp.where(task.end == task.T, task.Q_f, 0.0)
+        Qs = jnp.where(t < task.end, Q, 0.0) + jnp.where(t == task.end, Q_f, 0.0)
+        QT = jnp.where(task.end == task.T, Q_f, 0.0)
     Je, JT = J[:-1], J[-1]
     gx = jnp.einsum("ti,tij,tj->ti", Je, Qs, e[:-1])
     Hx = Je[:, :, None] * Qs * Je[:, None, :]
@@ -299,7 +323,8 @@ def make_task(
     chordal: bool = False,
     gauss_newton: bool = True,
 ) -> Task:
-    """Assemble a :class:`Task` from array-likes (shapes checked by ``resolution.resolve``)."""
+    """Assemble a :class:`Task` from array-likes (shapes checked by ``resolution.resolve``);
+    Q, Q_f [nx, nx] or their diagonals [nx]."""
     dtype = dtype or jnp.result_type(float)
     nu = np.shape(R)[0]
     lo = np.full(nu, -np.inf) if u_min is None else np.asarray(u_min, float)

@@ -254,7 +254,7 @@ MESSAGES = [
     (["smoke_d2c", "--solver.sysid_design", "sobol"], "--solver.sysid_design", ["'sobol'", "orthogonal"], []),
     (["smoke_predict", "--data.levels", "0"], "data.levels", ["> 0", "got 0"], []),
     (["smoke_d2c", "--data.levels", "0.1", "-1"], "data.levels", ["got -1"], []),
-    # a grid whose dense nx x nx arrays do not fit: refused before the task's Q is built
+    # a grid whose dense nx x nx arrays do not fit: refused before anything is compiled
     # (262144^2 float64 is 512 GiB), at the shortest horizon's bound ...
     (
         ["burgers_d2c", "--system.name", "burgers262144"],
@@ -262,7 +262,23 @@ MESSAGES = [
         ["nx = 262144", "T = 1", "LTV model", "GiB", "valid here: nx <="],
         [],
     ),
-    (["burgers_ro_d2c", "--system.name", "burgers262144"], "system.name", ["Hessians)"], ["LTV model"]),
+    # the reduced scheme and the preset's diagonal weights build no nx x nx array: what a grid
+    # of 2^20 cells exceeds is the reduced scheme's T x nx arrays at the preset's horizon
+    (
+        ["burgers_ro_d2c", "--system.name", "burgers1048576"],
+        "task.T",
+        ["T x nx arrays", "T = 50", "T <="],
+        ["Hessians", "LTV model", "dense"],
+    ),
+    # the D2C solve fits, the exact oracle's full-order one does not: refused where asked for
+    # (the default is then off, with the reason in the run)
+    (
+        ["allen_cahn_d2c", "--system.name", "allen_cahn2d256", "--solver.sysid", "reduced"]
+        + ["--experiment.exact_oracle", "True"],
+        "experiment.exact_oracle",
+        ["full-order", "nx = 65536", "GiB", "valid here: false"],
+        [],
+    ),
     # ... and at the preset's horizon once it is read (T = 1 fits here, T = 50 does not):
     # the horizon is what to change
     (["burgers_d2c", "--system.name", "burgers8192"], "task.T", ["nx = 8192", "T = 50", "T <="], ["T = 1"]),

@@ -54,7 +54,7 @@ def make(problem, proposal, m=None, X_U=None):
         else m
     )
     X, U = nominal() if X_U is None else X_U
-    return lm.make_model(problem, m, proposal, X, U, jnp.zeros((T, nu, nx)), jax.random.key(0), ())
+    return lm.make_model(problem, m, proposal, X, U, jnp.zeros((T, nu, nx)), jax.random.key(0))
 
 
 def test_the_solver_state_holds_no_model_bookkeeping():

@@ -15,6 +15,7 @@ import numpy as np
 
 from mjx_surrogate.identification import step_models
 from mjx_surrogate.identification.data import Dataset, finite_trajectories, u_max
+from mjx_surrogate.sharding import vmap_in_chunks
 from mjx_surrogate.systems import System
 from mjx_surrogate.systems.system_jit import system_jit
 from mjx_surrogate.tasks import Task, trajectory_cost
@@ -67,7 +68,7 @@ def evaluate_feedback(
     W = jax.random.normal(key, (L, n_trials, T, nu), U.dtype)
     W = (W * noise_levels[:, None, None, None] * u_scale).reshape(L * n_trials, T, nu)
 
-    del X  # the nominal is re-simulated in the same program (docstring)
+    # the nominal X is re-simulated in the same program (docstring); only its size is used
     Uc = jnp.clip(U, task.u_min, task.u_max)
 
     def run(w, gains):
@@ -81,8 +82,9 @@ def evaluate_feedback(
         last, (Xs, Us) = jax.lax.scan(body, pair0, (Uc, gains, w))
         return trajectory_cost(task, jnp.concatenate([Xs, last[1][None]]), Us)
 
-    closed = jax.vmap(run, in_axes=(0, None))(W, K).reshape(L, n_trials)
-    opened = jax.vmap(run, in_axes=(0, None))(W, jnp.zeros_like(K)).reshape(L, n_trials)
+    per_trial = 4 * (T + 1) * X.shape[-1]  # the pair of trajectories and their step's states
+    closed = vmap_in_chunks(lambda w: run(w, K), W, per_trial).reshape(L, n_trials)
+    opened = vmap_in_chunks(lambda w: run(w, jnp.zeros_like(K)), W, per_trial).reshape(L, n_trials)
     return closed, opened
 
 

@@ -58,7 +58,7 @@ from flax import struct
 
 from mjx_surrogate import progress as progress_lib
 from mjx_surrogate.control import local_model
-from mjx_surrogate.control.local_model import LocalModel, ModelState, full_gains, reduced_expansion
+from mjx_surrogate.control.local_model import LocalModel, ModelState, full_gains
 from mjx_surrogate.control.model_strategies import (
     ModelReport,
     ModelStrategy,
@@ -68,7 +68,7 @@ from mjx_surrogate.control.model_strategies import (
     no_proposal,
 )
 from mjx_surrogate.control.problem import ClosedLoopFn, LinearizeFn, Problem, StepFn
-from mjx_surrogate.control.riccati import backward_pass, cost_derivatives, tvlqr_gains
+from mjx_surrogate.control.riccati import backward_pass, tvlqr_gains
 from mjx_surrogate.cost import Cost, trajectory_cost
 from mjx_surrogate.trajectory import feedback_rollout, feedback_rollouts
 
@@ -415,11 +415,11 @@ def _iteration(problem: Problem, p: ILQRParams, progress, state: SolveState) -> 
     s, m = state.solver, state.model
     strategy = strategy_of(problem, p)
     key, sub = jax.random.split(m.key)
-    derivs = cost_derivatives(problem.cost, s.X, s.U)
     proposal = strategy.propose(m.strategy, no_proposal())
-    model, how = local_model.make_model(problem, m.model, proposal, s.X, s.U, s.K, sub, derivs)
-    expansion = reduced_expansion(derivs, model.V)
-    k, K, dV, ok, reg = backward_pass(model.A, model.B, *expansion, s.U, problem.u_min, problem.u_max, s.mu)
+    model, how = local_model.make_model(problem, m.model, proposal, s.X, s.U, s.K, sub)
+    k, K, dV, ok, reg = backward_pass(
+        model.A, model.B, *model.expansion, s.U, problem.u_min, problem.u_max, s.mu
+    )
     K = full_gains(K, model.V)
     ls = _line_search(problem, p, s, k, K, dV, ok)
     mu = _schedule(p, s.mu, ls)
@@ -489,8 +489,7 @@ def final_gains(problem: Problem, state: SolveState, p: ILQRParams) -> jax.Array
 
     def gains(c):  # the loop holds the one call site, so the sweep is compiled once
         mu = jnp.where(c[0] < 0, 0.0, jnp.maximum(c[0] * p.mu_factor, p.mu_min))
-        expansion = reduced_expansion(m.expansion, m.V)
-        K, ok = tvlqr_gains(m.A, m.B, *expansion, m.U, problem.u_min, problem.u_max, mu)
+        K, ok = tvlqr_gains(m.A, m.B, *m.expansion, m.U, problem.u_min, problem.u_max, mu)
         return mu, full_gains(K, m.V), ok
 
     start = (-jnp.ones((), s.X.dtype), s.K, jnp.array(False))

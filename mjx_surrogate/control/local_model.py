@@ -19,7 +19,8 @@ import jax.numpy as jnp
 
 from mjx_surrogate.control.model_strategies import ModelStrategy, Proposal
 from mjx_surrogate.control.problem import Problem
-from mjx_surrogate.control.riccati import zero_cost_derivatives
+from mjx_surrogate.control.riccati import cost_derivatives, zero_cost_derivatives
+from mjx_surrogate.cost import Cost, stage_inputs
 
 
 class How(enum.IntEnum):
@@ -32,7 +33,7 @@ class How(enum.IntEnum):
 
 class LocalModel(NamedTuple):
     """The model (A, B, V), the nominal it belongs to (X [T+1, nx], U [T, nu]) and the
-    cost's derivatives there (``expansion``, :func:`~mjx_surrogate.control.riccati.cost_derivatives`)."""
+    cost's derivatives there in the model's coordinates (``expansion``, :func:`model_expansion`)."""
 
     A: jax.Array
     B: jax.Array
@@ -94,6 +95,55 @@ def reduced_expansion(derivs: tuple, V: jax.Array) -> tuple:
     )
 
 
+def projected_cost_derivatives(cost: Cost, X: jax.Array, U: jax.Array, V: jax.Array) -> tuple:
+    """:func:`reduced_expansion` of the cost's derivatives at X [T+1, nx], U [T, nu] in the
+    basis V [T+1, nx, r], built without any nx x nx array: V_t' l_xx V_t and l_ux V_t from
+    Hessian-vector products along V_t's r columns (r + nu gradient evaluations a stage, one
+    stage at a time), so that a grid of many cells fits. A cost with its own ``derivatives``
+    is projected from their dense form."""
+    if cost.derivatives is not None:
+        return reduced_expansion(cost.derivatives(X, U), V)
+    grad = jax.grad(cost.running, argnums=(0, 1))
+
+    def stage(args):
+        W, x, u, *t = args  # W [nx, r]
+        g = lambda x, u: grad(x, u, *t)  # noqa: E731
+        (gx, gu), hvp = jax.linearize(lambda x: g(x, u), x)
+        HW, HuW = jax.vmap(hvp, in_axes=1, out_axes=-1)(W)  # l_xx W [nx, r], l_ux W [nu, r]
+        luu = jax.jacfwd(lambda u: g(x, u)[1])(u)
+        return W.T @ gx, gu, W.T @ HW, luu, HuW
+
+    lx, lu, lxx, luu, lux = jax.lax.map(stage, (V[:-1], *stage_inputs(cost, X, U)))
+    gT, hvpT = jax.linearize(jax.grad(cost.terminal), X[-1])
+    WT = V[-1]
+    return lx, lu, lxx, luu, lux, WT.T @ gT, WT.T @ jax.vmap(hvpT, in_axes=1, out_axes=-1)(WT)
+
+
+def model_expansion(cost: Cost, X: jax.Array, U: jax.Array, V: jax.Array) -> tuple:
+    """The cost's derivatives at X [T+1, nx], U [T, nu] in the coordinates of a model with
+    basis V: :func:`~mjx_surrogate.control.riccati.cost_derivatives` for a full-order model
+    (V empty), :func:`projected_cost_derivatives` for a reduced one."""
+    return cost_derivatives(cost, X, U) if V.size == 0 else projected_cost_derivatives(cost, X, U, V)
+
+
+def zero_expansion(cost: Cost, X: jax.Array, U: jax.Array, r: int | None) -> tuple:
+    """Zeros in the shapes and dtypes of :func:`model_expansion` (r None: full order;
+    else the reduced coordinates' [T, r], [T, r, r], ... with no nx x nx array)."""
+    if r is None:
+        return zero_cost_derivatives(cost, X, U)
+    (T, nu), x, u = U.shape, X.dtype, U.dtype
+    shapes = (
+        ((T, r), x),
+        ((T, nu), u),
+        ((T, r, r), x),
+        ((T, nu, nu), u),
+        ((T, nu, r), u),
+        ((r,), x),
+        ((r, r), x),
+    )
+    return tuple(jnp.zeros(shape, dtype) for shape, dtype in shapes)
+
+
 def full_gains(K: jax.Array, V: jax.Array) -> jax.Array:
     """Gains K [T, nu, r] on the model's coordinates as gains on the state: K_t V_t'."""
     return K if V.size == 0 else jnp.einsum("tkr,tnr->tkn", K, V[:-1])
@@ -120,7 +170,7 @@ def init_model(
         V=jnp.zeros((0,) if rank is None else (T + 1, nx, r), dtype),
         X=X,
         U=U,
-        expansion=zero_cost_derivatives(problem.cost, X, U),
+        expansion=zero_expansion(problem.cost, X, U, rank),
     )
     return ModelState(model, strategy.init(), key, jnp.zeros((max_iter,), jnp.int8))
 
@@ -133,11 +183,10 @@ def make_model(
     U: jax.Array,
     K: jax.Array,
     key: jax.Array,
-    expansion: tuple,
 ) -> tuple[LocalModel, jax.Array]:
     """The model of the nominal X [T+1, nx], U [T, nu] (gains K [T, nu, nx] for the schemes
-    that use them) as ``proposal`` says, with the cost's derivatives there, and how it was
-    made (int8 :class:`How`)."""
+    that use them) as ``proposal`` says, with the cost's derivatives there in its
+    coordinates (:func:`model_expansion`), and how it was made (int8 :class:`How`)."""
 
     def with_basis(model):  # (A, B) of a full-order model, (A, B, V) of a reduced one
         return tuple(model) if problem.model_rank is not None else (*model, m.V)
@@ -159,4 +208,4 @@ def make_model(
     )
     fine = proposal.fine & (problem.linearize_fine is not None)
     how = jnp.where(proposal.identify, jnp.where(fine, How.IDENTIFIED_FINE, How.IDENTIFIED), How.KEPT)
-    return LocalModel(A, B, V, X, U, expansion), how.astype(jnp.int8)
+    return LocalModel(A, B, V, X, U, model_expansion(problem.cost, X, U, V)), how.astype(jnp.int8)

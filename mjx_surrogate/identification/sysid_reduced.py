@@ -117,11 +117,16 @@ def reduced_central_difference(
     def stats(Z, w, X, U, V):
         z = jnp.swapaxes(Z, 0, 1)  # [T, b, m]
         b = z.shape[1]
-        dx = jnp.einsum("tnr,tbr->tbn", V[:-1], z[..., :n])
-        xs = jnp.concatenate([X[:-1, None] + dx, X[:-1, None] - dx], axis=1)  # [T, 2b, nx]
-        us = jnp.concatenate([U[:, None] + z[..., n:], U[:, None] - z[..., n:]], axis=1)
-        f = jax.vmap(system.step)(xs.reshape(-1, nx), us.reshape(-1, nu)).reshape(T, 2 * b, nx)
-        y = jnp.einsum("tbn,tnr->tbr", 0.5 * (f[:, :b] - f[:, b:]), V[1:])
+
+        def at(args):  # one time step: V_t' (f+ - f-) / 2 [b, r] of its b samples
+            x, u, zt, W, W_next = args
+            dx = zt[:, :n] @ W.T  # [b, nx]
+            xs = jnp.concatenate([x + dx, x - dx])
+            us = jnp.concatenate([u + zt[:, n:], u - zt[:, n:]])
+            f = jax.vmap(system.step)(xs, us)
+            return (0.5 * (f[:b] - f[b:])) @ W_next
+
+        y = sharding.vmap_in_chunks(at, (X[:-1], U, z, V[:-1], V[1:]), 2 * b * nx)  # [T, b, r]
         return sid.normal_equations(z, y, w, diagonal=True)
 
     G, F = sharding.sum_over_batch(stats, mesh, Z, (X, U, V))

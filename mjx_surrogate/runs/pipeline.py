@@ -31,7 +31,7 @@ from mjx_surrogate.runs.resolution import solver_params
 from mjx_surrogate.runs.restart import restart_stationary, spread_starts
 from mjx_surrogate.systems import System
 from mjx_surrogate.systems.system_jit import system_jit
-from mjx_surrogate.tasks import Task, goal_cost, has_terminal, trajectory_cost
+from mjx_surrogate.tasks import Task, goal_cost, has_terminal, trajectory_cost, weight_diagonal
 from mjx_surrogate.trajectory import open_loop
 
 
@@ -158,7 +158,7 @@ def unit_goal_cost(task: Task) -> float:
     the scale of the goal test for a task that starts at its goal (a hold task)."""
     terminal = bool(np.any(np.asarray(task.Q_f))) or bool(np.any(np.asarray(task.final_weights)))
     W, w = (task.Q_f, task.final_weights) if terminal else (task.Q, task.weights)
-    return 0.5 * float(np.trace(np.asarray(W))) + 0.5 * float(np.sum(np.asarray(w)))
+    return 0.5 * float(np.sum(weight_diagonal(W))) + 0.5 * float(np.sum(np.asarray(w)))
 
 
 def goal_passes(task: Task, X: jax.Array, tolerance: float) -> np.ndarray:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 from typing import NamedTuple
 
 import jax
@@ -20,6 +19,7 @@ from mjx_surrogate.control.sampling_planners import SETTINGS as SAMPLING_PLANNER
 from mjx_surrogate.cost import BLOWUP
 from mjx_surrogate.errors import ConfigError, describe
 from mjx_surrogate.identification.sysid import SysIdParams, get_scheme
+from mjx_surrogate.runs import memory
 from mjx_surrogate.runs.config import Config, SystemConfig
 from mjx_surrogate.runs.experiment_kinds import (
     IDENTIFICATION,
@@ -40,7 +40,6 @@ from mjx_surrogate.runs.model_defaults import (
     default_sigma,
     friction_sigma,
 )
-from mjx_surrogate.runs.task_fields import MAX_T, preset_fields
 from mjx_surrogate.runs.task_resolution import resolve_task
 from mjx_surrogate.runs.validation import validate_static
 from mjx_surrogate.surrogates.registry import get_surrogate
@@ -202,55 +201,6 @@ def check_function_step(system: FunctionSystem, task: Task) -> None:
         raise ConfigError("task.x0", "the black box's step returned a non-finite state from the start")
 
 
-def check_memory(cfg: Config, system: System, T: int, n_samples: int) -> None:
-    """Reject horizons whose identification batch would not fit in memory (before compile)."""
-    width = 2 * n_samples + cfg.solver.n_alphas * cfg.solver.n_starts
-    bytes_ = 8 * 4 * T * width * (system.nx + system.nu)
-    limit = 16 * 2**30
-    if bytes_ > limit:
-        raise ConfigError(
-            "task.T",
-            f"T={T} needs about {bytes_ / 2**30:.0f} GiB for one identification batch "
-            f"({width} simulations per step); at most {limit / 2**30:.0f} GiB: shorten the horizon "
-            "or lower solver.n_samples",
-        )
-
-
-def machine_memory() -> int:
-    """This machine's physical memory in bytes."""
-    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-
-
-def check_dense_memory(cfg: Config, system: System, T: int | None) -> None:
-    """Refuse a state so large that the solve's dense nx x nx arrays would not fit in this
-    machine's memory (before any is built): the task's Q and Q_f, the cost's Hessians
-    l_xx [T+1, nx, nx] and, for a full-order scheme, the LTV model's A [T, nx, nx]. With
-    ``T`` None (the preset's horizon not read yet) the bound is that of T = 1. Blamed on
-    the system where even T = 1 does not fit, else on ``task.T``; a horizon out of range
-    is left to the horizon's own check."""
-    if T is not None and not 1 <= T <= MAX_T:
-        return
-    full = not get_scheme(cfg.solver.sysid).reduced
-    arrays = lambda n: 2 + (n + 1) + (n if full else 0)  # noqa: E731  (nx x nx float64 arrays at T = n)
-    n = 1 if T is None else T
-    nx2, have = 8 * system.nx**2, machine_memory()
-    need = nx2 * arrays(n)
-    if need <= have:
-        return
-    what = f"the task's Q and Q_f, the cost's Hessians{', the LTV model' if full else ''}"
-    at = "at the shortest horizon, T = 1" if T is None else f"at T = {T}"
-    said = (
-        f"{system.name!r} has nx = {system.nx} states: its dense nx x nx arrays ({what}) need "
-        f"{'at least ' if T is None else ''}{need / 2**30:,.0f} GiB {at}, more than this machine's "
-        f"{have / 2**30:.0f} GiB"
-    )
-    if nx2 * arrays(1) > have:
-        field = "system.entry" if cfg.system.name == USER_FUNCTION else "system.name"
-        raise ConfigError(field, f"{said}; valid here: nx <= {int((have / (8 * arrays(1))) ** 0.5)}")
-    T_max = int((have / nx2 - 3) / (2 if full else 1))  # arrays(T_max) <= have / nx2
-    raise ConfigError("task.T", f"{said}; valid here: T <= {T_max} for this system")
-
-
 def solver_params(cfg: Config, record_trajectories: bool = False):
     """SolverConfig -> (ILQRParams, SysIdParams). Every ILQRParams field is a SolverConfig
     field of the same name but ``record_trajectories`` and the model strategy's settings
@@ -310,11 +260,14 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     pool = jax.local_devices() if local else jax.devices()
     mesh = sharding.device_mesh(cfg.parallel.devices, pool)
     system = build_system_from_config(cfg.system, mesh)
-    check_dense_memory(cfg, system, cfg.task.T)  # before the task's dense weights are built
-    if cfg.task.T is None:  # at the preset's horizon, before its weights are checked and copied
-        check_dense_memory(cfg, system, preset_fields(cfg.task, system).get("T"))
     tc, task = resolve_task(cfg.task, system)
     needs, kind = needs_of(cfg), get_experiment(cfg.experiment.kind)
+    oracle = cfg.experiment.exact_oracle
+    if oracle is None:  # on for the registered systems whose full-order solve fits here
+        oracle = cfg.system.name != "mjcf" and memory.oracle_fits(task, system.nx, system.nu)
+    reduced = get_scheme(cfg.solver.sysid).reduced
+    n = cfg.solver.n_samples or default_n_samples(system.nx, system.nu, reduced)
+    memory.check_solve_memory(cfg, system, task, n, oracle)  # the dense arrays first: the grid
     n_samples = _check_samples(cfg, system, int(tc.T), IDENTIFICATION in needs)
     unset = cfg.solver.sigma_x is None or cfg.solver.sigma_u is None
     if cfg.system.name == "mjcf" and unset:  # a user's model: above its dry friction's break-away
@@ -336,10 +289,9 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
             control_dt=None,
             timestep=float(system.mj_model.opt.timestep),
         )
-    oracle = cfg.experiment.exact_oracle
     ex = dataclasses.replace(
         cfg.experiment,
-        exact_oracle=(cfg.system.name != "mjcf") if oracle is None else oracle,
+        exact_oracle=oracle,
         # a function without derivatives (a host function) is judged against central differences
         oracle="finite_difference"
         if system.mj_model is None and system.exact_step is None
@@ -387,7 +339,7 @@ def _check_samples(cfg: Config, system: System, T: int, identifies: bool) -> int
                 f"must be >= nx + nu = {system.nx + system.nu} "
                 f"for the LTV least squares to be determined, got {n_samples}",
             )
-        check_memory(cfg, system, T, n_samples)
+        memory.check_identification_batch(cfg, system.nx, system.nu, T, n_samples)
     return n_samples
 
 

@@ -38,8 +38,11 @@ def preset_fields(tc: TaskConfig, system) -> dict:
 
 
 def matrix_field(tc: TaskConfig, base: dict, name: str, n: int) -> np.ndarray:
-    """Weight matrix ``name`` [n, n] (Q, Q_f, R): the full one, its diagonal, or the preset's;
-    symmetric and positive semi-definite (R positive definite)."""
+    """Weight ``name`` (Q, Q_f, R): the full one [n, n], its diagonal, or the preset's;
+    symmetric and positive semi-definite (R positive definite). A state weight given as its
+    diagonal (``{name}_diag``, or a preset's vector) stays its diagonal [n], so that a grid
+    of many cells has no n x n array (:func:`mjx_surrogate.tasks.quadratic`); R is always
+    the matrix."""
     full, diag = getattr(tc, name), getattr(tc, name + "_diag")
     field = f"task.{name}_diag" if diag is not None else f"task.{name}"
     if full is not None and diag is not None:
@@ -48,7 +51,7 @@ def matrix_field(tc: TaskConfig, base: dict, name: str, n: int) -> np.ndarray:
         check_finite(field, diag)
         if len(diag) != n:
             raise ConfigError(field, f"needs {n} entries, got {len(diag)}")
-        m = np.diag(np.asarray(diag, float))
+        m = np.asarray(diag, float)
     elif full is not None:
         check_finite(field, full)
         try:
@@ -61,8 +64,9 @@ def matrix_field(tc: TaskConfig, base: dict, name: str, n: int) -> np.ndarray:
         m = np.asarray(base[name], float)
     else:
         raise ConfigError(field, f"required with task.preset='custom' ({n}x{n} or {name}_diag)")
-    d = np.diagonal(m)
-    if np.count_nonzero(m) == np.count_nonzero(d):  # diagonal (a PDE grid's weights): its eigenvalues
+    if m.ndim == 1:  # a diagonal: its entries are its eigenvalues
+        eig = np.sort(m)
+    elif np.count_nonzero(m) == np.count_nonzero(d := np.diagonal(m)):  # a diagonal matrix
         eig = np.sort(d)
     else:
         if not np.allclose(m, m.T, atol=1e-12 * max(1.0, np.abs(m).max())):
@@ -72,7 +76,7 @@ def matrix_field(tc: TaskConfig, base: dict, name: str, n: int) -> np.ndarray:
         raise ConfigError(field, f"must be positive definite (smallest eigenvalue {eig.min():g})")
     if eig.min() < -1e-9 * max(1.0, eig.max()):
         raise ConfigError(field, f"must be positive semi-definite (eigenvalue {eig.min():g})")
-    return m
+    return np.diag(m) if name == "R" and m.ndim == 1 else m
 
 
 def state_field(tc: TaskConfig, name: str, labels: list[str], fallback) -> np.ndarray | None:
@@ -127,13 +131,17 @@ def _tolist(v):
 def resolved_task_config(tc, T, x0, x_goal, Q, Q_f, R, u_min, u_max, u_ref, state_error) -> TaskConfig:
     """Every field filled: what config.json holds."""
     limited = lambda b: None if np.all(np.isinf(b)) else _tolist(b)  # noqa: E731
+    full = lambda W: None if np.ndim(W) == 1 else _tolist(W)  # noqa: E731
+    diag = lambda W: _tolist(W) if np.ndim(W) == 1 else None  # noqa: E731
     return TaskConfig(
         preset=tc.preset,
         T=int(T),
         x0=_tolist(x0),
         x_goal=_tolist(x_goal),
-        Q=_tolist(Q),
-        Q_f=_tolist(Q_f),
+        Q=full(Q),
+        Q_f=full(Q_f),
+        Q_diag=diag(Q),
+        Q_f_diag=diag(Q_f),
         R=_tolist(R),
         u_min=limited(u_min),
         u_max=limited(u_max),

@@ -110,13 +110,14 @@ def field_system(step, b: np.ndarray, dt: float, name: str, u_max: float) -> Fun
 
 def field_task(x0: np.ndarray, goal: np.ndarray, cell: float, nu: int, T: int) -> dict:
     """Task fields with the weights as integrals over the domain (``cell``: a cell's length
-    or area): running cell |w - w*|^2, terminal 10 cell |w - w*|^2, 1e-3 |u|^2 per step."""
+    or area): running cell |w - w*|^2, terminal 10 cell |w - w*|^2, 1e-3 |u|^2 per step. The
+    state weights are their diagonals [nx]: no nx x nx array on a grid of many cells."""
     nx = x0.shape[0]
     return dict(
         x0=x0,
         x_goal=goal,
-        Q=cell * np.eye(nx),
-        Q_f=10.0 * cell * np.eye(nx),
+        Q=np.full(nx, cell),
+        Q_f=np.full(nx, 10.0 * cell),
         R=1e-3 * np.eye(nu),
         T=T,
         u_ref=np.zeros(nu),
