@@ -1,12 +1,12 @@
 """Full-order against reduced-order D2C on the PDE black boxes, as the grid grows.
 
-    python benchmarks/pde.py [--systems burgers allen_cahn] [--grids 64 256 1024]
+    python benchmarks/pde.py [--systems burgers allen_cahn allen_cahn2d] [--grids 64 256 1024]
                              [--methods exact full reduced] [--json out.json] [--figure f.png]
     python benchmarks/pde.py --from a.json b.json --figure f.png   # the figure of saved rows
 
-For each PDE and grid size n (nx = n) one fresh process per method solves the registered
-task (``burgers_damp``, ``allen_cahn_grow``; T = 50, float64, the solver's defaults) from
-zero controls:
+For each PDE and grid size n (nx = n; ``allen_cahn2d``: n x n cells) one fresh process per
+method solves the registered task (``burgers_damp``, ``allen_cahn_grow``; T = 50, float64,
+the solver's defaults) from zero controls:
 
 * ``exact``: iLQR with jax.jacfwd Jacobians through the JAX step (the oracle);
 * ``full``: D2C, central differences, the default max(20, 2 (nx + nu)) samples per step;
@@ -52,7 +52,11 @@ def one(system_name: str, n: int, method: str) -> dict:
     from mjx_surrogate.tasks import make_task
 
     system = registry.make_function_system(f"{system_name}{n}")
-    fields = (burgers.damp_fields if system_name == "burgers" else lambda n: allen_cahn.grow_fields(n, 8))(n)
+    fields = {
+        "burgers": lambda: burgers.damp_fields(n),
+        "allen_cahn": lambda: allen_cahn.grow_fields(n, 8),
+        "allen_cahn2d": lambda: allen_cahn.grow_fields(n * n, 9),
+    }[system_name]()
     task = make_task(**fields, u_min=jnp.asarray(system.u_min), u_max=jnp.asarray(system.u_max))
     U0 = jnp.zeros((task.T, system.nu))
     params, key = ILQRParams(), jax.random.key(0)

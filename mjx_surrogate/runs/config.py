@@ -85,7 +85,8 @@ class TaskConfig:
     field left as None; "hold" (any model: keep the start, qpos0 or x0_keyframe, for 50
     control steps; ``model_defaults.hold_task``); or "custom" (then x_goal, T and weights
     are required).
-    Q, Q_f, R: full matrices; Q_diag, Q_f_diag, R_diag: diagonal shortcuts.
+    Q, Q_f, R: full matrices; Q_diag, Q_f_diag, R_diag: diagonal shortcuts (Q and Q_f
+      given as diagonals stay diagonals: no nx x nx array for a grid of many cells).
     u_min, u_max: box limits on the controls, enforced by the solver; by default the
       preset's, else the model's actuator ctrlrange, which they may narrow but not widen.
     x0_keyframe, goal_keyframe: a keyframe of the model (name or index) giving x0, or

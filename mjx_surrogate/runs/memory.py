@@ -27,7 +27,7 @@ GIB = 2**30
 # control (the carried and the new basis V, the snapshots; the one-step samples run in chunks,
 # sharding.vmap_in_chunks) and besides (the nominal, the line search's trials, the gains, the
 # feedback trials): allen_cahn2d256 at T = 50 peaks at 4.4 GiB of resident memory against the
-# 5.9 GiB these give (docs/performance.md, "PDEs")
+# 6.0 GiB these give (36 snapshots) (docs/performance.md, "PDEs")
 REDUCED_PER_SAMPLE = 5
 REDUCED_FIXED = 16
 
