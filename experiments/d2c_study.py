@@ -110,10 +110,12 @@ def _d2c_stage(res: Resolved, sid_params) -> tuple[dict, dict]:
     ex, sc = cfg.experiment, cfg.solver
     title = f"D2C multi-start x{sc.n_starts}" if sc.n_starts > 1 else "D2C (LTV identification + iLQR)"
     with progress.meter(title, sc.max_iter, ex.progress) as pm:
-        timed, U0, costs, restart = pipeline.solve_config(res, pm)
-    result = timed.out
+        sol = pipeline.solve_config(res, pm)
+    timed, U0, costs, result = sol.timed, sol.U0, sol.costs, sol.timed.out
     extra = {} if costs is None else {"multistart_costs": np.asarray(costs).tolist()}
-    m, X_bb = pipeline.summary(result, system, task, cfg.task.goal_tolerance, _names("d2c"), restart)
+    m, X_bb = pipeline.summary(
+        result, system, task, cfg.task.goal_tolerance, _names("d2c"), sol.restart, sol.search
+    )
     m.update(
         extra,
         compile_s=timed.compile_s,

@@ -107,7 +107,7 @@ def test_the_hold_task_starts_at_rest_and_multi_starts_are_distinct(tmp_path):
     assert np.all(np.asarray(U0s) >= lo) and np.all(np.asarray(U0s) <= hi)
     np.testing.assert_array_equal(np.asarray(task.u_ref), hold)  # R pulls towards holding
     # Held from the start: the first cost is tiny, and the goal test means something.
-    timed, U0, costs, _ = pipeline.solve_config(res)
+    timed, U0, costs = pipeline.solve_config(res)[:3]
     assert costs is not None and len(costs) == 3
     X, J = pipeline.black_box_trajectory(system, task, timed.out.U)
     assert pipeline.goal_test(task, X, cfg.task.goal_tolerance)["reached"]
@@ -131,7 +131,7 @@ def test_the_command_line_and_the_api_give_the_same_solve(tmp_path):
         solver=SolverConfig(max_iter=3),
         experiment=ExperimentConfig(seed=7),
     )
-    timed, U0, _, _ = pipeline.solve_config(resolve(cfg))
+    timed, U0 = pipeline.solve_config(resolve(cfg))[:2]
     np.testing.assert_array_equal(np.asarray(timed.out.U), arrays["d2c_U"])
     assert float(timed.out.cost) == metrics["d2c"]["cost_solver"]
     # The run says whether its gains are to be used, true of its own noise trials.

@@ -100,6 +100,46 @@ def _hidden_lever():
 
 
 @pytest.mark.slow
+def test_a_stationary_solve_is_followed_by_the_sampling_search_with_its_budget_counted(monkeypatch):
+    """Where every local model is flat, CEM on the black box finds the hidden lever and D2C
+    refines its plan to the goal; every black-box step of both is counted. Not run where it
+    is not needed (the goal reached, a solve that moved, rounds 0), and the refined solve is
+    kept only where it costs less."""
+    from mjx_surrogate.control import chunked
+    from mjx_surrogate.control.ilqr import StopReason
+    from mjx_surrogate.runs import sampling_search as search
+
+    system, task, calls = _hidden_lever()
+    params = ILQRParams(max_iter=40)
+    sid = sysid.SysIdParams(sigma_x=1e-4, sigma_u=1e-4, n_samples=10)
+    U0 = jnp.zeros((30, 2))
+    first = chunked.solve(system, task, U0, jax.random.key(0), params, sid)
+    assert StopReason(int(first.out.stop_reason)) == StopReason.STATIONARY
+    calls["n"] = 0
+    kept, U0_kept, info = search.search_then_refine(
+        system, task, first, U0, jax.random.key(1), params, sid, 10, reached=False
+    )
+    assert info["search_steps"] + info["refined_steps"] == calls["n"] > 0
+    assert info["kept"] == "the refined solve" and float(kept.out.cost) == info["refined_cost"]
+    assert float(kept.out.cost) < 0.01 * float(first.out.cost)  # 50 -> reached
+    assert not np.allclose(U0_kept, 0.0)  # the refined solve's start: the search's plan
+    calls["n"] = 0
+    for reached, rounds, solve in ((True, 10, first), (False, 0, first), (False, 10, kept)):
+        same = search.search_then_refine(
+            system, task, solve, U0, jax.random.key(1), params, sid, rounds, reached
+        )
+        assert same[0] is solve and same[2] is None
+    assert calls["n"] == 0  # nothing simulated where it is not needed
+    # a refined solve that costs more is not kept
+    worse = first._replace(out=first.out._replace(cost=first.out.cost + 1.0))
+    monkeypatch.setattr(search.chunked, "solve", lambda *a, **k: worse)
+    kept, U0_kept, info = search.search_then_refine(
+        system, task, first, U0, jax.random.key(1), params, sid, 2, False
+    )
+    assert kept.out is first.out and U0_kept is U0 and info["kept"].startswith("the stationary solve")
+
+
+@pytest.mark.slow
 def test_a_stationary_solve_is_restarted_from_spread_starts_with_their_budget_counted():
     from mjx_surrogate.control import chunked
     from mjx_surrogate.control.ilqr import StopReason

@@ -416,12 +416,13 @@ FINGER_SPIN += " --task.Q_diag 0 0 0 0 0 0 --task.Q_f_diag 0 0 100 0 0 1 --task.
 
 
 @pytest.mark.slow
-def test_a_finger_that_does_not_touch_the_spinner_is_stationary_and_restarts_reach_it(tmp_path, capsys):
+def test_a_finger_that_does_not_touch_the_spinner_is_stationary_and_the_search_reaches_it(tmp_path, capsys):
     """dm_control's finger, the spinner's hinge to 1 rad, as a user writes it: from the hold
     start the finger touches nothing, every local model says the controls do not move the
-    cost. With restarts off the run says ``stationary`` (not ``converged``) with a hint and
-    no gains verdict; by default it restarts from spread starts and reaches the goal, and
-    so do the hint's own settings."""
+    cost. With the search and the restarts off the run says ``stationary`` (not
+    ``converged``) with a hint and no gains verdict; by default the sampling search finds
+    the spinner, D2C from its plan reaches the goal (no restart needed), and so do the
+    hint's own settings."""
     from experiments import run as cli
 
     path = model_path("dm_control", "finger.xml")
@@ -435,20 +436,18 @@ def test_a_finger_that_does_not_touch_the_spinner_is_stationary_and_restarts_rea
         (folder,) = glob.glob(str(tmp_path / f"*_{name}"))
         return json.load(open(os.path.join(folder, "metrics.json")))
 
-    m = run("off", "--solver.stationary_restarts", "0")
+    m = run("off", "--solver.sampling_search", "0", "--solver.stationary_restarts", "0")
     assert m["status"] == m["d2c"]["status"] == "stationary" and m["d2c"]["iterations"] == 1
     assert m["d2c"]["cost"] == m["d2c"]["goal"]["goal_cost_start"] and not m["d2c"]["goal"]["reached"]
     assert m["feedback"]["gains"] == "not judged: the solve is stationary" and "restart" not in m["d2c"]
     hint = m["d2c"]["hint"]
     assert "hint: " + hint in capsys.readouterr().out
-    d2c = run("default")["d2c"]  # the documented defaults: 8 restarts, 100 iterations
-    restart = d2c["restart"]
-    assert (
-        restart["n_starts"] == 8 and restart["kept"].startswith("restart") and restart["simulated_steps"] > 0
-    )
+    d2c = run("default")["d2c"]  # the documented defaults: 20 rounds of the search, 100 iterations
+    search = d2c["sampling_search"]
+    assert search["kept"] == "the refined solve" and search["search_steps"] > 0 and "restart" not in d2c
     assert (
         d2c["goal"]["reached"]
-        and d2c["cost"] == min(restart["costs"]) < 0.02 * d2c["goal"]["goal_cost_start"]
+        and d2c["cost"] == search["refined_cost"] < 0.02 * d2c["goal"]["goal_cost_start"]
     )
     flags = hint[hint.index("(--") + 1 : hint.rindex(")")].split()
     d2c = run("hinted", *flags, "--solver.max_iter", "10")["d2c"]  # reached within 5

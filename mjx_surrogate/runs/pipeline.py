@@ -26,6 +26,7 @@ from mjx_surrogate.identification import data
 from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.runs import native_replay
+from mjx_surrogate.runs import sampling_search as search_lib
 from mjx_surrogate.runs.model_defaults import hold_controls
 from mjx_surrogate.runs.resolution import solver_params
 from mjx_surrogate.runs.restart import restart_stationary, spread_starts
@@ -84,6 +85,7 @@ class ConfigSolve(NamedTuple):
     U0: jax.Array  # [T, nu] the start of the returned solve
     costs: jax.Array | None  # [n_starts] every start's final cost, or None for one start
     restart: dict | None = None  # what the restart of a stationary solve did (mjx_surrogate.runs.restart)
+    search: dict | None = None  # what the sampling search did (mjx_surrogate.runs.sampling_search)
 
 
 def solve_config(res, progress: ProgressMeter = NO_PROGRESS) -> ConfigSolve:
@@ -101,10 +103,62 @@ def solve_config(res, progress: ProgressMeter = NO_PROGRESS) -> ConfigSolve:
         return ConfigSolve(timed._replace(out=out.best), U0s[int(out.best_index)], out.costs)
     U0 = start_controls(system, task, sc.init, sc.init_scale, k_init)
     timed = chunked.solve(system, task, U0, k_d2c, params, sid_params, "d2c", progress)
-    key = jax.random.fold_in(k_d2c, 1)
-    n = sc.stationary_restarts
-    timed, U0, info = restart_stationary(system, task, timed, U0, key, params, sid_params, n, progress)
-    return ConfigSolve(timed, U0, None, info)
+    rounds, restarts, tol = sc.sampling_search, sc.stationary_restarts, cfg.task.goal_tolerance
+    timed, U0, info, search = past_a_stall(
+        system, task, timed, U0, k_d2c, params, sid_params, rounds, restarts, tol, progress
+    )
+    return ConfigSolve(timed, U0, None, info, search)
+
+
+def past_a_stall(
+    system: System,
+    task: Task,
+    timed: "chunked.Timed",
+    U0: jax.Array,
+    key: jax.Array,
+    params: ILQRParams,
+    sysid: sid.SysIdParams,
+    rounds: int,
+    restarts: int,
+    goal_tolerance: float,
+    progress: ProgressMeter = NO_PROGRESS,
+):
+    """After a D2C solve from U0 (keys from ``key``, the solve's): the sampling search where
+    it ended stationary or stalled short of its goal (:func:`sampling_search`), then, where
+    the kept solve is still stationary, ``restarts`` spread starts (:mod:`.restart`).
+    Returns (the solve to keep, its start, the restarts' record, the search's record)."""
+    k_search = jax.random.fold_in(key, 2)
+    timed, U0, search = sampling_search(
+        system, task, timed, U0, k_search, params, sysid, rounds, goal_tolerance, progress
+    )
+    k_restart = jax.random.fold_in(key, 1)
+    timed, U0, info = restart_stationary(
+        system, task, timed, U0, k_restart, params, sysid, restarts, progress
+    )
+    return timed, U0, info, search
+
+
+def sampling_search(
+    system: System,
+    task: Task,
+    timed: "chunked.Timed",
+    U0: jax.Array,
+    key: jax.Array,
+    params: ILQRParams,
+    sysid: sid.SysIdParams,
+    rounds: int,
+    goal_tolerance: float,
+    progress: ProgressMeter = NO_PROGRESS,
+):
+    """:func:`~mjx_surrogate.runs.sampling_search.search_then_refine` after a solve that
+    ended stationary or stalled, judged by the goal test on the black box."""
+    if rounds == 0 or StopReason(int(timed.out.stop_reason)).verdict not in search_lib.NEEDED:
+        return timed, U0, None
+    X, _ = black_box_trajectory(system, task, timed.out.U)
+    reached = goal_test(task, X, goal_tolerance)["reached"]
+    return search_lib.search_then_refine(
+        system, task, timed, U0, key, params, sysid, rounds, reached, progress
+    )
 
 
 NO_GAINS_VERDICT = ("stationary", "diverged")  # solves whose gains are not judged
@@ -192,9 +246,11 @@ def summary(
     goal_tolerance: float = 0.01,
     names: tuple[str, str, str] | None = None,
     restart: dict | None = None,
+    search: dict | None = None,
 ) -> tuple[dict, jax.Array]:
     """Metrics of a solve in the status vocabulary, judged on the black box (``restart``:
-    what :func:`~mjx_surrogate.runs.restart.restart_stationary` did before it, kept as is).
+    what :func:`~mjx_surrogate.runs.restart.restart_stationary` did before it, ``search``:
+    what :func:`sampling_search` did, each kept as is).
 
     ``cost`` is the cost of the solve's controls replayed on the black box (``cost_solver``
     the solver's own); ``status`` is the verdict of the stop reason (``diverged`` if the
@@ -239,6 +295,8 @@ def summary(
         out["last_finite_iteration"] = last
     if restart is not None:
         out["restart"] = restart
+    if search is not None:
+        out["sampling_search"] = search
     if hint := status_hint(status, out):
         out["hint"] = hint
     if getattr(system, "mj_model", None) is None:  # a function black box: no MuJoCo to replay on
@@ -267,9 +325,11 @@ def status_hint(status: str, metrics: dict) -> str | None:
     """What to try after a solve that made no progress (also after its restarts) or
     diverged (None otherwise)."""
     if status == "stationary" and (restart := metrics.get("restart")) is not None:
+        searched = "the sampling search and " if "sampling_search" in metrics else ""
         return (
-            f"{restart['n_starts']} restarts spread over the actuators' range did not move it either "
-            "(solver.stationary_restarts): within this horizon the controls do not reach what the cost "
+            f"{searched}{restart['n_starts']} restarts spread over the actuators' range did not move it "
+            "either (solver.sampling_search, solver.stationary_restarts): within this horizon the "
+            "controls do not reach what the cost "
             "weighs; a longer horizon, a running cost that leads there, or more starts "
             "(--solver.n_starts 32 --solver.init_scale 1)"
         )
@@ -306,15 +366,17 @@ def d2c_optimum(
     goal_tolerance: float = 0.01,
     names: tuple[str, str, str] | None = None,
     restarts: int = 0,
+    search_rounds: int = 0,
 ) -> Optimum:
     """Solve by D2C from U0 and summarise on the black box (``names``: :func:`summary`);
-    driven from the host (:mod:`mjx_surrogate.control.chunked`: cacheable programs). A
-    stationary solve is restarted from ``restarts`` spread starts (:mod:`.restart`)."""
+    driven from the host (:mod:`mjx_surrogate.control.chunked`: cacheable programs); past
+    a stationary or stalled end, ``search_rounds`` of the sampling search and ``restarts``
+    spread starts (:func:`past_a_stall`)."""
     timed = chunked.solve(system, task, U0, key, params, sysid, "d2c", progress)
-    timed, U0, info = restart_stationary(
-        system, task, timed, U0, jax.random.fold_in(key, 1), params, sysid, restarts, progress
+    timed, U0, info, search = past_a_stall(
+        system, task, timed, U0, key, params, sysid, search_rounds, restarts, goal_tolerance, progress
     )
-    metrics, X = summary(timed.out, system, task, goal_tolerance, names, info)
+    metrics, X = summary(timed.out, system, task, goal_tolerance, names, info, search)
     return Optimum(timed.out, X, metrics, U0)
 
 
@@ -349,6 +411,7 @@ def optimum_stage(res, key: jax.Array):
                 cfg.task.goal_tolerance,
                 names,
                 sc.stationary_restarts,
+                sc.sampling_search,
             )
         m = {**opt.metrics, "wall_s": time.perf_counter() - t0}
         m |= simulation_metrics(opt.result, task.T, sc.n_alphas, sid)

@@ -183,7 +183,14 @@ def _check_solver(s: SolverConfig) -> None:
             raise ConfigError(f"solver.{field}", f"must be in (0, 1), got {v}")
     if s.n_samples is not None and s.n_samples < 1:
         raise ConfigError("solver.n_samples", f"must be >= 1 (or unset), got {s.n_samples}")
-    _at_least(0, {"solver.reuse_max": s.reuse_max, "solver.stationary_restarts": s.stationary_restarts})
+    _at_least(
+        0,
+        {
+            "solver.reuse_max": s.reuse_max,
+            "solver.stationary_restarts": s.stationary_restarts,
+            "solver.sampling_search": s.sampling_search,
+        },
+    )
     _at_least(
         1, {"solver.max_iter": s.max_iter, "solver.n_alphas": s.n_alphas, "solver.n_starts": s.n_starts}
     )
