@@ -322,8 +322,8 @@ def summary(
 
 
 def status_hint(status: str, metrics: dict) -> str | None:
-    """What to try after a solve that made no progress (also after its restarts) or
-    diverged (None otherwise)."""
+    """What to try after a solve that made no progress (also after its search and restarts),
+    diverged, or converged at a point that misses its goal (None otherwise)."""
     if status == "stationary" and (restart := metrics.get("restart")) is not None:
         searched = "the sampling search and " if "sampling_search" in metrics else ""
         return (
@@ -344,6 +344,15 @@ def status_hint(status: str, metrics: dict) -> str | None:
         return (
             f"the black box returned non-finite states after iteration {last}; "
             "the controls and cost of that last finite iterate are kept"
+        )
+    goal = metrics.get("goal") or {}
+    start, final = goal.get("goal_cost_start"), goal.get("goal_cost_final")
+    if status == "converged" and goal.get("reached") is False and start and final is not None:
+        return (
+            f"converged at a point that misses the goal (its goal cost {100 * final / start:.3g} % of the "
+            f"start's; the test asks {100 * goal['tolerance']:g} %): this local optimum trades the goal "
+            "against the control effort and the running terms; weigh the goal more (Q_f, a point goal's "
+            "final_weight), lower R or lengthen the horizon, unless the goal lies beyond the controls' reach"
         )
     return None
 
