@@ -76,6 +76,21 @@ def test_simulation_curve_counts_every_black_box_step(scheme, reuse, every):
     assert m["simulations_to_optimum"]["1%"] <= m["simulations_to_optimum"]["0.1%"] <= calls["n"]
 
 
+def _stationary_first_solve():
+    """The hidden lever's D2C solve from zero controls, stationary; the call count reset."""
+    from mjx_surrogate.control import chunked
+    from mjx_surrogate.control.ilqr import StopReason
+
+    system, task, calls = _hidden_lever()
+    params = ILQRParams(max_iter=40)
+    sid = sysid.SysIdParams(sigma_x=1e-4, sigma_u=1e-4, n_samples=10)
+    U0 = jnp.zeros((30, 2))
+    first = chunked.solve(system, task, U0, jax.random.key(0), params, sid)
+    assert StopReason(int(first.out.stop_reason)) == StopReason.STATIONARY
+    calls["n"] = 0
+    return system, task, calls, params, sid, U0, first
+
+
 def _hidden_lever():
     """x = [p, v, q]: q' = q + 0.1 u_1, v' = v + 0.1 u_0 q, p' = p + 0.1 v; the goal is on p
     alone. From zero controls q stays 0, so neither control moves the cost to first order:
@@ -105,17 +120,9 @@ def test_a_stationary_solve_is_followed_by_the_sampling_search_with_its_budget_c
     refines its plan to the goal; every black-box step of both is counted. Not run where it
     is not needed (the goal reached, a solve that moved, rounds 0), and the refined solve is
     kept only where it costs less."""
-    from mjx_surrogate.control import chunked
-    from mjx_surrogate.control.ilqr import StopReason
     from mjx_surrogate.runs import sampling_search as search
 
-    system, task, calls = _hidden_lever()
-    params = ILQRParams(max_iter=40)
-    sid = sysid.SysIdParams(sigma_x=1e-4, sigma_u=1e-4, n_samples=10)
-    U0 = jnp.zeros((30, 2))
-    first = chunked.solve(system, task, U0, jax.random.key(0), params, sid)
-    assert StopReason(int(first.out.stop_reason)) == StopReason.STATIONARY
-    calls["n"] = 0
+    system, task, calls, params, sid, U0, first = _stationary_first_solve()
     kept, U0_kept, info = search.search_then_refine(
         system, task, first, U0, jax.random.key(1), params, sid, 10, reached=False
     )
@@ -142,16 +149,9 @@ def test_a_stationary_solve_is_followed_by_the_sampling_search_with_its_budget_c
 @pytest.mark.slow
 def test_a_stationary_solve_is_restarted_from_spread_starts_with_their_budget_counted():
     from mjx_surrogate.control import chunked
-    from mjx_surrogate.control.ilqr import StopReason
     from mjx_surrogate.runs import restart
 
-    system, task, calls = _hidden_lever()
-    params = ILQRParams(max_iter=40)
-    sid = sysid.SysIdParams(sigma_x=1e-4, sigma_u=1e-4, n_samples=10)
-    U0 = jnp.zeros((30, 2))
-    first = chunked.solve(system, task, U0, jax.random.key(0), params, sid)
-    assert StopReason(int(first.out.stop_reason)) == StopReason.STATIONARY
-    calls["n"] = 0
+    system, task, calls, params, sid, U0, first = _stationary_first_solve()
     kept, U0_kept, info = restart.restart_stationary(
         system, task, first, U0, jax.random.key(1), params, sid, 4
     )

@@ -124,41 +124,24 @@ def past_a_stall(
     progress: ProgressMeter = NO_PROGRESS,
 ):
     """After a D2C solve from U0 (keys from ``key``, the solve's): the sampling search where
-    it ended stationary or stalled short of its goal (:func:`sampling_search`), then, where
+    it ended stationary or stalled short of its goal (judged by the goal test on the black
+    box; :func:`~mjx_surrogate.runs.sampling_search.search_then_refine`), then, where
     the kept solve is still stationary, ``restarts`` spread starts (:mod:`.restart`).
     Returns (the solve to keep, its start, the restarts' record, the search's record)."""
-    k_search = jax.random.fold_in(key, 2)
-    timed, U0, search = sampling_search(
-        system, task, timed, U0, k_search, params, sysid, rounds, goal_tolerance, progress
-    )
+    search = None
+    if rounds and StopReason(int(timed.out.stop_reason)).verdict in search_lib.NEEDED:
+        reached = goal_test(task, black_box_trajectory(system, task, timed.out.U)[0], goal_tolerance)[
+            "reached"
+        ]
+        k_search = jax.random.fold_in(key, 2)
+        timed, U0, search = search_lib.search_then_refine(
+            system, task, timed, U0, k_search, params, sysid, rounds, reached, progress
+        )
     k_restart = jax.random.fold_in(key, 1)
     timed, U0, info = restart_stationary(
         system, task, timed, U0, k_restart, params, sysid, restarts, progress
     )
     return timed, U0, info, search
-
-
-def sampling_search(
-    system: System,
-    task: Task,
-    timed: "chunked.Timed",
-    U0: jax.Array,
-    key: jax.Array,
-    params: ILQRParams,
-    sysid: sid.SysIdParams,
-    rounds: int,
-    goal_tolerance: float,
-    progress: ProgressMeter = NO_PROGRESS,
-):
-    """:func:`~mjx_surrogate.runs.sampling_search.search_then_refine` after a solve that
-    ended stationary or stalled, judged by the goal test on the black box."""
-    if rounds == 0 or StopReason(int(timed.out.stop_reason)).verdict not in search_lib.NEEDED:
-        return timed, U0, None
-    X, _ = black_box_trajectory(system, task, timed.out.U)
-    reached = goal_test(task, X, goal_tolerance)["reached"]
-    return search_lib.search_then_refine(
-        system, task, timed, U0, key, params, sysid, rounds, reached, progress
-    )
 
 
 NO_GAINS_VERDICT = ("stationary", "diverged")  # solves whose gains are not judged
@@ -250,7 +233,7 @@ def summary(
 ) -> tuple[dict, jax.Array]:
     """Metrics of a solve in the status vocabulary, judged on the black box (``restart``:
     what :func:`~mjx_surrogate.runs.restart.restart_stationary` did before it, ``search``:
-    what :func:`sampling_search` did, each kept as is).
+    what the sampling search did (:func:`past_a_stall`), each kept as is).
 
     ``cost`` is the cost of the solve's controls replayed on the black box (``cost_solver``
     the solver's own); ``status`` is the verdict of the stop reason (``diverged`` if the
