@@ -40,8 +40,8 @@ PointsFn = Callable[[jax.Array], jax.Array]  # x [nx] -> goal point positions [k
 class Task:
     """x0, x_goal [nx]; Q, Q_f [nx, nx], or [nx] for a diagonal (held as its diagonal, so that
     a grid of many cells has no nx x nx array: :func:`quadratic`); R [nu, nu]; u_min, u_max,
-    u_ref [nu] (limits may be
-    +-inf); point goals: targets [k, 3], weights, final_weights [k] and ``points`` (static).
+    u_ref [nu] (limits may be +-inf); point goals: targets [k, 3], weights, final_weights [k]
+    and ``points`` (static).
     ``hinges`` (qpos indices wrapped, or measured by their chord where ``chordal``) and
     ``quats`` (first qpos index of each quaternion) are empty for the Euclidean state
     error. ``deadline`` (static): the control step of an
@@ -183,11 +183,9 @@ def stage_cost(task: Task, x: jax.Array, u: jax.Array, t: jax.Array) -> jax.Arra
     l(x, u) before the end, l_f(x) and the effort at it, the effort alone after it."""
     before, at_end = t < task.end, t == task.end
     # the state weights of the stage: Q before the end, Q_f at it (one error, one points call)
-    Q, Q_f = (
-        (task.Q, task.Q_f)
-        if task.Q.ndim == task.Q_f.ndim
-        else (weight_matrix(task.Q), weight_matrix(task.Q_f))
-    )
+    Q, Q_f = task.Q, task.Q_f
+    if Q.ndim != Q_f.ndim:  # one a diagonal, the other a matrix
+        Q, Q_f = weight_matrix(Q), weight_matrix(Q_f)
     Q = jnp.where(before, Q, 0.0) + jnp.where(at_end, Q_f, 0.0)
     w = jnp.where(before, task.weights, 0.0) + jnp.where(at_end, task.final_weights, 0.0)
     e = state_error(task, x)

@@ -130,9 +130,8 @@ def past_a_stall(
     Returns (the solve to keep, its start, the restarts' record, the search's record)."""
     search = None
     if rounds and StopReason(int(timed.out.stop_reason)).verdict in search_lib.NEEDED:
-        reached = goal_test(task, black_box_trajectory(system, task, timed.out.U)[0], goal_tolerance)[
-            "reached"
-        ]
+        X, _ = black_box_trajectory(system, task, timed.out.U)
+        reached = goal_test(task, X, goal_tolerance)["reached"]
         k_search = jax.random.fold_in(key, 2)
         timed, U0, search = search_lib.search_then_refine(
             system, task, timed, U0, k_search, params, sysid, rounds, reached, progress

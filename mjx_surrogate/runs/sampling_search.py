@@ -28,11 +28,17 @@ import numpy as np
 from mjx_surrogate.control import chunked
 from mjx_surrogate.control.effort import simulation_metrics
 from mjx_surrogate.control.ilqr import ILQRParams, StopReason
-from mjx_surrogate.control.mpc_sampling import SamplingSettings, first_spline_plan, hyper, optimise
+from mjx_surrogate.control.mpc_sampling import (
+    SamplingHyper,
+    SamplingSettings,
+    first_spline_plan,
+    hyper,
+    optimise,
+)
 from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.systems import System
-from mjx_surrogate.tasks import Task, trajectory_cost
+from mjx_surrogate.tasks import Task, half_ranges, trajectory_cost
 from mjx_surrogate.timing import Timed
 from mjx_surrogate.trajectory import open_loop
 
@@ -51,13 +57,10 @@ def search_settings(T: int, dt: float, rounds: int) -> SamplingSettings:
 
 @functools.partial(jax.jit, static_argnames=("system", "settings"))
 def cem_search(
-    system: System, task: Task, U: jax.Array, key: jax.Array, settings: SamplingSettings
+    system: System, task: Task, U: jax.Array, key: jax.Array, settings: SamplingSettings, h: SamplingHyper
 ) -> tuple[jax.Array, jax.Array]:
-    """The elites' mean after ``settings.iterations`` rounds from U [T, nu] (module
-    docstring): (its controls [T, nu], their cost on the black box)."""
-    finite = jnp.isfinite(task.u_max - task.u_min)  # half_ranges, traced
-    half = jnp.where(finite, 0.5 * jnp.where(finite, task.u_max - task.u_min, 2.0), 1.0).astype(U.dtype)
-    h = hyper(SPREAD * half, 1.0, SPREAD_MIN * half, U.dtype)
+    """The elites' mean after ``settings.iterations`` rounds from U [T, nu] at spreads ``h``
+    (module docstring): (its controls [T, nu], their cost on the black box)."""
     plan, _ = optimise(system, task, task.x0, first_spline_plan(U, settings, h.sigma), key, settings, h)
     Uc = jnp.clip(plan.U, task.u_min, task.u_max)
     return Uc, trajectory_cost(task, *open_loop(system.step, task.x0, Uc, task.u_min, task.u_max))
@@ -85,7 +88,9 @@ def search_then_refine(
         return timed, U0, None
     k_search, k_solve = jax.random.split(key)
     settings = search_settings(task.T, system.dt, rounds)
-    U_s, J_s = cem_search(system, task, first.U, k_search, settings)
+    half = half_ranges(np.asarray(task.u_min), np.asarray(task.u_max))
+    h = hyper(SPREAD * half, 1.0, SPREAD_MIN * half, first.U.dtype)
+    U_s, J_s = cem_search(system, task, first.U, k_search, settings, h)
     refined = chunked.solve(system, task, U_s, k_solve, params, sysid, "d2c", progress)
     r = refined.out
     better = bool(np.isfinite(float(r.cost)) and float(r.cost) < float(first.cost))
