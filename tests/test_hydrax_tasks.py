@@ -26,9 +26,9 @@ from mjx_surrogate.tasks import (
 from mjx_surrogate.trajectory import open_loop
 
 
-def _resolved(name):
+def _resolved(name, backend="mjx"):
     cfg = Config(
-        system=SystemConfig(name=f"hydrax_{name}"),
+        system=SystemConfig(name=f"hydrax_{name}", backend=backend),
         task=TaskConfig(preset=f"hydrax_{name}_swingup"),
         experiment=ExperimentConfig(kind="mpc"),
     )
@@ -152,6 +152,7 @@ def test_every_planner_of_the_pendulum_preset_swings_up_and_holds(tmp_path):
             r["in_goal_from_s"],
         )
     exact = ["--mpc.controllers", "d2c", "--task.hessian", "exact", "--out", str(tmp_path / "exact")]
+    exact += ["--system.backend", "native"]  # the same physics (to 1e-8), a third of the compile
     assert cli.main(args + exact) == 0
     (folder,) = os.listdir(tmp_path / "exact")
     (row,) = json.loads((tmp_path / "exact" / folder / "metrics.json").read_text())["mpc_rows"]
@@ -168,7 +169,7 @@ def test_from_zero_controls_at_the_hanging_state_only_the_hybrid_moves():
     from mjx_surrogate.control.mpc_hybrid import hybrid_mpc
     from mjx_surrogate.identification.sysid import SysIdParams
 
-    system, task = _resolved("pendulum")
+    system, task = _resolved("pendulum", "native")  # the MJX closed loop: tests/test_mpc.py
     params, sysid = ILQRParams(max_iter=1, n_alphas=4), SysIdParams(n_samples=3, every=5, design="orthogonal")
     U0, steps = jnp.zeros((task.T, 1)), 100
     d2c = mpc.receding_horizon(

@@ -108,7 +108,7 @@ CASES = {
 }
 
 
-MAX_ITER = {"ant (free joint)": 20}  # the largest model: 20 iterations keep the suite's budget
+MAX_ITER = {"ant (free joint)": 10}  # the largest model: 10 iterations keep the suite's budget
 
 
 def case_config(name: str) -> Config | None:
