@@ -118,20 +118,6 @@ def test_function_systems_module_runs_the_control_study_from_the_command_line(tm
     assert metrics["d2c"]["goal"]["reached"]
 
 
-@pytest.mark.slow
-def test_the_mpc_page_runs_as_written():
-    """docs/mpc.md's "From Python": a D2C-MPC episode with a replan's parameters from
-    ``ms.mpc_params``, shapes as the page states, the pendulum at the top at the end."""
-    text = open(os.path.join(ROOT, "docs", "mpc.md")).read()
-    (block,) = re.findall(r"## From Python\n\n```python\n(.*?)```", text, flags=re.S)
-    namespace: dict = {"__name__": "mpc_page"}
-    exec(compile(block, "docs/mpc.md", "exec"), namespace)
-    episode, sysid = namespace["episode"], namespace["sysid"]
-    assert episode.X.shape == (81, 2) and episode.U.shape == (80, 1)
-    assert (sysid.n_samples, sysid.design) == (3, "orthogonal")
-    assert np.all(np.abs(np.asarray(episode.X[-1])) < 1e-3)  # at rest upright (theta = 0)
-
-
 def test_the_changelog_leads_with_the_released_version_and_keeps_nothing_unreleased():
     """CHANGELOG.md's first section is the package's version (pyproject.toml and
     ``__version__`` agree) and no "Unreleased" section sits among the releases."""

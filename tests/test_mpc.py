@@ -370,11 +370,12 @@ def test_an_unknown_controller_is_refused():
 
 @pytest.mark.slow
 def test_d2c_mpc_swings_the_mujoco_pendulum_up_as_the_oracles_mpc_does():
-    """docs/mpc.md's example as written (native MuJoCo pendulum from hanging down, horizon
-    40 steps of 0.1 s, at most 5 iterations per replan, 80 control steps): D2C-MPC ends at
-    the goal with the closed-loop cost of the finite-difference oracle's MPC to 1e-4."""
+    """docs/mpc.md's "From Python" as written (native MuJoCo pendulum from hanging down,
+    horizon 40 steps of 0.1 s, a replan's parameters from ``ms.mpc_params``, 80 control
+    steps): shapes as the page states; D2C-MPC ends at rest upright with the closed-loop
+    cost of the finite-difference oracle's MPC to 1e-4."""
     text = open(os.path.join(os.path.dirname(os.path.dirname(__file__)), "docs", "mpc.md")).read()
-    (block,) = re.findall(r"```python\n(.*?)```", text, flags=re.S)
+    (block,) = re.findall(r"## From Python\n\n```python\n(.*?)```", text, flags=re.S)
     namespace: dict = {}
     exec(compile(block, "docs/mpc.md", "exec"), namespace)
     d2c, system, task = namespace["episode"], namespace["system"], namespace["task"]
@@ -389,7 +390,9 @@ def test_d2c_mpc_swings_the_mujoco_pendulum_up_as_the_oracles_mpc_does():
         sysid=namespace["sysid"],
         controller="finite_difference",
     )
-    assert d2c.X.shape == (81, 2) and np.max(np.abs(np.asarray(d2c.X[-1]))) < 1e-3
+    assert d2c.X.shape == (81, 2) and d2c.U.shape == (80, 1)
+    assert (namespace["sysid"].n_samples, namespace["sysid"].design) == (3, "orthogonal")
+    assert np.max(np.abs(np.asarray(d2c.X[-1]))) < 1e-3  # at rest upright (theta = 0)
     assert float(d2c.cost) == pytest.approx(float(oracle.cost), rel=1e-4)
 
 
