@@ -147,6 +147,28 @@ def test_a_stationary_solve_is_followed_by_the_sampling_search_with_its_budget_c
 
 
 @pytest.mark.slow
+def test_several_starts_that_all_end_stationary_are_followed_by_the_sampling_search():
+    """Several starts (``solver.n_starts`` > 1): the cheapest start's solve, stationary, is
+    followed by the sampling search as a single start's is, every start's cost kept; with
+    the search off it stays stationary, and the spread restarts never follow several starts."""
+    from mjx_surrogate.control.ilqr import StopReason
+
+    system, task, calls = _hidden_lever()
+    params = ILQRParams(max_iter=40)
+    sid = sysid.SysIdParams(sigma_x=1e-4, sigma_u=1e-4, n_samples=10)
+    U0s = jnp.zeros((2, 30, 2))
+    off = pipeline.solve_from(system, task, U0s, jax.random.key(0), params, sid, 0, 4, 0.01)
+    assert StopReason(int(off.timed.out.stop_reason)) == StopReason.STATIONARY
+    assert off.search is None and off.restart is None and off.costs.shape == (2,)
+    on = pipeline.solve_from(system, task, U0s, jax.random.key(0), params, sid, 10, 4, 0.01)
+    assert on.search is not None and on.search["kept"] == "the refined solve", on.search
+    assert on.restart is None and float(on.timed.out.cost) == on.search["refined_cost"]
+    assert float(on.timed.out.cost) < 0.01 * float(off.timed.out.cost)  # 50 -> reached
+    np.testing.assert_array_equal(on.costs, off.costs)  # the starts' own ends, as solved
+    assert on.U0.shape == (30, 2) and not np.allclose(on.U0, 0.0)  # the search's plan
+
+
+@pytest.mark.slow
 def test_a_stationary_solve_is_restarted_from_spread_starts_with_their_budget_counted():
     from mjx_surrogate.control import chunked
     from mjx_surrogate.runs import restart

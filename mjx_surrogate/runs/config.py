@@ -188,11 +188,12 @@ class SolverConfig:
     init: Optional[Literal["zeros", "random", "u_ref", "hold"]] = None  # None: model_defaults.default_init
     init_scale: float = 0.1
     n_starts: int = 1
-    # a single start that ends stationary or stalled short of its goal: this many rounds of the
-    # cross-entropy method on the black box, then D2C from its plan (runs.sampling_search); 0: off
+    # a kept solve (one start's, or the cheapest of n_starts) that ends stationary or stalled
+    # short of its goal: this many rounds of the cross-entropy method on the black box, then
+    # D2C from its plan (runs.sampling_search); 0: off
     sampling_search: int = 20
-    # ... and where it is still stationary, solved again from this many starts spread over
-    # the actuators' range (mjx_surrogate.runs.restart); 0: off
+    # ... and where a single start's is still stationary, solved again from this many starts
+    # spread over the actuators' range (mjx_surrogate.runs.restart); 0: off
     stationary_restarts: int = 8
 
 

@@ -96,18 +96,38 @@ def solve_config(res, progress: ProgressMeter = NO_PROGRESS) -> ConfigSolve:
     sc = cfg.solver
     params, sid_params = solver_params(cfg, record_history(sc.max_iter, task.T, system.nx))
     k_init, k_d2c, _, _ = experiment_keys(cfg.experiment.seed)
-    if sc.n_starts > 1:
-        U0s = start_controls(system, task, sc.init, sc.init_scale, k_init, sc.n_starts)
-        timed = chunked.solve(system, task, U0s, k_d2c, params, sid_params, "d2c", progress)
-        out = timed.out
-        return ConfigSolve(timed._replace(out=out.best), U0s[int(out.best_index)], out.costs)
-    U0 = start_controls(system, task, sc.init, sc.init_scale, k_init)
-    timed = chunked.solve(system, task, U0, k_d2c, params, sid_params, "d2c", progress)
+    n = sc.n_starts if sc.n_starts > 1 else None
+    U0 = start_controls(system, task, sc.init, sc.init_scale, k_init, n)
     rounds, restarts, tol = sc.sampling_search, sc.stationary_restarts, cfg.task.goal_tolerance
+    return solve_from(system, task, U0, k_d2c, params, sid_params, rounds, restarts, tol, progress)
+
+
+def solve_from(
+    system: System,
+    task: Task,
+    U0: jax.Array,
+    key: jax.Array,
+    params: ILQRParams,
+    sysid: sid.SysIdParams,
+    rounds: int,
+    restarts: int,
+    goal_tolerance: float,
+    progress: ProgressMeter = NO_PROGRESS,
+) -> ConfigSolve:
+    """D2C from U0 [T, nu], or from each of U0 [n, T, nu] with the cheapest end kept, then
+    :func:`past_a_stall` on the kept solve: the sampling search where it ended stationary or
+    stalled short of its goal; the spread restarts (``restarts``) only after a single start
+    (several starts were already the user's spread)."""
+    timed = chunked.solve(system, task, U0, key, params, sysid, "d2c", progress)
+    costs = None
+    if U0.ndim == 3:
+        out = timed.out
+        costs, timed, U0 = out.costs, timed._replace(out=out.best), U0[int(out.best_index)]
+        restarts = 0
     timed, U0, info, search = past_a_stall(
-        system, task, timed, U0, k_d2c, params, sid_params, rounds, restarts, tol, progress
+        system, task, timed, U0, key, params, sysid, rounds, restarts, goal_tolerance, progress
     )
-    return ConfigSolve(timed, U0, None, info, search)
+    return ConfigSolve(timed, U0, costs, info, search)
 
 
 def past_a_stall(
