@@ -129,6 +129,7 @@ _SCRIPT = textwrap.dedent(
 )
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 def test_a_native_rollouts_program_is_loaded_from_the_cache_by_a_new_process(tmp_path):
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTEST_XDIST", "PYTEST_ADDOPTS"))}
     script = tmp_path / "run.py"

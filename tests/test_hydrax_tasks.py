@@ -101,6 +101,7 @@ def test_the_chordal_error_squares_to_the_angle_cost_and_its_derivatives_are_gau
     np.testing.assert_array_equal(np.asarray(exact_again), np.asarray(exact[2]))
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 def test_predictive_sampling_passes_hydrax_s_own_open_loop_test():
     """hydrax's tests/test_predictive_sampling.py: 32 samples, noise 0.1, 11 zero-order knots
     over 1 s, 100 iterations from hanging at rest: best cost <= 9.0 (hydrax's units). That

@@ -48,6 +48,7 @@ def test_diagonal_weights_give_the_dense_costs_and_derivatives_bit_for_bit(end):
     assert float(trajectory_cost(dense, X, U)) == float(trajectory_cost(diagonal, X, U))
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 @pytest.mark.parametrize("timed", [False, True])
 def test_projected_derivatives_are_the_dense_ones_projected(timed):
     """V_t' l_xx V_t, l_ux V_t, ... by Hessian-vector products equal the projection of the
@@ -115,6 +116,7 @@ def test_a_reduced_solve_with_diagonal_weights_builds_no_nx_by_nx_array():
     assert shapes(task, SysIdParams(n_samples=s.nx + s.nu)) != []
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 def test_the_reduced_identification_in_chunks_is_the_batched_one(monkeypatch):
     """The one-step samples run a few time steps at a time where a batch is large; the
     model is the one of the whole batch at once (round-off)."""

@@ -3,6 +3,7 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from benchmarks import robots
 from mjx_surrogate.control import chunked
@@ -12,6 +13,7 @@ from mjx_surrogate.runs.config import Config, SystemConfig, TaskConfig
 from mjx_surrogate.runs.resolution import resolve
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 def test_the_reference_is_the_cheapest_of_every_start_of_both_methods_and_names_it():
     res = resolve(Config(system=SystemConfig(name="pendulum", backend="native"), task=TaskConfig(T=6)))
     _, system, task = res

@@ -174,6 +174,7 @@ def _ending_reference(task, end, X, U):
     return J + (terminal_cost(task, X[-1]) if end == task.T else 0.0)
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 @pytest.mark.parametrize("points", [False, True], ids=["quadratic", "point goals"])
 def test_a_task_that_ends_within_its_horizon_costs_and_differentiates_as_written(points):
     """at_step at control step n of an episode with deadline 9 ends a horizon-6 task at
