@@ -14,7 +14,11 @@ terminal weight is set to ``--final-weight``; a hold task has none.
 
     python benchmarks/mpc_robots.py [--tasks ur5e "walker (hold)"] [--modes task receding]
         [--episodes 2] [--final-weight 1000] [--max-iter 5] [--every 1] [--n-alphas A]
-        [--replan-hz HZ] [--out DIR]
+        [--replan-hz HZ] [--first-plan reference] [--floor] [--out DIR]
+
+``--floor`` adds, per task and noise level, what the goal test can say under that noise
+(``benchmarks/noise_floor.py``): how often the last noise draw alone fails it, and for a
+hold task how often the LQR at the goal passes it.
 """
 
 from __future__ import annotations
@@ -70,6 +74,7 @@ def mpc_config(task: str, mode: str, args):
             sysid_every=args.every,
             n_alphas=args.n_alphas,
             replan_hz=args.replan_hz,
+            first_plan=args.first_plan,
         ),
     )
 
@@ -94,17 +99,26 @@ def main() -> None:
     ap.add_argument("--every", type=int, default=1, help="mpc.sysid_every: identify every k-th step")
     ap.add_argument("--n-alphas", type=int, default=None, help="mpc.n_alphas (default: the solver's)")
     ap.add_argument("--replan-hz", type=float, default=None, help="mpc.replan_hz (default: every step)")
+    ap.add_argument(
+        "--first-plan", default="optimum", help="mpc.first_plan: every planner's first warm start"
+    )
     ap.add_argument("--noise", type=float, nargs="*", default=[0.0, 0.01])
     ap.add_argument("--plants", nargs="*", default=["model", "mass=1.2"])
     ap.add_argument("--final-weight", type=float, default=1000.0, help="the goal's terminal weight")
+    ap.add_argument(
+        "--floor",
+        action="store_true",
+        help="also each noisy condition's noise floor (benchmarks/noise_floor.py)",
+    )
     ap.add_argument("--out", default=os.path.join(tempfile.gettempdir(), "mpc_robots"))
     args = ap.parse_args()
+    from benchmarks.noise_floor import floor
     from benchmarks.robots import TASKS
     from experiments.run import run
     from mjx_surrogate.runtime import configure_runtime
 
     configure_runtime(x64=True)
-    results = []
+    results, floors = [], []
     for task in [n for n in TASKS if any(t in n for t in args.tasks)]:
         for mode in args.modes:
             cfg = mpc_config(task, mode, args)
@@ -116,6 +130,8 @@ def main() -> None:
                 metrics = json.load(f)
             for r in metrics["mpc_rows"]:
                 results.append({"task": task, "mode": mode, "offline_cost": metrics["d2c"]["cost"]} | r)
+            if args.floor:
+                floors += [floor(folder, w, 4000, 0) | {"task": task} for w in args.noise if w > 0]
     print(
         "| task | controller | horizon end | plant | noise | cost (median) | offline optimum | goal reached "
         "| black-box steps / step | ms / step | real-time factor |"
@@ -129,6 +145,21 @@ def main() -> None:
             f"{100 * r['goal_reached']:.0f} % | {_g(r['black_box_steps_per_control_step'])} | "
             f"{1e3 * r['compute_per_step_s']:.0f} | {r['real_time_factor']:.2f} |"
         )
+
+    if floors:
+        print("\nNoise floor of the goal test (model plant; benchmarks/noise_floor.py):\n")
+        print(
+            "| task | noise | last draw alone fails | LQR at the goal: passes | LQR cost (median, p10-p90) |"
+        )
+        print("|---|---|---|---|---|")
+        for f in floors:
+            lqr = ("-", "-")
+            if "lqr_pass" in f:
+                lo, hi = f["lqr_cost_p10_p90"]
+                lqr = (f"{100 * f['lqr_pass']:.0f} %", f"{f['lqr_cost_median']:.3g} ({lo:.3g}-{hi:.3g})")
+            print(
+                f"| {f['task']} | {f['noise']:g} | {100 * f['last_draw_fails']:.1f} % | {lqr[0]} | {lqr[1]} |"
+            )
 
 
 if __name__ == "__main__":

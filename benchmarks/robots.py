@@ -92,6 +92,14 @@ TASKS = {
     "quadruped (hold)": (("dm_control", "quadruped.xml"), {"preset": "hold"}, {}, None),
     "hopper (hold)": (("gymnasium", "hopper.xml"), {"preset": "hold"}, {}, None),
     "humanoid gym (hold)": (("gymnasium", "humanoid.xml"), {"preset": "hold"}, {}, None),
+    # upright on the cart (an unstable equilibrium), at gymnasium's control period (frame_skip
+    # 5 of 0.01 s)
+    "inverted double pendulum (hold)": (
+        ("gymnasium", "inverted_double_pendulum.xml"),
+        {"preset": "hold"},
+        {"control_dt": 0.05},
+        None,
+    ),
     # the spinner's hinge to 1 rad: from the hold start the finger touches nothing (a
     # stationary start, restarted from spread starts by solver.stationary_restarts)
     "finger (spin)": (

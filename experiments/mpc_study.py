@@ -164,6 +164,18 @@ def _plants(res, record) -> dict:
     }
 
 
+def first_controls(first_plan: str, U_star: jax.Array, u_ref: jax.Array, H: int) -> jax.Array:
+    """Every planner's first warm start [H, nu] (``mpc.first_plan``): the offline optimum
+    U_star [T, nu] cut or extended by its last control to H steps, zeros, or u_ref [nu] at
+    every step."""
+    T = U_star.shape[0]
+    if first_plan == "zeros":
+        return jnp.zeros((H,) + U_star.shape[1:], U_star.dtype)
+    if first_plan == "reference":
+        return jnp.broadcast_to(jnp.asarray(u_ref, U_star.dtype), (H,) + U_star.shape[1:])
+    return jnp.concatenate([U_star, jnp.repeat(U_star[-1:], max(0, H - T), axis=0)])[:H]
+
+
 def run(res: Resolved, record: Run, key: jax.Array) -> str:
     cfg, system, task = res
     m, dc = cfg.mpc, cfg.data
@@ -174,9 +186,7 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         return "diverged"
     X_star, U_star = jnp.asarray(optimum["X_star"]), jnp.asarray(optimum["U_star"])
     H = m.horizon
-    U0 = jnp.concatenate([U_star, jnp.repeat(U_star[-1:], max(0, H - task.T), axis=0)])[:H]
-    if m.first_plan == "zeros":
-        U0 = jnp.zeros_like(U0)
+    U0 = first_controls(m.first_plan, U_star, task.u_ref, H)
     plan_task = task.replace(T=H, deadline=task.T if m.horizon_end == "task" else None)
     record.set("mpc_horizon_end", {"mode": m.horizon_end, "why": horizon_end_text(m, task.T)})
     plants = _plants(res, record)

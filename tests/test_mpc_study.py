@@ -348,3 +348,39 @@ def test_a_replanning_rate_is_a_whole_number_of_control_steps():
     cfg = resolve(dataclasses.replace(CONFIG, mpc=dataclasses.replace(CONFIG.mpc, replan_hz=5.0))).config
     assert replan_every(cfg.mpc, 0.1) == 2 and replan_every(CONFIG.mpc, 0.1) == 1
     assert replan_every(cfg.mpc, 0.03) == 0  # 6.67 steps: refused by the resolution
+
+
+def test_the_first_plan_is_the_optimum_zeros_or_the_reference_controls():
+    """mpc.first_plan: the offline optimum cut or extended by its last control to H steps,
+    zero controls, or the task's u_ref at every step (a hold task's holding controls)."""
+    from experiments.mpc_study import first_controls
+
+    U_star = np.arange(8.0).reshape(4, 2)
+    u_ref = np.array([0.5, -2.0])
+    np.testing.assert_array_equal(first_controls("optimum", U_star, u_ref, 3), U_star[:3])
+    np.testing.assert_array_equal(
+        first_controls("optimum", U_star, u_ref, 6), np.concatenate([U_star, U_star[-1:], U_star[-1:]])
+    )
+    np.testing.assert_array_equal(first_controls("zeros", U_star, u_ref, 6), np.zeros((6, 2)))
+    np.testing.assert_array_equal(first_controls("reference", U_star, u_ref, 5), np.tile(u_ref, (5, 1)))
+
+
+@pytest.mark.slow
+def test_the_noise_floor_of_the_goal_test(smoke_mpc):
+    """benchmarks/noise_floor.py: the last noise draw alone at the offline optimum's end
+    fails the goal test never without noise (the optimum reached it) and always under
+    noise far beyond the goal's scale; its LQR's helpers against closed forms (the scalar
+    DARE's gain (sqrt(5) - 1) / 2, a linear map's own matrices)."""
+    from benchmarks.noise_floor import central_differences, floor, lqr_gain
+
+    path, metrics, _ = smoke_mpc
+    assert metrics["d2c"]["goal"]["reached"]
+    assert floor(str(path), 0.0, 64, 0)["last_draw_fails"] == 0.0
+    far = floor(str(path), 100.0, 64, 0)
+    assert far["last_draw_fails"] == 1.0 and "lqr_pass" not in far  # not a hold task
+    K = lqr_gain(np.eye(1), np.eye(1), np.eye(1), np.eye(1))
+    np.testing.assert_allclose(K, [[(np.sqrt(5) - 1) / 2]], rtol=1e-12)
+    A, B = np.array([[1.0, 0.1], [-0.3, 0.9]]), np.array([[0.0], [0.5]])
+    A_fd, B_fd = central_differences(lambda x, u: A @ x + B @ u, np.array([0.2, -1.0]), np.array([0.3]))
+    np.testing.assert_allclose(A_fd, A, atol=1e-9)
+    np.testing.assert_allclose(B_fd, B, atol=1e-9)

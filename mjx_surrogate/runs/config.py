@@ -372,7 +372,8 @@ class MPCConfig:
       this many steps of its own optimiser (surrogate.mlp) on that weighted loss before
       every replan; 0: MLPs are not refitted.
     first_plan: every planner's first warm start: "optimum" (the offline D2C optimum's
-      first H controls) or "zeros".
+      first H controls), "zeros", or "reference" (the task's u_ref at every step: for a
+      hold task the controls that hold its start).
     n_samples, sysid_design: D2C-MPC's identification at every replan (the solver's scheme
       and perturbation sizes otherwise): samples per identification (None: nx + nu with a
       one-step scheme, the fewest that determine [A_t B_t]; else solver.n_samples) in
@@ -403,7 +404,7 @@ class MPCConfig:
     sampling_knots: int = 0  # 0: every step its own value; k: plans held at k knots
     refit_weight: float = 0.0  # > 0: surrogates refitted online, an episode's transition weighing this
     refit_updates: int = 20  # MLP refit: optimiser steps before every replan (0: no MLP refit)
-    first_plan: Literal["optimum", "zeros"] = "optimum"  # every planner's first warm start
+    first_plan: Literal["optimum", "zeros", "reference"] = "optimum"  # every planner's first warm start
     n_samples: Optional[int] = None  # D2C-MPC's samples per identification (None: nx + nu)
     sysid_design: Literal["gaussian", "orthogonal"] = "orthogonal"  # D2C-MPC's perturbations
     sysid_every: int = 1  # D2C-MPC: identify every k-th step of the horizon, interpolate between

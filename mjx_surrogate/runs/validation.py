@@ -119,8 +119,8 @@ def _check_mpc(m: MPCConfig) -> None:
         )
     if m.n_samples is not None and m.n_samples < 1:
         raise ConfigError("mpc.n_samples", f"must be >= 1 (None: nx + nu), got {m.n_samples}")
-    if m.first_plan not in ("optimum", "zeros"):
-        raise ConfigError("mpc.first_plan", f"one of optimum, zeros, got {m.first_plan!r}")
+    if m.first_plan not in ("optimum", "zeros", "reference"):
+        raise ConfigError("mpc.first_plan", f"one of optimum, zeros, reference, got {m.first_plan!r}")
     if m.sysid_design not in ("gaussian", "orthogonal"):
         raise ConfigError("mpc.sysid_design", f"one of gaussian, orthogonal, got {m.sysid_design!r}")
 
