@@ -1,5 +1,6 @@
-"""What a closed-loop goal test can say under process noise: two references that no
-planner enters, read from MPC run folders (``benchmarks/mpc_robots.py`` writes them).
+"""What a closed-loop goal test can say under process noise: references that no planner
+enters, read from MPC run folders (``benchmarks/mpc_robots.py`` and ``experiments.run``
+with ``--experiment.kind mpc`` write them).
 
 Process noise is added to the state after every plant step, the last one included, and
 the goal test judges the last state. So:
@@ -8,16 +9,20 @@ the goal test judges the last state. So:
   optimum's last state (at the goal state for a hold task), that fail the task's goal test
   (``pipeline.goal_test``'s bound). A planner that ended exactly there before the last
   draw would still fail this often;
-* **the LQR at the goal** (a hold task, whose start is its goal, on a model whose state is
-  [qpos, qvel] with nq = nv): u = u_ref - K (x - x_goal), K of the infinite-horizon
-  discrete LQR of the task's Q and R on the black box's step linearised by central
-  differences at (x_goal, u_ref); its closed loop simulated on native MuJoCo in float64
-  (the run's model, the model plant) for the run's steps under the same noise level.
-  Reported: the share of episodes that pass the goal test and the task's cost (median,
-  10th-90th percentile). For small deviations this policy is near the best any planner
-  can do on the task's own cost.
+* **the LQR at the goal** (a task whose goal state is near an equilibrium: one step from
+  (x_goal, u_ref) moves less than 0.01 in every coordinate, reported as ``goal_drift``; no
+  point goals; a model whose state is [qpos, qvel] with nq = nv): u = clip(u_ref - K (x -
+  x_goal)), K of the infinite-horizon discrete LQR of the task's Q and R on the black
+  box's step linearised by central differences at (x_goal, u_ref); its closed loop from
+  the task's start simulated on native MuJoCo in float64 (the run's model, the model
+  plant) for the run's steps. Reported: under fresh draws of the same noise level (at most
+  400 episodes), the share that pass the goal test and the task's cost (median, 10th-90th
+  percentile); and **on the same disturbances** as each controller of the run (the
+  residuals x_{n+1} - step(x_n, u_n) of its stored closed loops on the model plant, which
+  every controller of a run shares), its cost beside the controller's, episode by
+  episode.
 
-    python benchmarks/noise_floor.py RUN_FOLDER [RUN_FOLDER ...] [--noise 0.01]
+    python benchmarks/noise_floor.py RUN_FOLDER [RUN_FOLDER ...] [--noise 0 0.01]
         [--draws 4000] [--seed 0]
 """
 
@@ -29,6 +34,8 @@ import sys
 
 _ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, _ROOT)
+
+EQUILIBRIUM_TOL = 1e-2  # the goal is near an equilibrium where one step from it moves less
 
 
 def central_differences(step, x, u, eps: float = 1e-6):
@@ -67,7 +74,7 @@ def lqr_gain(A, B, Q, R):
 
 
 def floor(folder: str, noise: float, draws: int, seed: int) -> dict:
-    """The two references of the module docstring for the run in ``folder``."""
+    """The references of the module docstring for the run in ``folder`` at ``noise``."""
     import jax
     import jax.numpy as jnp
     import numpy as np
@@ -96,39 +103,103 @@ def floor(folder: str, noise: float, draws: int, seed: int) -> dict:
         "last_draw_fails": float(np.mean(goal(last) > bound)),
     }
     m = system.mj_model
-    if not hold or m is None or m.nq != m.nv or m.na:
+    Q = np.asarray(tasks.weight_matrix(task.Q), float)
+    if m is None or m.nq != m.nv or m.na or task.points is not None or not Q.any():
         return out
     steps = cfg.mpc.steps if cfg.mpc is not None else task.T
     substeps = max(1, round(float(system.dt) / m.opt.timestep))
     step = native_step(m, substeps)
     x_goal, u_ref = np.asarray(task.x_goal, float), np.asarray(task.u_ref, float)
+    drift = float(np.max(np.abs(step(x_goal, u_ref) - x_goal)))
+    out["goal_drift"] = drift
+    if drift > EQUILIBRIUM_TOL:
+        return out  # the goal is no equilibrium: no LQR holds it
     A, B = central_differences(step, x_goal, u_ref)
-    K = lqr_gain(A, B, np.asarray(task.Q, float), np.asarray(task.R, float))
-    n_ep = min(draws, 400)  # native episodes, one by one
-    W = noise * np.asarray(jax.random.normal(k_lqr, (n_ep, steps, A.shape[0])), float)
+    K = lqr_gain(A, B, Q, np.asarray(task.R, float))
     lo, hi = np.asarray(task.u_min, float), np.asarray(task.u_max, float)
-    X = np.empty((n_ep, steps + 1, A.shape[0]))
-    U = np.empty((n_ep, steps, B.shape[1]))
-    for i in range(n_ep):
-        X[i, 0] = np.asarray(task.x0, float)
-        for n in range(steps):
-            U[i, n] = np.clip(u_ref - K @ (X[i, n] - x_goal), lo, hi)
-            X[i, n + 1] = step(X[i, n], U[i, n]) + W[i, n]
-    J = np.asarray(jax.vmap(lambda x, u: tasks.trajectory_cost(task, x, u))(jnp.asarray(X), jnp.asarray(U)))
-    passes = np.asarray(goal(jnp.asarray(X[:, -1]))) <= bound
+    x0 = np.asarray(task.x0, float)
+
+    def lqr(W):  # W [episodes, steps, nx] -> costs [episodes], passes [episodes]
+        X, U = lqr_episodes(step, K, x0, x_goal, u_ref, lo, hi, W)
+        J = jax.vmap(lambda x, u: tasks.trajectory_cost(task, x, u))(jnp.asarray(X), jnp.asarray(U))
+        return np.asarray(J), np.asarray(goal(jnp.asarray(X[:, -1]))) <= bound
+
+    n_ep = min(draws, 400)  # native episodes, one by one
+    J, passes = lqr(noise * np.asarray(jax.random.normal(k_lqr, (n_ep, steps, x0.size)), float))
     out |= {
         "lqr_episodes": n_ep,
         "lqr_pass": float(np.mean(passes)),
         "lqr_cost_median": float(np.median(J)),
         "lqr_cost_p10_p90": [float(v) for v in np.percentile(J, [10, 90])],
+        "paired": paired(folder, noise, step, lqr),
     }
+    return out
+
+
+def lqr_episodes(step, K, x0, x_goal, u_ref, lo, hi, W):
+    """The closed loops x_{n+1} = step(x_n, u_n) + W[i, n], u_n = clip(u_ref - K (x_n -
+    x_goal), lo, hi) from x0, one per row of W [E, N, nx] -> X [E, N+1, nx], U [E, N, nu]."""
+    import numpy as np
+
+    E, N, nx = W.shape
+    X, U = np.empty((E, N + 1, nx)), np.empty((E, N, u_ref.size))
+    for i in range(E):
+        X[i, 0] = x0
+        for n in range(N):
+            U[i, n] = np.clip(u_ref - K @ (X[i, n] - x_goal), lo, hi)
+            X[i, n + 1] = step(X[i, n], U[i, n]) + W[i, n]
+    return X, U
+
+
+def residuals(step, X, U):
+    """W [E, N, nx]: x_{n+1} - step(x_n, u_n) of closed loops X [E, N+1, nx], U [E, N, nu]."""
+    import numpy as np
+
+    return np.stack(
+        [[X[i, n + 1] - step(X[i, n], U[i, n]) for n in range(U.shape[1])] for i in range(len(X))]
+    )
+
+
+def paired(folder: str, noise: float, step, lqr) -> list[dict]:
+    """Each controller's episodes on the model plant at ``noise`` against the LQR's
+    (``lqr``: W -> costs, passes) on the same disturbances, recovered by :func:`residuals`
+    from the stored closed loop (every controller of a run sees the same draws)."""
+    import numpy as np
+
+    from mjx_surrogate.runs.results import read_json
+
+    rows = read_json(os.path.join(folder, "metrics.json")).get("mpc_rows", [])
+    arrays = np.load(os.path.join(folder, "arrays.npz"))
+    out = []
+    for r in rows:
+        if r["plant"] != "model" or r["process_noise"] != noise or "arrays" not in r:
+            continue
+        X, U = arrays[r["arrays"]["X"]], arrays[r["arrays"]["U"]]
+        if not np.all(np.isfinite(X)):
+            continue
+        W = residuals(step, X, U)
+        J, passes = lqr(W)
+        costs = np.asarray([np.inf if c is None else c for c in r["costs"]], float)
+        out.append(
+            {
+                "controller": r["controller"],
+                "episodes": len(X),
+                "cost_median": float(np.median(costs)),
+                "lqr_cost_median": float(np.median(J)),
+                "lqr_passes": int(np.sum(passes)),
+                "at_most_lqr": int(np.sum(costs <= J)),
+                "residual_rms": float(np.sqrt(np.mean(W**2))),
+            }
+        )
     return out
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("folders", nargs="+", help="MPC run folders (config.json, arrays.npz)")
-    ap.add_argument("--noise", type=float, default=0.01, help="process noise level (state units)")
+    ap.add_argument(
+        "--noise", type=float, nargs="+", default=[0.01], help="process noise levels (state units)"
+    )
     ap.add_argument("--draws", type=int, default=4000, help="last-state draws (LQR episodes: at most 400)")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
@@ -140,20 +211,35 @@ def main() -> None:
         "| LQR cost (median, p10-p90) |"
     )
     print("|---|---|---|---|---|---|")
-    for folder in args.folders:
-        r = floor(folder, args.noise, args.draws, args.seed)
-        lqr = (
-            (
+    pairs = []
+    for folder, noise in ((f, w) for f in args.folders for w in args.noise):
+        r = floor(folder, noise, args.draws, args.seed)
+        lqr = ("-", "-")
+        if "lqr_pass" in r:
+            lo, hi = r["lqr_cost_p10_p90"]
+            lqr = (
                 f"{100 * r['lqr_pass']:.0f} % of {r['lqr_episodes']}",
-                f"{r['lqr_cost_median']:.3g} ({r['lqr_cost_p10_p90'][0]:.3g}-{r['lqr_cost_p10_p90'][1]:.3g})",
+                f"{r['lqr_cost_median']:.3g} ({lo:.3g}-{hi:.3g})",
             )
-            if "lqr_pass" in r
-            else ("-", "-")
-        )
+        run = os.path.basename(os.path.normpath(folder))
         print(
-            f"| {os.path.basename(os.path.normpath(folder))} | {r['noise']:g} | {r['bound']:.3g} | "
-            f"{100 * r['last_draw_fails']:.1f} % | {lqr[0]} | {lqr[1]} |"
+            f"| {run} | {noise:g} | {r['bound']:.3g} | {100 * r['last_draw_fails']:.1f} % "
+            f"| {lqr[0]} | {lqr[1]} |"
         )
+        pairs += [p | {"run": run, "noise": noise} for p in r.get("paired", [])]
+    if pairs:
+        print("\nOn the same disturbances (the model plant; residuals of each run's closed loops):\n")
+        print(
+            "| run | noise | controller | episodes | its cost (median) | LQR's cost (median) "
+            "| episodes at most the LQR's cost | LQR passes | residual RMS |"
+        )
+        print("|---|---|---|---|---|---|---|---|---|")
+        for p in pairs:
+            print(
+                f"| {p['run']} | {p['noise']:g} | {p['controller']} | {p['episodes']} "
+                f"| {p['cost_median']:.4g} | {p['lqr_cost_median']:.4g} | {p['at_most_lqr']} "
+                f"| {p['lqr_passes']} | {p['residual_rms']:.3g} |"
+            )
 
 
 if __name__ == "__main__":

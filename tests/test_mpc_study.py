@@ -384,3 +384,44 @@ def test_the_noise_floor_of_the_goal_test(smoke_mpc):
     A_fd, B_fd = central_differences(lambda x, u: A @ x + B @ u, np.array([0.2, -1.0]), np.array([0.3]))
     np.testing.assert_allclose(A_fd, A, atol=1e-9)
     np.testing.assert_allclose(B_fd, B, atol=1e-9)
+
+
+def test_the_noise_floor_pairs_each_controller_with_the_lqr_on_its_own_disturbances(tmp_path):
+    """benchmarks/noise_floor.paired: the disturbances handed to the LQR are the stored
+    closed loop's residuals x_{n+1} - step(x_n, u_n), the injected draws (to round-off), only
+    for the model plant at the asked noise level; the LQR's closed loop by lqr_episodes is
+    x_{n+1} = step(x_n, clip(u_ref - K (x_n - x_goal))) + W_n."""
+    from benchmarks.noise_floor import lqr_episodes, paired
+
+    A, B = np.array([[1.0, 0.1], [0.2, 0.9]]), np.array([[0.0], [0.1]])
+    step = lambda x, u: A @ x + B @ u  # noqa: E731
+    rng = np.random.default_rng(0)
+    W = 0.01 * rng.standard_normal((3, 5, 2))
+    X, U = np.zeros((3, 6, 2)), rng.standard_normal((3, 5, 1))
+    X[:, 0] = [0.3, -0.1]
+    for n in range(5):
+        X[:, n + 1] = X[:, n] @ A.T + U[:, n] @ B.T + W[:, n]
+    np.savez(tmp_path / "arrays.npz", cx=X, cu=U, other=X + 1)
+    rows = [
+        {"controller": "c", "plant": "model", "process_noise": 0.01, "costs": [1.0, 2.0, 3.0],
+         "arrays": {"X": "cx", "U": "cu"}},
+        {"controller": "c", "plant": "mass=1.2", "process_noise": 0.01, "costs": [1.0, 2.0, 3.0],
+         "arrays": {"X": "other", "U": "cu"}},
+    ]  # fmt: skip
+    (tmp_path / "metrics.json").write_text(json.dumps({"mpc_rows": rows}))
+    seen = []
+
+    def lqr(W_given):
+        seen.append(W_given)
+        return np.array([2.0, 2.0, 2.0]), np.array([True, False, True])
+
+    (p,) = paired(str(tmp_path), 0.01, step, lqr)
+    np.testing.assert_allclose(seen[0], W, atol=1e-12)
+    assert (p["episodes"], p["at_most_lqr"], p["lqr_passes"], p["cost_median"]) == (3, 2, 2, 2.0)
+    assert paired(str(tmp_path), 0.03, step, lqr) == []
+    K = np.array([[0.5, 0.2]])
+    Xl, Ul = lqr_episodes(step, K, X[0, 0], np.zeros(2), np.zeros(1), -np.ones(1), np.ones(1), W)
+    for n in range(5):
+        u = np.clip(-Xl[:, n] @ K.T, -1, 1)
+        np.testing.assert_allclose(Ul[:, n], u)
+        np.testing.assert_allclose(Xl[:, n + 1], Xl[:, n] @ A.T + u @ B.T + W[:, n])
