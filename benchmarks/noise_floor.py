@@ -17,10 +17,10 @@ the goal test judges the last state. So:
   the task's start simulated on native MuJoCo in float64 (the run's model, the model
   plant) for the run's steps. Reported: under fresh draws of the same noise level (at most
   400 episodes), the share that pass the goal test and the task's cost (median, 10th-90th
-  percentile); and **on the same disturbances** as each controller of the run (the
-  residuals x_{n+1} - step(x_n, u_n) of its stored closed loops on the model plant, which
-  every controller of a run shares), its cost beside the controller's, episode by
-  episode.
+  percentile); and **on the same plant and disturbances** as each controller of the run
+  (the residuals x_{n+1} - step(x_n, u_n) of its stored closed loops, stepped on the
+  run's plant file; every controller of a run shares them), its cost beside the
+  controller's, episode by episode.
 
     python benchmarks/noise_floor.py RUN_FOLDER [RUN_FOLDER ...] [--noise 0 0.01]
         [--draws 4000] [--seed 0]
@@ -119,8 +119,8 @@ def floor(folder: str, noise: float, draws: int, seed: int) -> dict:
     lo, hi = np.asarray(task.u_min, float), np.asarray(task.u_max, float)
     x0 = np.asarray(task.x0, float)
 
-    def lqr(W):  # W [episodes, steps, nx] -> costs [episodes], passes [episodes]
-        X, U = lqr_episodes(step, K, x0, x_goal, u_ref, lo, hi, W)
+    def lqr(W, on=step):  # W [episodes, steps, nx] on plant step ``on`` -> costs, passes [episodes]
+        X, U = lqr_episodes(on, K, x0, x_goal, u_ref, lo, hi, W)
         J = jax.vmap(lambda x, u: tasks.trajectory_cost(task, x, u))(jnp.asarray(X), jnp.asarray(U))
         return np.asarray(J), np.asarray(goal(jnp.asarray(X[:, -1]))) <= bound
 
@@ -131,7 +131,7 @@ def floor(folder: str, noise: float, draws: int, seed: int) -> dict:
         "lqr_pass": float(np.mean(passes)),
         "lqr_cost_median": float(np.median(J)),
         "lqr_cost_p10_p90": [float(v) for v in np.percentile(J, [10, 90])],
-        "paired": paired(folder, noise, step, lqr),
+        "paired": paired(folder, noise, lambda label: plant_step(folder, label, step, substeps), lqr),
     }
     return out
 
@@ -160,10 +160,26 @@ def residuals(step, X, U):
     )
 
 
-def paired(folder: str, noise: float, step, lqr) -> list[dict]:
-    """Each controller's episodes on the model plant at ``noise`` against the LQR's
-    (``lqr``: W -> costs, passes) on the same disturbances, recovered by :func:`residuals`
-    from the stored closed loop (every controller of a run sees the same draws)."""
+def plant_step(folder: str, label: str, model_step, substeps: int):
+    """The native step of plant ``label`` of the run in ``folder`` (the model's for
+    "model"; else its compiled file ``plant_<slug>.mjb``), or None if the file is missing."""
+    import mujoco
+
+    from mjx_surrogate.systems.plant import parse_plant, plant_slug
+
+    changes = parse_plant(label)
+    if not changes:
+        return model_step
+    path = os.path.join(folder, f"plant_{plant_slug(changes)}.mjb")
+    return native_step(mujoco.MjModel.from_binary_path(path), substeps) if os.path.exists(path) else None
+
+
+def paired(folder: str, noise: float, step_of, lqr) -> list[dict]:
+    """Each controller's episodes at ``noise`` on every plant against the LQR's (designed on
+    the model; ``lqr``: (W, plant step) -> costs, passes) on the same plant and the same
+    disturbances, recovered by :func:`residuals` from the stored closed loop with the
+    plant's step (``step_of``: plant label -> step or None; every controller of a run sees
+    the same draws)."""
     import numpy as np
 
     from mjx_surrogate.runs.results import read_json
@@ -172,17 +188,19 @@ def paired(folder: str, noise: float, step, lqr) -> list[dict]:
     arrays = np.load(os.path.join(folder, "arrays.npz"))
     out = []
     for r in rows:
-        if r["plant"] != "model" or r["process_noise"] != noise or "arrays" not in r:
+        step = step_of(r["plant"])
+        if step is None or r["process_noise"] != noise or "arrays" not in r:
             continue
         X, U = arrays[r["arrays"]["X"]], arrays[r["arrays"]["U"]]
         if not np.all(np.isfinite(X)):
             continue
         W = residuals(step, X, U)
-        J, passes = lqr(W)
+        J, passes = lqr(W, step)
         costs = np.asarray([np.inf if c is None else c for c in r["costs"]], float)
         out.append(
             {
                 "controller": r["controller"],
+                "plant": r["plant"],
                 "episodes": len(X),
                 "cost_median": float(np.median(costs)),
                 "lqr_cost_median": float(np.median(J)),
@@ -228,15 +246,15 @@ def main() -> None:
         )
         pairs += [p | {"run": run, "noise": noise} for p in r.get("paired", [])]
     if pairs:
-        print("\nOn the same disturbances (the model plant; residuals of each run's closed loops):\n")
+        print("\nOn the same plant and disturbances (residuals of each run's closed loops):\n")
         print(
-            "| run | noise | controller | episodes | its cost (median) | LQR's cost (median) "
+            "| run | plant | noise | controller | episodes | its cost (median) | LQR's cost (median) "
             "| episodes at most the LQR's cost | LQR passes | residual RMS |"
         )
-        print("|---|---|---|---|---|---|---|---|---|")
+        print("|---|---|---|---|---|---|---|---|---|---|")
         for p in pairs:
             print(
-                f"| {p['run']} | {p['noise']:g} | {p['controller']} | {p['episodes']} "
+                f"| {p['run']} | {p['plant']} | {p['noise']:g} | {p['controller']} | {p['episodes']} "
                 f"| {p['cost_median']:.4g} | {p['lqr_cost_median']:.4g} | {p['at_most_lqr']} "
                 f"| {p['lqr_passes']} | {p['residual_rms']:.3g} |"
             )

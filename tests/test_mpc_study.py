@@ -367,17 +367,29 @@ def test_the_first_plan_is_the_optimum_zeros_or_the_reference_controls():
 
 @pytest.mark.slow
 def test_the_noise_floor_of_the_goal_test(smoke_mpc):
-    """benchmarks/noise_floor.py: the last noise draw alone at the offline optimum's end
-    fails the goal test never without noise (the optimum reached it) and always under
-    noise far beyond the goal's scale; its LQR's helpers against closed forms (the scalar
-    DARE's gain (sqrt(5) - 1) / 2, a linear map's own matrices)."""
+    """benchmarks/noise_floor.py on smoke_mpc's pendulum swing-up: the last noise draw alone
+    at the offline optimum's end fails the goal test never without noise (the optimum
+    reached it) and always under noise far beyond the goal's scale; the LQR at the upright
+    goal does not swing up from hanging; the disturbances of every controller's closed
+    loops recovered on the run's plant; its helpers against closed forms
+    (the scalar DARE's gain (sqrt(5) - 1) / 2, a linear map's own matrices)."""
     from benchmarks.noise_floor import central_differences, floor, lqr_gain
 
     path, metrics, _ = smoke_mpc
     assert metrics["d2c"]["goal"]["reached"]
-    assert floor(str(path), 0.0, 64, 0)["last_draw_fails"] == 0.0
-    far = floor(str(path), 100.0, 64, 0)
-    assert far["last_draw_fails"] == 1.0 and "lqr_pass" not in far  # not a hold task
+    still = floor(str(path), 0.0, 64, 0)
+    assert still["last_draw_fails"] == 0.0 and still["goal_drift"] < 1e-12  # upright: an equilibrium
+    assert still["lqr_pass"] == 0.0  # the upright LQR does not swing up from hanging
+    # every controller's disturbances, recovered on the changed plant's own file: none
+    # without noise, the process noise's size at 0.01 (the model's step would leave the
+    # plant's difference in them)
+    noisy = floor(str(path), 0.01, 64, 0)
+    for level, pairs in ((0.0, still["paired"]), (0.01, noisy["paired"])):
+        assert len(pairs) == len(CONTROLLERS)  # one row per controller
+        for p in pairs:
+            assert p["plant"] == "mass=1.2,length=1.1,damping=2" and p["episodes"] == 2
+            assert p["residual_rms"] < 1e-8 if level == 0 else 0.008 < p["residual_rms"] < 0.013
+    assert floor(str(path), 100.0, 64, 0)["last_draw_fails"] == 1.0
     K = lqr_gain(np.eye(1), np.eye(1), np.eye(1), np.eye(1))
     np.testing.assert_allclose(K, [[(np.sqrt(5) - 1) / 2]], rtol=1e-12)
     A, B = np.array([[1.0, 0.1], [-0.3, 0.9]]), np.array([[0.0], [0.5]])
@@ -388,9 +400,10 @@ def test_the_noise_floor_of_the_goal_test(smoke_mpc):
 
 def test_the_noise_floor_pairs_each_controller_with_the_lqr_on_its_own_disturbances(tmp_path):
     """benchmarks/noise_floor.paired: the disturbances handed to the LQR are the stored
-    closed loop's residuals x_{n+1} - step(x_n, u_n), the injected draws (to round-off), only
-    for the model plant at the asked noise level; the LQR's closed loop by lqr_episodes is
-    x_{n+1} = step(x_n, clip(u_ref - K (x_n - x_goal))) + W_n."""
+    closed loop's residuals x_{n+1} - step(x_n, u_n) on the row's own plant, the injected
+    draws (to round-off), at the asked noise level only, and rows whose plant has no step are
+    left out; the LQR's closed loop by lqr_episodes is x_{n+1} = step(x_n, clip(u_ref -
+    K (x_n - x_goal))) + W_n."""
     from benchmarks.noise_floor import lqr_episodes, paired
 
     A, B = np.array([[1.0, 0.1], [0.2, 0.9]]), np.array([[0.0], [0.1]])
@@ -411,14 +424,27 @@ def test_the_noise_floor_pairs_each_controller_with_the_lqr_on_its_own_disturban
     (tmp_path / "metrics.json").write_text(json.dumps({"mpc_rows": rows}))
     seen = []
 
-    def lqr(W_given):
-        seen.append(W_given)
+    def lqr(W_given, on):
+        seen.append((W_given, on))
         return np.array([2.0, 2.0, 2.0]), np.array([True, False, True])
 
-    (p,) = paired(str(tmp_path), 0.01, step, lqr)
-    np.testing.assert_allclose(seen[0], W, atol=1e-12)
-    assert (p["episodes"], p["at_most_lqr"], p["lqr_passes"], p["cost_median"]) == (3, 2, 2, 2.0)
-    assert paired(str(tmp_path), 0.03, step, lqr) == []
+    (p,) = paired(str(tmp_path), 0.01, {"model": step}.get, lqr)
+    np.testing.assert_allclose(seen[0][0], W, atol=1e-12)
+    assert seen[0][1] is step
+    assert (p["plant"], p["episodes"], p["at_most_lqr"], p["lqr_passes"], p["cost_median"]) == (
+        "model",
+        3,
+        2,
+        2,
+        2.0,
+    )
+    assert paired(str(tmp_path), 0.03, {"model": step}.get, lqr) == []
+    heavier = lambda x, u: step(x, u) + 1.0  # noqa: E731  (the other row's X is X + 1)
+    both = paired(str(tmp_path), 0.01, {"model": step, "mass=1.2": heavier}.get, lqr)
+    assert [q["plant"] for q in both] == ["model", "mass=1.2"]
+    np.testing.assert_allclose(
+        seen[-1][0], (X + 1)[:, 1:] - (X[:, :-1] + 1) @ A.T - U @ B.T - 1.0, atol=1e-12
+    )
     K = np.array([[0.5, 0.2]])
     Xl, Ul = lqr_episodes(step, K, X[0, 0], np.zeros(2), np.zeros(1), -np.ones(1), np.ones(1), W)
     for n in range(5):
