@@ -201,3 +201,26 @@ def test_a_converged_solve_that_misses_its_goal_says_the_cost_stops_short():
     assert "goal cost 35.4 % of the start's; the test asks 1 %" in hint and "weigh the goal more" in hint
     assert pipeline.status_hint("converged", {"goal": {**goal, "reached": True}}) is None
     assert pipeline.status_hint("max_iter", {"goal": goal}) is None
+
+
+def test_the_optimum_stage_of_the_other_kinds_honours_several_starts():
+    """pipeline.optimum_stage (the offline optimum of the mpc, control, horizon, analysis
+    and predict kinds) solves each of solver.n_starts starts and keeps the cheapest, as the
+    d2c kind does: every start's cost recorded, the kept start stored as U0_star; one start
+    records none."""
+    import dataclasses
+
+    from configs.smoke_d2c import CONFIG
+    from mjx_surrogate.runs.resolution import resolve
+
+    def stage(n):
+        cfg = dataclasses.replace(CONFIG, solver=dataclasses.replace(CONFIG.solver, n_starts=n, max_iter=8))
+        return pipeline.optimum_stage(resolve(cfg), jax.random.key(3))()
+
+    m, arrays = stage(3)
+    costs = m["multistart_costs"]
+    assert len(costs) == 3 and m["cost_solver"] == pytest.approx(min(costs), rel=1e-12)
+    assert len({round(c, 9) for c in costs}) == 3  # three distinct random starts
+    assert arrays["U0_star"].shape == (10, 1)
+    one, _ = stage(1)
+    assert "multistart_costs" not in one

@@ -379,16 +379,19 @@ def d2c_optimum(
     restarts: int = 0,
     search_rounds: int = 0,
 ) -> Optimum:
-    """Solve by D2C from U0 and summarise on the black box (``names``: :func:`summary`);
-    driven from the host (:mod:`mjx_surrogate.control.chunked`: cacheable programs); past
-    a stationary or stalled end, ``search_rounds`` of the sampling search and ``restarts``
-    spread starts (:func:`past_a_stall`)."""
-    timed = chunked.solve(system, task, U0, key, params, sysid, "d2c", progress)
-    timed, U0, info, search = past_a_stall(
-        system, task, timed, U0, key, params, sysid, search_rounds, restarts, goal_tolerance, progress
+    """Solve by D2C from U0 [T, nu], or from each of U0 [n, T, nu] keeping the cheapest
+    (:func:`solve_from`: the sampling search and ``restarts`` spread starts past a
+    stationary or stalled end), and summarise on the black box (``names``: :func:`summary`;
+    with several starts ``multistart_costs``, every start's final cost); driven from the host
+    (:mod:`mjx_surrogate.control.chunked`: cacheable programs). ``Optimum.U0``: the kept
+    solve's start."""
+    solved = solve_from(
+        system, task, U0, key, params, sysid, search_rounds, restarts, goal_tolerance, progress
     )
-    metrics, X = summary(timed.out, system, task, goal_tolerance, names, info, search)
-    return Optimum(timed.out, X, metrics, U0)
+    metrics, X = summary(solved.timed.out, system, task, goal_tolerance, names, solved.restart, solved.search)
+    if solved.costs is not None:
+        metrics["multistart_costs"] = np.asarray(solved.costs).tolist()
+    return Optimum(solved.timed.out, X, metrics, solved.U0)
 
 
 def record_history(max_iter: int, T: int, nx: int) -> bool:
@@ -398,8 +401,9 @@ def record_history(max_iter: int, T: int, nx: int) -> bool:
 
 def optimum_stage(res, key: jax.Array):
     """A run stage (``Run.stage``) computing the task's D2C optimum from the config's
-    initial controls: (metrics, {X_star, U_star, K_star, U0_star, u_max, X_history if
-    kept (:func:`record_history`)})."""
+    initial controls (``solver.init``; the cheapest of ``solver.n_starts`` starts where
+    more than one): (metrics, {X_star, U_star, K_star, U0_star (the kept start), u_max,
+    X_history if kept (:func:`record_history`)})."""
     cfg, system, task = res
     sc = cfg.solver
     record_trajectories = record_history(sc.max_iter, task.T, system.nx)
@@ -407,7 +411,8 @@ def optimum_stage(res, key: jax.Array):
     def compute():
         params, sid = solver_params(cfg, record_trajectories)
         k_init, k_d2c = jax.random.split(key)
-        U0 = start_controls(system, task, sc.init, sc.init_scale, k_init)
+        n = sc.n_starts if sc.n_starts > 1 else None
+        U0 = start_controls(system, task, sc.init, sc.init_scale, k_init, n)
         t0 = time.perf_counter()
         with progress.meter("D2C optimum", sc.max_iter, cfg.experiment.progress) as pm:
             names = ("U_star", "X_star", "K_star")
