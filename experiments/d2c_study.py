@@ -114,7 +114,7 @@ def _d2c_stage(res: Resolved, sid_params) -> tuple[dict, dict]:
     timed, U0, costs, result = sol.timed, sol.U0, sol.costs, sol.timed.out
     extra = {} if costs is None else {"multistart_costs": np.asarray(costs).tolist()}
     m, X_bb = pipeline.summary(
-        result, system, task, cfg.task.goal_tolerance, _names("d2c"), sol.restart, sol.search
+        result, system, task, cfg.task.goal_tolerance, _names("d2c"), sol.restart, sol.search, sol.receding
     )
     m.update(
         extra,

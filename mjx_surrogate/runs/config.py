@@ -195,6 +195,9 @@ class SolverConfig:
     # ... and where a single start's is still stationary, solved again from this many starts
     # spread over the actuators' range (mjx_surrogate.runs.restart); 0: off
     stationary_restarts: int = 8
+    # then, with H > 0, a receding-horizon pass: D2C-MPC over H steps on the model from the
+    # kept solve, D2C again from its closed loop, the cheaper kept (runs.receding_pass); 0: off
+    receding_pass: int = 0
 
 
 @dataclasses.dataclass(frozen=True)

@@ -28,6 +28,7 @@ from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.runs import native_replay
 from mjx_surrogate.runs import sampling_search as search_lib
 from mjx_surrogate.runs.model_defaults import hold_controls
+from mjx_surrogate.runs.receding_pass import receding_pass
 from mjx_surrogate.runs.resolution import solver_params
 from mjx_surrogate.runs.restart import restart_stationary, spread_starts
 from mjx_surrogate.systems import System
@@ -86,6 +87,7 @@ class ConfigSolve(NamedTuple):
     costs: jax.Array | None  # [n_starts] every start's final cost, or None for one start
     restart: dict | None = None  # what the restart of a stationary solve did (mjx_surrogate.runs.restart)
     search: dict | None = None  # what the sampling search did (mjx_surrogate.runs.sampling_search)
+    receding: dict | None = None  # what the receding-horizon pass did (mjx_surrogate.runs.receding_pass)
 
 
 def solve_config(res, progress: ProgressMeter = NO_PROGRESS) -> ConfigSolve:
@@ -99,7 +101,9 @@ def solve_config(res, progress: ProgressMeter = NO_PROGRESS) -> ConfigSolve:
     n = sc.n_starts if sc.n_starts > 1 else None
     U0 = start_controls(system, task, sc.init, sc.init_scale, k_init, n)
     rounds, restarts, tol = sc.sampling_search, sc.stationary_restarts, cfg.task.goal_tolerance
-    return solve_from(system, task, U0, k_d2c, params, sid_params, rounds, restarts, tol, progress)
+    return solve_from(
+        system, task, U0, k_d2c, params, sid_params, rounds, restarts, tol, progress, sc.receding_pass
+    )
 
 
 def solve_from(
@@ -113,11 +117,13 @@ def solve_from(
     restarts: int,
     goal_tolerance: float,
     progress: ProgressMeter = NO_PROGRESS,
+    receding: int = 0,
 ) -> ConfigSolve:
     """D2C from U0 [T, nu], or from each of U0 [n, T, nu] with the cheapest end kept, then
     :func:`past_a_stall` on the kept solve: the sampling search where it ended stationary or
     stalled short of its goal; the spread restarts (``restarts``) only after a single start
-    (several starts were already the user's spread)."""
+    (several starts were already the user's spread); then, with ``receding`` = H > 0, the
+    receding-horizon pass over H steps (:mod:`~mjx_surrogate.runs.receding_pass`)."""
     timed = chunked.solve(system, task, U0, key, params, sysid, "d2c", progress)
     costs = None
     if U0.ndim == 3:
@@ -127,7 +133,8 @@ def solve_from(
     timed, U0, info, search = past_a_stall(
         system, task, timed, U0, key, params, sysid, rounds, restarts, goal_tolerance, progress
     )
-    return ConfigSolve(timed, U0, costs, info, search)
+    timed, U0, passed = receding_pass(system, task, timed, U0, key, params, sysid, receding, progress)
+    return ConfigSolve(timed, U0, costs, info, search, passed)
 
 
 def past_a_stall(
@@ -249,6 +256,7 @@ def summary(
     names: tuple[str, str, str] | None = None,
     restart: dict | None = None,
     search: dict | None = None,
+    receding: dict | None = None,
 ) -> tuple[dict, jax.Array]:
     """Metrics of a solve in the status vocabulary, judged on the black box (``restart``:
     what :func:`~mjx_surrogate.runs.restart.restart_stationary` did before it, ``search``:
@@ -299,6 +307,8 @@ def summary(
         out["restart"] = restart
     if search is not None:
         out["sampling_search"] = search
+    if receding is not None:
+        out["receding_pass"] = receding
     if hint := status_hint(status, out):
         out["hint"] = hint
     if getattr(system, "mj_model", None) is None:  # a function black box: no MuJoCo to replay on
@@ -378,6 +388,7 @@ def d2c_optimum(
     names: tuple[str, str, str] | None = None,
     restarts: int = 0,
     search_rounds: int = 0,
+    receding: int = 0,
 ) -> Optimum:
     """Solve by D2C from U0 [T, nu], or from each of U0 [n, T, nu] keeping the cheapest
     (:func:`solve_from`: the sampling search and ``restarts`` spread starts past a
@@ -386,9 +397,11 @@ def d2c_optimum(
     (:mod:`mjx_surrogate.control.chunked`: cacheable programs). ``Optimum.U0``: the kept
     solve's start."""
     solved = solve_from(
-        system, task, U0, key, params, sysid, search_rounds, restarts, goal_tolerance, progress
+        system, task, U0, key, params, sysid, search_rounds, restarts, goal_tolerance, progress, receding
     )
-    metrics, X = summary(solved.timed.out, system, task, goal_tolerance, names, solved.restart, solved.search)
+    metrics, X = summary(
+        solved.timed.out, system, task, goal_tolerance, names, solved.restart, solved.search, solved.receding
+    )
     if solved.costs is not None:
         metrics["multistart_costs"] = np.asarray(solved.costs).tolist()
     return Optimum(solved.timed.out, X, metrics, solved.U0)
@@ -428,6 +441,7 @@ def optimum_stage(res, key: jax.Array):
                 names,
                 sc.stationary_restarts,
                 sc.sampling_search,
+                sc.receding_pass,
             )
         m = {**opt.metrics, "wall_s": time.perf_counter() - t0}
         m |= simulation_metrics(opt.result, task.T, sc.n_alphas, sid)

@@ -189,6 +189,7 @@ def _check_solver(s: SolverConfig) -> None:
             "solver.reuse_max": s.reuse_max,
             "solver.stationary_restarts": s.stationary_restarts,
             "solver.sampling_search": s.sampling_search,
+            "solver.receding_pass": s.receding_pass,
         },
     )
     _at_least(

@@ -1,0 +1,77 @@
+"""A receding-horizon pass after an offline solve (``solver.receding_pass`` = H > 0).
+
+iLQR over the whole horizon stops in the nearest local minimum of its start; replanning
+over a shorter horizon from every state reached often escapes it (on ``cartpole_mpc``'s
+swing-up, the offline optimum from zero controls juggles the pole at 2937 while D2C-MPC
+over 2 s swings it up, docs/mpc.md). The pass runs that closed loop on the model itself,
+without noise: D2C-MPC (:func:`mjx_surrogate.control.mpc.receding_horizon`) over H steps,
+plans ending at the task's end (``Task.deadline``), at most 5 iterations per replan, the
+first plan the solve's own first H controls; then D2C over the whole horizon from the
+closed loop's T controls. The cheaper of that solve and the first is kept, by the
+solver's cost.
+
+The pass's black-box steps are not in the run's ``simulated_steps``; its record gives the
+closed loop's cost, iterations and wall time.
+"""
+
+from __future__ import annotations
+
+import time
+
+import jax
+import jax.numpy as jnp
+
+from mjx_surrogate.control import chunked, mpc
+from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.identification import sysid as sid
+from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
+from mjx_surrogate.systems import System
+from mjx_surrogate.tasks import Task
+from mjx_surrogate.timing import Timed
+
+MAX_ITER_PER_REPLAN = 5  # D2C-MPC's default
+
+
+def receding_pass(
+    system: System,
+    task: Task,
+    timed: Timed,
+    U0: jax.Array,
+    key: jax.Array,
+    params: ILQRParams,
+    sysid: sid.SysIdParams,
+    horizon: int,
+    progress: ProgressMeter = NO_PROGRESS,
+) -> tuple[Timed, jax.Array, dict | None]:
+    """(the solve to keep, its start U0 [T, nu], the pass's record) after the solve
+    ``timed`` from U0; with ``horizon`` 0, ``timed`` and U0 unchanged and no record."""
+    if horizon <= 0:
+        return timed, U0, None
+    T = task.T
+    H = min(horizon, T)
+    U = timed.out.U
+    t0 = time.perf_counter()
+    loop = mpc.receding_horizon(
+        system,
+        task.replace(T=H, deadline=T),
+        U[:H],
+        key=jax.random.fold_in(key, 3),
+        steps=T,
+        params=params.replace(max_iter=min(params.max_iter, MAX_ITER_PER_REPLAN)),
+        sysid=sysid,
+    )
+    loop_s = time.perf_counter() - t0
+    refined = chunked.solve(system, task, loop.U, key, params, sysid, "d2c", progress)
+    first, second = float(timed.out.cost), float(refined.out.cost)
+    better = jnp.isfinite(second) and not second > first
+    record = {
+        "horizon": H,
+        "closed_loop_cost": float(loop.cost),
+        "iterations_per_replan": float(jnp.mean(loop.iterations)),
+        "wall_s": loop_s,
+        "first_cost": first,
+        "refined_cost": second,
+        "refined_iterations": int(refined.out.iterations),
+        "kept": "the refined solve" if better else "the first solve",
+    }
+    return (refined, loop.U, record) if better else (timed, U0, record)
