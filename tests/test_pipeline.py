@@ -227,14 +227,21 @@ def test_the_optimum_stage_of_the_other_kinds_honours_several_starts():
 
 
 def _linear_quadratic():
-    """x' = A x + B u (host NumPy, vectorized), a quadratic task of 12 steps from (1, 0)."""
+    """x' = A x + B u (host NumPy, vectorized, counting its one-step simulations), a
+    quadratic task of 12 steps from (1, 0)."""
     from mjx_surrogate.systems.function import from_numpy
     from mjx_surrogate.tasks import make_task
 
-    system = from_numpy(lambda x, u: x @ A.T + u @ B.T, 2, 1, 0.1, name="lq", vectorized=True)
+    calls = {"n": 0}
+
+    def step(x, u):
+        calls["n"] += x.shape[0]
+        return x @ A.T + u @ B.T
+
+    system = from_numpy(step, 2, 1, 0.1, name="lq", vectorized=True)
     Q = np.diag([1.0, 0.1])
     task = make_task(np.array([1.0, 0.0]), np.zeros(2), Q, 10 * Q, 0.01 * np.eye(1), 12, -np.inf, np.inf)
-    return system, task
+    return system, task, calls
 
 
 @pytest.mark.slow
@@ -242,25 +249,28 @@ def test_the_receding_pass_replans_to_the_tasks_end_and_keeps_the_cheaper_solve(
     """solver.receding_pass: on a linear-quadratic task, planned over the whole task, the
     pass's D2C-MPC closed loop, its plans ending at the task's end, costs the offline
     optimum (Bellman's principle), and D2C from it ends there too; the cheaper of the two
-    solves is kept (a worse second solve leaves the first and its start); H = 0 changes
-    nothing."""
+    solves is kept (a worse second solve leaves the first and its start); its black-box
+    steps are the counted ones; H = 0 changes nothing."""
     from mjx_surrogate.control import chunked
     from mjx_surrogate.runs import receding_pass as rp
 
-    system, task = _linear_quadratic()
+    system, task, calls = _linear_quadratic()
     params = ILQRParams(max_iter=20)
     sid = sysid.SysIdParams(sigma_x=1e-3, sigma_u=1e-3, n_samples=6)
     U0 = jnp.zeros((12, 1))
     first = chunked.solve(system, task, U0, jax.random.key(0), params, sid)
-    J = float(first.out.cost)
+    first_count, J = calls["n"], float(first.out.cost)
     assert rp.receding_pass(system, task, first, U0, jax.random.key(0), params, sid, 0) == (first, U0, None)
     # over the whole task (H = 20 is cut to T = 12): every plan ends at the task's end
+    calls["n"] = 0
     kept, U_kept, rec = rp.receding_pass(system, task, first, U0, jax.random.key(0), params, sid, 20)
+    assert rec["closed_loop_steps"] + rec["refined_steps"] == calls["n"] > 0  # its budget, counted
+    assert rec["first_steps"] == first_count
     assert rec["horizon"] == 12 and rec["first_cost"] == J
     assert rec["closed_loop_cost"] == pytest.approx(J, rel=1e-6)
     assert rec["refined_cost"] == pytest.approx(J, rel=1e-6)
     assert float(kept.out.cost) == min(J, rec["refined_cost"]) and U_kept.shape == (12, 1)
-    worse = types.SimpleNamespace(out=types.SimpleNamespace(cost=J + 1.0, iterations=3))
+    worse = first._replace(out=first.out._replace(cost=jnp.asarray(J + 1.0)))
     monkeypatch.setattr(chunked, "solve", lambda *a, **k: worse)
     kept, U_kept, rec = rp.receding_pass(system, task, first, U0, jax.random.key(0), params, sid, 5)
     assert kept is first and U_kept is U0 and rec["kept"] == "the first solve"

@@ -10,8 +10,11 @@ first plan the solve's own first H controls; then D2C over the whole horizon fro
 closed loop's T controls. The cheaper of that solve and the first is kept, by the
 solver's cost.
 
-The pass's black-box steps are not in the run's ``simulated_steps``; its record gives the
-closed loop's cost, iterations and wall time.
+The black-box steps are counted in the pass's record, whereas the run's
+``simulated_steps`` are the kept solve's alone: ``first_steps``, the first solve's;
+``closed_loop_steps``, the replans' (as :func:`mjx_surrogate.control.mpc.black_box_steps`
+counts them) and the model's own T steps as the plant; ``refined_steps``, the second
+solve's.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ import jax
 import jax.numpy as jnp
 
 from mjx_surrogate.control import chunked, mpc
+from mjx_surrogate.control.effort import simulation_metrics
 from mjx_surrogate.control.ilqr import ILQRParams
 from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
@@ -51,13 +55,14 @@ def receding_pass(
     H = min(horizon, T)
     U = timed.out.U
     t0 = time.perf_counter()
+    replan_params = params.replace(max_iter=min(params.max_iter, MAX_ITER_PER_REPLAN))
     loop = mpc.receding_horizon(
         system,
         task.replace(T=H, deadline=T),
         U[:H],
         key=jax.random.fold_in(key, 3),
         steps=T,
-        params=params.replace(max_iter=min(params.max_iter, MAX_ITER_PER_REPLAN)),
+        params=replan_params,
         sysid=sysid,
     )
     loop_s = time.perf_counter() - t0
@@ -69,9 +74,12 @@ def receding_pass(
         "closed_loop_cost": float(loop.cost),
         "iterations_per_replan": float(jnp.mean(loop.iterations)),
         "wall_s": loop_s,
+        "closed_loop_steps": int(mpc.black_box_steps(loop, H, replan_params.n_alphas, sysid).sum()) + T,
         "first_cost": first,
+        "first_steps": simulation_metrics(timed.out, T, params.n_alphas, sysid)["simulated_steps"],
         "refined_cost": second,
         "refined_iterations": int(refined.out.iterations),
+        "refined_steps": simulation_metrics(refined.out, T, params.n_alphas, sysid)["simulated_steps"],
         "kept": "the refined solve" if better else "the first solve",
     }
     return (refined, loop.U, record) if better else (timed, U0, record)
