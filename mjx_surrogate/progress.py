@@ -154,6 +154,11 @@ def _host_poll(meter_id, iteration, cost, mu) -> np.ndarray:
     return np.full(np.shape(meter_id), stop_requested(), dtype=bool)
 
 
+def displays(progress: ProgressMeter) -> bool:
+    """Host side: whether ``progress`` shows a bar (a stage it starts can show one too)."""
+    return _BARS.get(int(np.asarray(progress.meter_id))) is not None
+
+
 def report(progress: ProgressMeter, iteration, cost, mu) -> None:
     """Host side, for a loop driven from the host (:mod:`mjx_surrogate.control.chunked`): advance
     ``progress``'s bar to ``iteration`` (cost and mu: the best of a batch)."""

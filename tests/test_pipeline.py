@@ -275,3 +275,28 @@ def test_the_receding_pass_replans_to_the_tasks_end_and_keeps_the_cheaper_solve(
     kept, U_kept, rec = rp.receding_pass(system, task, first, U0, jax.random.key(0), params, sid, 5)
     assert kept is first and U_kept is U0 and rec["kept"] == "the first solve"
     assert rec["refined_cost"] == J + 1.0
+
+
+@pytest.mark.slow
+def test_a_stop_request_ends_the_receding_pass_and_keeps_the_first_solve():
+    """A stop request (SIGINT, SIGTERM) seen by the pass's closed loop ends it: the first
+    solve and its start are kept, without the second solve, and the record says so."""
+    from mjx_surrogate import progress
+    from mjx_surrogate.control import chunked
+    from mjx_surrogate.runs import receding_pass as rp
+
+    system, task, _ = _linear_quadratic()
+    params = ILQRParams(max_iter=20)
+    sid = sysid.SysIdParams(sigma_x=1e-3, sigma_u=1e-3, n_samples=6)
+    U0 = jnp.zeros((12, 1))
+    first = chunked.solve(system, task, U0, jax.random.key(0), params, sid)
+    with progress.meter("solve", 20, display=False) as pm:
+        progress.request_stop()
+        try:
+            kept, U_kept, rec = rp.receding_pass(
+                system, task, first, U0, jax.random.key(0), params, sid, 20, pm
+            )
+        finally:
+            progress.clear_stop()
+    assert kept is first and U_kept is U0
+    assert rec["kept"] == "the first solve: stopped during the pass" and "refined_cost" not in rec

@@ -19,11 +19,14 @@ solve's.
 
 from __future__ import annotations
 
+import contextlib
 import time
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
+from mjx_surrogate import progress as progress_lib
 from mjx_surrogate.control import chunked, mpc
 from mjx_surrogate.control.effort import simulation_metrics
 from mjx_surrogate.control.ilqr import ILQRParams
@@ -48,7 +51,10 @@ def receding_pass(
     progress: ProgressMeter = NO_PROGRESS,
 ) -> tuple[Timed, jax.Array, dict | None]:
     """(the solve to keep, its start U0 [T, nu], the pass's record) after the solve
-    ``timed`` from U0; with ``horizon`` 0, ``timed`` and U0 unchanged and no record."""
+    ``timed`` from U0; with ``horizon`` 0, ``timed`` and U0 unchanged and no record. With
+    ``progress`` on, the closed loop shows its control steps where ``progress`` shows a bar,
+    and a stop request (SIGINT, SIGTERM) ends the pass at the next control step, keeping
+    the first solve (``kept`` says so)."""
     if horizon <= 0:
         return timed, U0, None
     T = task.T
@@ -56,16 +62,22 @@ def receding_pass(
     U = timed.out.U
     t0 = time.perf_counter()
     replan_params = params.replace(max_iter=min(params.max_iter, MAX_ITER_PER_REPLAN))
-    loop = mpc.receding_horizon(
-        system,
-        task.replace(T=H, deadline=T),
-        U[:H],
-        key=jax.random.fold_in(key, 3),
-        steps=T,
-        params=replan_params,
-        sysid=sysid,
-    )
+    on = int(np.asarray(progress.meter_id)) >= 0
+    bar = progress_lib.meter("receding pass", T, progress_lib.displays(progress), leave=False)
+    with bar if on else contextlib.nullcontext(NO_PROGRESS) as pm:
+        loop = mpc.receding_horizon(
+            system,
+            task.replace(T=H, deadline=T),
+            U[:H],
+            key=jax.random.fold_in(key, 3),
+            steps=T,
+            params=replan_params,
+            sysid=sysid,
+            progress=pm,
+        )
     loop_s = time.perf_counter() - t0
+    if progress_lib.stop_polled(progress):
+        return timed, U0, {"horizon": H, "wall_s": loop_s, "kept": "the first solve: stopped during the pass"}
     refined = chunked.solve(system, task, loop.U, key, params, sysid, "d2c", progress)
     first, second = float(timed.out.cost), float(refined.out.cost)
     better = jnp.isfinite(second) and not second > first
