@@ -20,10 +20,10 @@ solve's.
 from __future__ import annotations
 
 import contextlib
+import math
 import time
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate import progress as progress_lib
@@ -80,11 +80,11 @@ def receding_pass(
         return timed, U0, {"horizon": H, "wall_s": loop_s, "kept": "the first solve: stopped during the pass"}
     refined = chunked.solve(system, task, loop.U, key, params, sysid, "d2c", progress)
     first, second = float(timed.out.cost), float(refined.out.cost)
-    better = jnp.isfinite(second) and not second > first
+    better = math.isfinite(second) and second <= first
     record = {
         "horizon": H,
         "closed_loop_cost": float(loop.cost),
-        "iterations_per_replan": float(jnp.mean(loop.iterations)),
+        "iterations_per_replan": float(np.mean(loop.iterations)),
         "wall_s": loop_s,
         "closed_loop_steps": int(mpc.black_box_steps(loop, H, replan_params.n_alphas, sysid).sum()) + T,
         "first_cost": first,
