@@ -16,6 +16,10 @@ terminal weight is set to ``--final-weight``; a hold task has none.
         [--episodes 2] [--final-weight 1000] [--max-iter 5] [--every 1] [--n-alphas A]
         [--replan-hz HZ] [--first-plan reference] [--floor] [--out DIR]
 
+For a task with point goals the table adds the distance of each goal point from its target
+(m; for a moving target, where the target is at that step), averaged over the episodes'
+second half and their goal points: how closely the loop follows.
+
 ``--floor`` adds, per task and noise level, what the goal test can say under that noise
 (``benchmarks/noise_floor.py``): how often the last noise draw alone fails it, and for a
 hold task how often the LQR at the goal passes it.
@@ -65,7 +69,7 @@ def mpc_config(task: str, mode: str, args):
         mpc=MPCConfig(
             controllers=tuple(args.controllers),
             horizon=args.horizon,
-            steps=args.steps,
+            steps=args.steps or cfg.task.T or 50,
             horizon_end=mode,
             process_noise=tuple(args.noise),
             plants=tuple(args.plants),
@@ -79,6 +83,38 @@ def mpc_config(task: str, mode: str, args):
     )
 
 
+def point_errors(folder: str) -> dict:
+    """{row's X array name: mean distance (m) of the goal points from their targets over the
+    second half of its episodes}, for a run with point goals (else {})."""
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    from mjx_surrogate.runs.config import Config, from_dict
+    from mjx_surrogate.runs.resolution import resolve
+    from mjx_surrogate.runs.results import read_json
+    from mjx_surrogate.tasks import targets_at
+
+    _, _, task = resolve(from_dict(Config, read_json(os.path.join(folder, "config.json"))))
+    if task.points is None:
+        return {}
+    arrays = np.load(os.path.join(folder, "arrays.npz"))
+
+    @jax.jit
+    def distance(X):  # [N+1, nx] -> [N+1]
+        n = jnp.arange(X.shape[0], dtype=jnp.int32)
+        d = jax.vmap(lambda x, n: task.points(x) - targets_at(task, n))(X, n)
+        return jnp.mean(jnp.linalg.norm(d, axis=-1), axis=-1)
+
+    out = {}
+    for name in arrays.files:
+        if name.startswith("mpc_") and name.endswith("_X"):
+            X = arrays[name]  # [episodes, N+1, nx]
+            half = X.shape[1] // 2
+            out[name] = float(np.mean([np.mean(np.asarray(distance(jnp.asarray(x)))[half:]) for x in X]))
+    return out
+
+
 def _g(v) -> str:
     return "-" if v is None else f"{v:.4g}"
 
@@ -86,14 +122,17 @@ def _g(v) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument(
-        "--tasks", nargs="*", default=["ur5e"], help="substrings of benchmarks/robots.py's task names"
+        "--tasks",
+        nargs="*",
+        default=["ur5e servos (reach)"],
+        help="substrings of benchmarks/robots.py's task names",
     )
     ap.add_argument(
         "--controllers", nargs="*", default=["d2c"], help="mpc.controllers (oracle: finite differences)"
     )
     ap.add_argument("--modes", nargs="*", default=["task", "receding"], help="mpc.horizon_end values")
     ap.add_argument("--horizon", type=int, default=25)
-    ap.add_argument("--steps", type=int, default=50)
+    ap.add_argument("--steps", type=int, default=None, help="episode length (default: the task's T, or 50)")
     ap.add_argument("--episodes", type=int, default=2)
     ap.add_argument("--max-iter", type=int, default=5, help="mpc.max_iter: iLQR iterations per replan")
     ap.add_argument("--every", type=int, default=1, help="mpc.sysid_every: identify every k-th step")
@@ -128,22 +167,24 @@ def main() -> None:
             folder = run(cfg, name=f"mpc_{mode}_it{args.max_iter}_every{args.every}_hz{args.replan_hz}")
             with open(os.path.join(folder, "metrics.json")) as f:
                 metrics = json.load(f)
+            errors = point_errors(folder)
             for r in metrics["mpc_rows"]:
-                results.append({"task": task, "mode": mode, "offline_cost": metrics["d2c"]["cost"]} | r)
+                row = {"task": task, "mode": mode, "offline_cost": metrics["d2c"]["cost"]} | r
+                results.append(row | {"point_error": errors.get(r["arrays"]["X"])})
             if args.floor:
                 floors += [floor(folder, w, 4000, 0) | {"task": task} for w in args.noise if w > 0]
     print(
         "| task | controller | horizon end | plant | noise | cost (median) | offline optimum | goal reached "
-        "| black-box steps / step | ms / step | real-time factor |"
+        "| black-box steps / step | ms / step | real-time factor | point error, 2nd half (m) |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in results:
         print(
             f"| {r['task']} | {r['controller']} | {r['mode']} | {r['plant']} | {r['process_noise']:g} | "
             f"{_g(r['cost_median'])} | "
             f"{_g(r['offline_cost'])} | "
             f"{100 * r['goal_reached']:.0f} % | {_g(r['black_box_steps_per_control_step'])} | "
-            f"{1e3 * r['compute_per_step_s']:.0f} | {r['real_time_factor']:.2f} |"
+            f"{1e3 * r['compute_per_step_s']:.0f} | {r['real_time_factor']:.2f} | {_g(r['point_error'])} |"
         )
 
     if floors:

@@ -88,8 +88,8 @@ def floor(folder: str, noise: float, draws: int, seed: int) -> dict:
     cfg, system, task = resolve(from_dict(Config, read_json(os.path.join(folder, "config.json"))))
     X_star = np.load(os.path.join(folder, "arrays.npz"))["X_star"]
     tol = cfg.task.goal_tolerance
-    goal = jax.jit(jax.vmap(lambda x: tasks.goal_cost(task, x)))
-    start = float(goal(jnp.asarray(task.x0)[None])[0])
+    goal = jax.jit(jax.vmap(lambda x: tasks.goal_cost(task, x)))  # moving targets at the end (T)
+    start = float(tasks.goal_cost(task, jnp.asarray(task.x0), t=0))  # and at their start
     bound = tol * (start if start > 0 else pipeline.unit_goal_cost(task))
     k_last, k_lqr = jax.random.split(jax.random.key(seed))
     hold = start == 0

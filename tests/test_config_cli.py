@@ -54,6 +54,12 @@ BAD = [
     (["smoke_rollout", "--task.goals", "site:tip:0,1"], "task.goals"),
     (["smoke_rollout", "--task.goals", "site:tip:0,0,x"], "task.goals"),
     (["smoke_rollout", "--task.goals", "site:nosuchsite:0,0,1"], "task.goals[0].name"),
+    (["smoke_rollout", "--task.goals", "site:tip:0,0,1:velocity=1,2"], "task.goals"),
+    (["smoke_rollout", "--task.goals", "site:tip:0,0,1:orbit=0.1,x"], "task.goals"),
+    (["smoke_rollout", "--task.goals", "site:tip:0,0,1:orbit=0.1,0"], "task.goals[0].orbit_period"),
+    (["smoke_rollout", "--task.goals", "site:tip:0,0,1:orbit=-0.1,1"], "task.goals[0].orbit_radius"),
+    (["smoke_rollout", "--task.goals", "site:tip:0,0,1:orbit=0.1,1,xw"], "task.goals[0].orbit_plane"),
+    (["smoke_rollout", "--task.goals", "site:tip:0,0,1:velocity=0,inf,0"], "task.goals[0].velocity"),
     (
         ["smoke_rollout", "--system.name", "mjcf", "--system.mjcf_path", "/nonexistent.xml"],
         "system.mjcf_path",
@@ -88,6 +94,16 @@ def test_point_goals_from_the_command_line():
         5,
     )  # gymnasium-robotics names
     assert "--task.goals KIND:NAME:X,Y,Z" in cli.GOALS_HELP
+    (moving,) = cli.parse_args(
+        ["default", "--task.goals", "site:tip:1,2,3:0.5:2:velocity=0.1,0,-0.2:orbit=0.05,2,yz"]
+    )[0].task.goals
+    assert (moving.target, moving.weight, moving.final_weight, moving.velocity) == (
+        (1, 2, 3),
+        0.5,
+        2,
+        (0.1, 0, -0.2),
+    )
+    assert (moving.orbit_radius, moving.orbit_period, moving.orbit_plane) == (0.05, 2, "yz")
 
 
 @pytest.mark.parametrize("argv,field", BAD)

@@ -214,3 +214,84 @@ def test_a_task_that_ends_within_its_horizon_costs_and_differentiates_as_written
         np.testing.assert_allclose(lux, [hXU[t, :, t].T for t in range(T)], atol=1e-10)
     full = at_step(task.replace(deadline=6), 0)  # ends at the horizon's end: the usual J
     assert float(trajectory_cost(full, X, U)) == pytest.approx(float(trajectory_cost(task, X, U)), rel=1e-12)
+
+
+def _circling_targets(p0, v, r, period, axes, s):
+    """Targets [k, 3] after s seconds, written from the circle's centre (p0 - r e1): the
+    centre moved by v s, plus r (cos phi, sin phi) in the plane's axes."""
+    out = []
+    for k in range(len(p0)):
+        e1, e2 = np.eye(3)[axes[k][0]], np.eye(3)[axes[k][1]]
+        phi = 2 * np.pi * s / period[k]
+        centre = np.asarray(p0[k]) - r[k] * e1 + np.asarray(v[k]) * s
+        out.append(centre + r[k] * (np.cos(phi) * e1 + np.sin(phi) * e2))
+    return np.array(out)
+
+
+@pytest.mark.parametrize("gauss_newton", [True, False], ids=["gauss-newton", "exact"])
+def test_moving_targets_cost_and_differentiate_where_the_targets_are_at_each_stage(gauss_newton):
+    """Two point goals linear in x, one circling in the xz plane, one moving at a constant
+    velocity while circling in yz: planned at control step n, stage t's running cost and the
+    terminal cost use the targets after n + t and n + T steps (a reference written from the
+    circles' centres, stage by stage), and so do the cost's derivatives (autodiff of the
+    reference); an episode's cost puts its terminal at its own length."""
+    from mjx_surrogate.control.riccati import cost_derivatives
+    from mjx_surrogate.moving_targets import target_motion
+    from mjx_surrogate.tasks import at_step, task_cost, trajectory_cost
+
+    rng = np.random.default_rng(5)
+    dt, T = 0.05, 6
+    v, r, period, planes = [(0.0, 0.0, 0.0), (0.3, -0.2, 0.1)], [0.2, 0.1], [1.0, 0.7], ["xz", "yz"]
+    axes = [(0, 2), (1, 2)]
+    P = rng.normal(size=(2, 3, 4))
+    p0 = rng.normal(size=(2, 3))
+    sym = lambda n: (lambda M: M @ M.T)(rng.normal(size=(n, n)))  # noqa: E731
+    motion = target_motion(v, r, period, planes, dt)
+    task = make_task(
+        rng.normal(size=4), rng.normal(size=4), sym(4), sym(4), sym(2), T, u_ref=rng.normal(size=2),
+        targets=p0, weights=[0.5, 2.0], final_weights=[3.0, 1.0], points=lambda x: jnp.asarray(P) @ x,
+        motion=motion, gauss_newton=gauss_newton,
+    )  # fmt: skip
+    X, U = jnp.asarray(rng.normal(size=(T + 1, 4))), jnp.asarray(rng.normal(size=(T, 2)))
+
+    def reference(X, U, n):
+        J = 0.0
+        for t in range(T + 1):
+            d = jnp.einsum("kcn,n->kc", P, X[t]) - _circling_targets(p0, v, r, period, axes, (n + t) * dt)
+            if t < T:
+                e, du = X[t] - task.x_goal, U[t] - task.u_ref
+                J += (
+                    0.5 * e @ task.Q @ e
+                    + 0.5 * du @ task.R @ du
+                    + 0.5 * jnp.sum(task.weights * jnp.sum(d**2, -1))
+                )
+            else:
+                e = X[t] - task.x_goal
+                J += 0.5 * e @ task.Q_f @ e + 0.5 * jnp.sum(task.final_weights * jnp.sum(d**2, -1))
+        return J
+
+    assert task_cost(task).timed
+    program = jax.jit(
+        lambda task, X, U: (trajectory_cost(task, X, U), cost_derivatives(task_cost(task), X, U))
+    )
+    for n in (0, 3, 11):
+        planned = at_step(task, jnp.asarray(n))
+        J, (lx, lu, lxx, luu, lux, Vx, Vxx) = program(planned, X, U)
+        assert float(J) == pytest.approx(float(reference(X, U, n)), rel=1e-12)
+        gX, gU = jax.grad(reference, (0, 1))(X, U, n)
+        (hXX, hXU), (_, hUU) = jax.hessian(reference, (0, 1))(X, U, n)
+        np.testing.assert_allclose(lx, gX[:T], atol=1e-9)
+        np.testing.assert_allclose(Vx, gX[T], atol=1e-9)
+        np.testing.assert_allclose(lu, gU, atol=1e-9)
+        np.testing.assert_allclose(lxx, [hXX[t, :, t] for t in range(T)], atol=1e-9)
+        np.testing.assert_allclose(Vxx, hXX[T, :, T], atol=1e-9)
+        np.testing.assert_allclose(luu, [hUU[t, :, t] for t in range(T)], atol=1e-9)
+        np.testing.assert_allclose(lux, [hXU[t, :, t].T for t in range(T)], atol=1e-9)
+    # an episode of 9 steps from step 0: its terminal is against the targets after 9 steps
+    Xe, Ue = jnp.asarray(rng.normal(size=(10, 4))), jnp.asarray(rng.normal(size=(9, 2)))
+    Te = 9
+    d = jnp.einsum("kcn,n->kc", P, Xe[Te]) - _circling_targets(p0, v, r, period, axes, Te * dt)
+    e = Xe[Te] - task.x_goal
+    terminal = 0.5 * e @ task.Q_f @ e + 0.5 * jnp.sum(task.final_weights * jnp.sum(d**2, -1))
+    running = sum(float(running_cost(task, Xe[t], Ue[t], t)) for t in range(Te))
+    assert float(trajectory_cost(task, Xe, Ue)) == pytest.approx(running + float(terminal), rel=1e-12)

@@ -65,9 +65,12 @@ class SystemConfig:
 class PointGoal:
     """A goal on the world position of a named site or body (``kind``), in metres.
 
-    Adds 1/2 weight |p_t - target|^2 to every running cost and 1/2 final_weight
-    |p_T - target|^2 to the terminal cost; p comes from the model's kinematics, the
-    dynamics stay a black box.
+    Adds 1/2 weight |p_t - target_t|^2 to every running cost and 1/2 final_weight
+    |p_T - target_T|^2 to the terminal cost; p comes from the model's kinematics, the
+    dynamics stay a black box. The target starts at ``target`` and moves
+    (``mjx_surrogate.moving_targets``): at ``velocity`` (m/s) plus, with ``orbit_radius``
+    > 0, round a circle of that radius (m) through its start in ``orbit_plane``, once per
+    ``orbit_period`` (s); time counts from the episode's start, in closed loop too.
     """
 
     name: str = ""
@@ -75,6 +78,10 @@ class PointGoal:
     weight: float = 0.0
     final_weight: float = 1.0
     kind: Literal["site", "body"] = "site"
+    velocity: Tuple[float, ...] = (0.0, 0.0, 0.0)
+    orbit_radius: float = 0.0
+    orbit_period: float = 1.0
+    orbit_plane: Literal["xy", "xz", "yz"] = "xy"
 
 
 @dataclasses.dataclass(frozen=True)

@@ -206,8 +206,9 @@ _trajectory_cost = jax.jit(trajectory_cost)
 
 
 @functools.partial(jax.jit, static_argnames=("terminal",))
-def _goal_costs(task: Task, x0: jax.Array, xT: jax.Array, terminal: bool) -> tuple[jax.Array, jax.Array]:
-    return goal_cost(task, x0, terminal), goal_cost(task, xT, terminal)
+def _goal_costs(task: Task, x0: jax.Array, xT: jax.Array, N, terminal: bool) -> tuple[jax.Array, jax.Array]:
+    """The goal costs of x0 (moving targets at stage 0) and of xT (at stage N)."""
+    return goal_cost(task, x0, terminal, 0), goal_cost(task, xT, terminal, N)
 
 
 def black_box_trajectory(system: System, task: Task, U: jax.Array) -> tuple[jax.Array, float | None]:
@@ -226,9 +227,10 @@ def unit_goal_cost(task: Task) -> float:
 
 def goal_passes(task: Task, X: jax.Array, tolerance: float) -> np.ndarray:
     """passes [N+1] (bool): the goal test of :func:`goal_test` applied to every state of X
-    [N+1, nx] in turn, as if each were the last."""
+    [N+1, nx] in turn, as if each were the last (moving targets where they are then)."""
     terminal = has_terminal(task)
-    costs = np.asarray(jax.vmap(lambda x: goal_cost(task, x, terminal))(jnp.asarray(X)), float)
+    stages = jnp.arange(len(X), dtype=jnp.int32)
+    costs = np.asarray(jax.vmap(lambda x, t: goal_cost(task, x, terminal, t))(jnp.asarray(X), stages), float)
     start = costs[0]
     bound = tolerance * (start if start > 0 else unit_goal_cost(task))
     return np.isfinite(costs) & (costs <= bound)
@@ -237,8 +239,10 @@ def goal_passes(task: Task, X: jax.Array, tolerance: float) -> np.ndarray:
 def goal_test(task: Task, X: jax.Array, tolerance: float) -> dict:
     """The goal test in the task's own weighted terms (:func:`tasks.goal_cost`): reached
     when goal_cost(x_T) <= tolerance * goal_cost(x_0); for a start at the goal (a hold
-    task), when goal_cost(x_T) <= tolerance * :func:`unit_goal_cost`."""
-    start, final = (float(v) for v in _goal_costs(task, X[0], X[-1], has_terminal(task)))
+    task), when goal_cost(x_T) <= tolerance * :func:`unit_goal_cost`. Moving targets: x_0
+    against the targets' start, x_T against where they are at the end of X [T+1, nx]."""
+    N = jnp.asarray(len(X) - 1, jnp.int32)
+    start, final = (float(v) for v in _goal_costs(task, X[0], X[-1], N, has_terminal(task)))
     bound = tolerance * (start if start > 0 else unit_goal_cost(task))
     return {
         "reached": bool(np.isfinite(final) and final <= bound),

@@ -8,10 +8,13 @@ Every check raises :class:`~mjx_surrogate.errors.ConfigError` naming the field.
 
 from __future__ import annotations
 
+from typing import Callable
+
 import mujoco
 import numpy as np
 
 from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.moving_targets import target_motion
 from mjx_surrogate.runs.config import TaskConfig, check_finite
 from mjx_surrogate.runs.function_task import resolve_function_task
 from mjx_surrogate.runs.model_defaults import control_weights, hold_controls, hold_task
@@ -81,6 +84,17 @@ def _points(system: System, tc: TaskConfig):
         make = native_points_fn if system.backend == "native" else make_points_fn
         cache[ids] = make(system.mj_model, list(ids))
     return cache[ids]
+
+
+def _motion(system: System, goals) -> Callable | None:
+    """The goals' moving targets (``moving_targets.target_motion``), one function per
+    motion and control period (a task resolved twice compiles once)."""
+    spec = tuple((tuple(g.velocity), g.orbit_radius, g.orbit_period, g.orbit_plane) for g in goals)
+    cache = system.once("motion_fns", dict)
+    key = (spec, float(system.dt))
+    if key not in cache:
+        cache[key] = target_motion(*zip(*spec), float(system.dt)) if spec else None
+    return cache[key]
 
 
 def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
@@ -155,6 +169,7 @@ def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
         weights=[g.weight for g in goals] if goals else None,
         final_weights=[g.final_weight for g in goals] if goals else None,
         points=points,
+        motion=_motion(system, goals),
         hinges=hinges,
         quats=quats,
         chordal=state_error == "chordal",

@@ -248,6 +248,14 @@ def _check_task(t: TaskConfig) -> None:
             raise ConfigError(f"{where}.target", f"needs 3 numbers (x, y, z), got {len(g.target)}")
         check_finite(f"{where}.target", g.target)
         _nonnegative({f"{where}.weight": g.weight, f"{where}.final_weight": g.final_weight})
+        if len(g.velocity) != 3:
+            raise ConfigError(f"{where}.velocity", f"needs 3 numbers (m/s), got {len(g.velocity)}")
+        check_finite(f"{where}.velocity", g.velocity)
+        _nonnegative({f"{where}.orbit_radius": g.orbit_radius})
+        if not (math.isfinite(g.orbit_period) and g.orbit_period > 0):
+            raise ConfigError(f"{where}.orbit_period", f"seconds per turn, > 0, got {g.orbit_period}")
+        if g.orbit_plane not in ("xy", "xz", "yz"):
+            raise ConfigError(f"{where}.orbit_plane", f"one of xy, xz, yz, got {g.orbit_plane!r}")
 
 
 def _check_data(d: DataConfig) -> None:
