@@ -14,7 +14,8 @@ terminal weight is set to ``--final-weight``; a hold task has none.
 
     python benchmarks/mpc_robots.py [--tasks ur5e "walker (hold)"] [--modes task receding]
         [--episodes 2] [--final-weight 1000] [--max-iter 5] [--every 1] [--n-alphas A]
-        [--replan-hz HZ] [--first-plan reference] [--floor] [--out DIR]
+        [--replan-hz HZ] [--first-plan reference] [--scheme forward_difference] [--floor]
+        [--out DIR]
 
 For a task with point goals the table adds the distance of each goal point from its target
 (m; for a moving target, where the target is at that step), averaged over the episodes'
@@ -55,6 +56,8 @@ def mpc_config(task: str, mode: str, args):
     goals = tuple(dataclasses.replace(g, final_weight=args.final_weight) for g in cfg.task.goals)
     if task in CONTROL_DT:
         cfg = dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, control_dt=CONTROL_DT[task]))
+    if args.scheme is not None:
+        cfg = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, sysid=args.scheme))
     return dataclasses.replace(
         cfg,
         task=dataclasses.replace(cfg.task, goals=goals),
@@ -136,6 +139,9 @@ def main() -> None:
     ap.add_argument("--episodes", type=int, default=2)
     ap.add_argument("--max-iter", type=int, default=5, help="mpc.max_iter: iLQR iterations per replan")
     ap.add_argument("--every", type=int, default=1, help="mpc.sysid_every: identify every k-th step")
+    ap.add_argument(
+        "--scheme", default=None, help="solver.sysid: the identification scheme (default: the solver's)"
+    )
     ap.add_argument("--n-alphas", type=int, default=None, help="mpc.n_alphas (default: the solver's)")
     ap.add_argument("--replan-hz", type=float, default=None, help="mpc.replan_hz (default: every step)")
     ap.add_argument(
