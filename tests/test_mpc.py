@@ -278,12 +278,17 @@ def test_the_plant_is_stepped_with_the_episodes_noise_and_the_model_is_not_the_p
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("every,replan_every", [(1, 1), (4, 1), (1, 5)])
-def test_black_box_steps_are_the_calls_the_black_box_received(every, replan_every):
+@pytest.mark.parametrize(
+    "every,replan_every,scheme",
+    [(1, 1, "central_difference"), (4, 1, "central_difference"), (1, 5, "central_difference")]
+    + [(1, 1, "forward_difference")],
+)
+def test_black_box_steps_are_the_calls_the_black_box_received(every, replan_every, scheme):
     """A NumPy black box counts the rows it is asked to step: the episode's calls are the
     plant's N steps plus black_box_steps per replan; identified at every 4th step of the
     horizon (and its last: 4 of 10 steps), each identification steps 4/10 as many rows,
-    and on a linear system the interpolated models are the exact ones: the same LQR loop."""
+    and on a linear system the interpolated models are the exact ones: the same LQR loop;
+    forward differences step (n + 1) rows per stage where central ones step 2 n."""
     calls = []
 
     def step(x, u):
@@ -291,7 +296,7 @@ def test_black_box_steps_are_the_calls_the_black_box_received(every, replan_ever
         return x @ A.T + u @ B.T
 
     system = from_numpy(step, 2, 1, 0.1, vectorized=True)
-    params, sysid = ILQRParams(max_iter=3), SID.replace(every=every)
+    params, sysid = ILQRParams(max_iter=3), SID.replace(every=every, scheme=scheme)
     r = mpc.receding_horizon(
         system,
         _task(),
@@ -307,7 +312,10 @@ def test_black_box_steps_are_the_calls_the_black_box_received(every, replan_ever
     assert sum(calls) == 5 + int(per_replan.sum()), (sum(calls), per_replan)
     assert np.all(np.asarray(r.identified) <= 1)  # never an every-step model
     knots = 10 if every == 1 else 4
-    assert 10 * sid.steps_per_identification(sysid, H) == knots * sid.steps_per_identification(SID, H)
+    n = SID.n_samples
+    rows = n + 1 if scheme == "forward_difference" else 2 * n  # per stage; the reference's 2 n
+    steps, reference = sid.steps_per_identification(sysid, H), sid.steps_per_identification(SID, H)
+    assert 10 * 2 * n * steps == knots * rows * reference
     if replan_every == 1:
         K0 = _lqr_first_gain(A, B, H)
         X = [np.array([1.0, 0.0])]

@@ -306,6 +306,12 @@ def test_d2c_mpc_identifies_with_the_fewest_samples_unless_told():
     )
     assert mpc_params(resolve(given).config)[1].n_samples == 6
     assert mpc_params(resolve(given).config)[1].design == "gaussian"
+    assert sysid.scheme == offline.scheme == "central_difference"  # mpc.sysid: the solver's
+    forward = dataclasses.replace(CONFIG, mpc=dataclasses.replace(CONFIG.mpc, sysid="forward_difference"))
+    resolved = resolve(forward).config
+    assert resolved.mpc.sysid == "forward_difference"
+    assert solver_params(resolved)[1].scheme == "central_difference"
+    assert mpc_params(resolved)[1].scheme == "forward_difference"
     rollout = dataclasses.replace(CONFIG, solver=dataclasses.replace(CONFIG.solver, sysid="rollout"))
     assert (
         mpc_params(resolve(rollout).config)[1].n_samples,

@@ -384,8 +384,11 @@ class MPCConfig:
     first_plan: every planner's first warm start: "optimum" (the offline D2C optimum's
       first H controls), "zeros", or "reference" (the task's u_ref at every step: for a
       hold task the controls that hold its start).
-    n_samples, sysid_design: D2C-MPC's identification at every replan (the solver's scheme
-      and perturbation sizes otherwise): samples per identification (None: nx + nu with a
+    sysid, n_samples, sysid_design: D2C-MPC's identification at every replan (the
+      solver's perturbation sizes otherwise): its scheme (None: solver.sysid;
+      "forward_difference" simulates nx + nu + 1 steps per stage where the solver's
+      central differences simulate 2 (nx + nu), as MuJoCo MPC's finite differences do),
+      samples per identification (None: nx + nu with a
       one-step scheme, the fewest that determine [A_t B_t]; else solver.n_samples) in
       design sysid_design ("orthogonal": with nx + nu samples the Gram matrix is exactly
       diagonal, paper Section 3; "gaussian": D2C 2.0's). The offline optimum keeps the
@@ -415,6 +418,7 @@ class MPCConfig:
     refit_weight: float = 0.0  # > 0: surrogates refitted online, an episode's transition weighing this
     refit_updates: int = 20  # MLP refit: optimiser steps before every replan (0: no MLP refit)
     first_plan: Literal["optimum", "zeros", "reference"] = "optimum"  # every planner's first warm start
+    sysid: Optional[str] = None  # D2C-MPC's identification scheme per replan (None: solver.sysid)
     n_samples: Optional[int] = None  # D2C-MPC's samples per identification (None: nx + nu)
     sysid_design: Literal["gaussian", "orthogonal"] = "orthogonal"  # D2C-MPC's perturbations
     sysid_every: int = 1  # D2C-MPC: identify every k-th step of the horizon, interpolate between

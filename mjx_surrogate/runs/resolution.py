@@ -237,12 +237,14 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
 
 def mpc_params(cfg: Config):
     """The (ILQRParams, SysIdParams) of a D2C-MPC replan: the solver's, with at most
-    mpc.max_iter iterations of mpc.n_alphas step sizes and mpc's identification samples,
-    design and knots (``cfg`` resolved)."""
+    mpc.max_iter iterations of mpc.n_alphas step sizes and mpc's identification scheme,
+    samples, design and knots (``cfg`` resolved)."""
     params, sysid = solver_params(cfg)
     m = cfg.mpc
     params = params.replace(max_iter=m.max_iter, n_alphas=m.n_alphas or params.n_alphas)
-    return params, sysid.replace(n_samples=m.n_samples, design=m.sysid_design, every=m.sysid_every)
+    return params, sysid.replace(
+        scheme=m.sysid or sysid.scheme, n_samples=m.n_samples, design=m.sysid_design, every=m.sysid_every
+    )
 
 
 def resolve(cfg: Config, local: bool = False) -> Resolved:
@@ -347,7 +349,9 @@ def _resolve_mpc(cfg: Config, system: System, T: int, solver_samples: int):
     """Section mpc with its defaults filled (horizon and steps: the task's T; D2C-MPC's
     samples: nx + nu with a one-step scheme, else the solver's), checked against the
     system and the task."""
-    m, scheme, m_min = cfg.mpc, get_scheme(cfg.solver.sysid), system.nx + system.nu
+    m, m_min = cfg.mpc, system.nx + system.nu
+    m = dataclasses.replace(m, sysid=m.sysid or cfg.solver.sysid)
+    scheme = get_scheme(m.sysid)
     if scheme.one_step:
         n, design = m.n_samples or m_min, m.sysid_design
     else:  # perturbed rollouts or a reduced basis: the solver's design

@@ -349,15 +349,17 @@ def _check_registered(cfg: Config) -> None:
     get_model_strategy(cfg.solver.model_strategy, "solver.model_strategy")
     if cfg.solver.sysid_every < 1:
         raise ConfigError("solver.sysid_every", f"must be >= 1, got {cfg.solver.sysid_every}")
-    for field, every in (
-        ("solver.sysid_every", cfg.solver.sysid_every),
-        ("mpc.sysid_every", cfg.mpc.sysid_every),
+    mpc_name = cfg.mpc.sysid or cfg.solver.sysid
+    mpc_scheme = get_scheme(mpc_name, "mpc.sysid")
+    for field, every, used, name in (
+        ("solver.sysid_every", cfg.solver.sysid_every, scheme, cfg.solver.sysid),
+        ("mpc.sysid_every", cfg.mpc.sysid_every, mpc_scheme, mpc_name),
     ):
-        if every > 1 and not scheme.one_step:
+        if every > 1 and not used.one_step:
             one_step = ", ".join(n for n, s in SCHEMES.items() if s.one_step)
             raise ConfigError(
                 field,
-                f"> 1 needs a one-step scheme ({one_step}); {cfg.solver.sysid!r} identifies from rollouts",
+                f"> 1 needs a one-step scheme ({one_step}); {name!r} identifies from rollouts",
             )
     if cfg.solver.sysid_significance > 0 and not scheme.t_test:
         tested = ", ".join(n for n, s in SCHEMES.items() if s.t_test)
