@@ -228,6 +228,7 @@ def _circling_targets(p0, v, r, period, axes, s):
     return np.array(out)
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 @pytest.mark.parametrize("gauss_newton", [True, False], ids=["gauss-newton", "exact"])
 def test_moving_targets_cost_and_differentiate_where_the_targets_are_at_each_stage(gauss_newton):
     """Two point goals linear in x, one circling in the xz plane, one moving at a constant

@@ -81,18 +81,9 @@ def receding_horizon(
     applying the plan's policy in between, on ``plant`` (default: ``system``); ``progress``
     counts its control steps and can stop it (:func:`episode`). Arguments after U0 are
     keyword-only, as for every episode function of the package."""
-    if controller not in CONTROLLERS:
-        raise ValueError(f"controller: one of {', '.join(CONTROLLERS)}, got {controller!r}")
     plant_step = (plant if plant is not None else system).step
-
-    def replan(x, plan, k, n):
-        # knotted models (sysid.every > 1) stay knotted: no hand-over to every-step ones
-        prob = problem(system, at_step(task, n).replace(x0=x), sysid, controller)  # "d2c" or an oracle
-        prob = prob._replace(linearize_fine=None)
-        return ilqr_replan(prob, plan, params, k)
-
     return _ilqr_episode(
-        replan,
+        d2c_replan(system, task, params, sysid, controller),
         plant_step,
         task,
         U0,
@@ -102,6 +93,25 @@ def receding_horizon(
         progress=progress,
         replan_every=replan_every,
     )
+
+
+def d2c_replan(
+    system: System, task: Task, params: ILQRParams, sysid: sid.SysIdParams, controller: str = "d2c"
+):
+    """D2C-MPC's replan (or an oracle's: ``controller``), ``replan(x, plan, key, n) ->
+    (Plan, (cost, iterations, identified))`` at control step n from the measured x [nx]:
+    the horizon-H ``task`` planned at step n (:func:`~mjx_surrogate.tasks.at_step`); jit it
+    to call it from outside an episode (:mod:`mjx_surrogate.control.realtime`)."""
+    if controller not in CONTROLLERS:
+        raise ValueError(f"controller: one of {', '.join(CONTROLLERS)}, got {controller!r}")
+
+    def replan(x, plan, k, n):
+        # knotted models (sysid.every > 1) stay knotted: no hand-over to every-step ones
+        prob = problem(system, at_step(task, n).replace(x0=x), sysid, controller)  # "d2c" or an oracle
+        prob = prob._replace(linearize_fine=None)
+        return ilqr_replan(prob, plan, params, k)
+
+    return replan
 
 
 @functools.partial(jax.jit, static_argnames=("plant", "steps", "replan_every"))

@@ -1,0 +1,97 @@
+"""The real-time loop (``mjx_surrogate.control.realtime``): plans applied by their time
+stamps whatever the planner's latency, and, with a planner faster than the plant's period,
+the synchronous episode's closed loop."""
+
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from mjx_surrogate.control import mpc, realtime
+from mjx_surrogate.control.episode import Plan, first_plan
+
+H, N = 60, 30
+
+
+def _stamped_planner(delay: float):
+    """A planner slower than the plant: its plan made at tick n asks for u = n + j at its row
+    j, i.e. the tick itself, so that a plant that reads a plan by its stamp applies u_k = k."""
+    calls = []
+
+    def replan(x, plan, key, n):
+        time.sleep(delay)
+        calls.append(int(n))
+        U = (n + np.arange(H, dtype=float))[:, None]
+        return Plan(U, np.zeros((H + 1, 1)), np.zeros((H, 1, 1))), None
+
+    return replan, calls
+
+
+def test_the_plant_applies_the_newest_plan_at_the_row_of_its_own_tick():
+    """With a planner 2.5 ticks slow, every tick applies its own index (the row k - stamp of
+    the newest plan), plans arrive late, the planner replans from the newest measurement
+    only (fewer replans than ticks), and the noise comes from the key."""
+    dt = 0.01
+    replan, calls = _stamped_planner(2.5 * dt)
+    limits = (np.array([-1e9]), np.array([1e9]))
+    r = realtime.run(
+        replan,
+        lambda x, u: x + u,
+        np.zeros(1),
+        Plan(np.zeros((H, 1)), np.zeros((H + 1, 1)), np.zeros((H, 1, 1))),
+        dt=dt,
+        steps=N,
+        key=jax.random.key(0),
+        limits=limits,
+    )
+    np.testing.assert_array_equal(r.U[:, 0], np.arange(N))
+    np.testing.assert_array_equal(r.X[:, 0], np.concatenate([[0.0], np.cumsum(np.arange(N))]))
+    lag = np.arange(N) - r.stamps
+    assert np.all(lag >= 0) and lag.max() >= 2  # applied late, never before their stamp
+    assert calls[0] == 0 and calls == sorted(set(calls)) and len(calls) < N
+    assert len(r.replan_s) == len(calls) - 1  # the first plan is made before the clock starts
+    noisy = realtime.run(
+        replan, lambda x, u: x, np.zeros(1), first_plan(jnp.zeros((H, 1)), jnp.zeros(1)),
+        dt=dt, steps=5, key=jax.random.key(3), limits=limits, process_noise=0.1,
+    )  # fmt: skip
+    w = [jax.random.normal(jax.random.split(k)[1], (1,)) for k in jax.random.split(jax.random.key(3), 5)]
+    np.testing.assert_allclose(np.diff(noisy.X[:, 0]), 0.1 * np.concatenate(w), atol=1e-12)
+
+
+@pytest.mark.slow  # over 5 s: the fast tier's budget
+def test_a_planner_faster_than_the_plant_gives_the_synchronous_episode():
+    """D2C-MPC on the native MuJoCo pendulum under process noise, the plant's clock slowed
+    so that every replan ends before the next tick: every tick applies the plan of its own
+    measurement, and the closed loop equals the synchronous episode's (the same keys, the
+    same MuJoCo) to 1e-9."""
+    from mjx_surrogate.control.ilqr import ILQRParams
+    from mjx_surrogate.identification.sysid import SysIdParams
+    from mjx_surrogate.runs.config import Config, SystemConfig, TaskConfig
+    from mjx_surrogate.runs.resolution import resolve
+
+    _, system, task = resolve(
+        Config(system=SystemConfig(name="pendulum", backend="native"), task=TaskConfig(T=20))
+    )
+    params, sysid, steps = ILQRParams(max_iter=3), SysIdParams(n_samples=3), 15
+    U0 = jnp.zeros((task.T, 1))
+    sync = mpc.receding_horizon(
+        system, task, U0, key=jax.random.key(0), steps=steps, params=params, sysid=sysid, process_noise=0.01
+    )
+    replan = jax.jit(mpc.d2c_replan(system, task, params, sysid))
+    r = realtime.run(
+        replan,
+        realtime.native_plant(system.mj_model, system.substeps),
+        np.asarray(task.x0),
+        first_plan(U0, task.x0),
+        dt=float(system.dt),
+        steps=steps,
+        key=jax.random.key(0),
+        limits=(np.asarray(task.u_min), np.asarray(task.u_max)),
+        process_noise=0.01,
+        speed=0.5,
+    )
+    np.testing.assert_array_equal(r.stamps, np.arange(steps))
+    np.testing.assert_allclose(r.X, np.asarray(sync.X), atol=1e-9)
+    np.testing.assert_allclose(r.U, np.asarray(sync.U), atol=1e-9)
