@@ -17,9 +17,9 @@ terminal weight is set to ``--final-weight``; a hold task has none.
         [--replan-hz HZ] [--first-plan reference] [--scheme forward_difference] [--floor]
         [--out DIR]
 
-For a task with point goals the table adds the distance of each goal point from its target
-(m; for a moving target, where the target is at that step), averaged over the episodes'
-second half and their goal points: how closely the loop follows.
+For a task with point goals the table adds the study's ``point_error_median``: the goal
+points' distance from their targets (m; a moving target where it is at that step), averaged
+over each episode's second half, the median over episodes: how closely the loop follows.
 
 ``--floor`` adds, per task and noise level, what the goal test can say under that noise
 (``benchmarks/noise_floor.py``): how often the last noise draw alone fails it, and for a
@@ -86,38 +86,6 @@ def mpc_config(task: str, mode: str, args):
     )
 
 
-def point_errors(folder: str) -> dict:
-    """{row's X array name: mean distance (m) of the goal points from their targets over the
-    second half of its episodes}, for a run with point goals (else {})."""
-    import jax
-    import jax.numpy as jnp
-    import numpy as np
-
-    from mjx_surrogate.runs.config import Config, from_dict
-    from mjx_surrogate.runs.resolution import resolve
-    from mjx_surrogate.runs.results import read_json
-    from mjx_surrogate.tasks import targets_at
-
-    _, _, task = resolve(from_dict(Config, read_json(os.path.join(folder, "config.json"))))
-    if task.points is None:
-        return {}
-    arrays = np.load(os.path.join(folder, "arrays.npz"))
-
-    @jax.jit
-    def distance(X):  # [N+1, nx] -> [N+1]
-        n = jnp.arange(X.shape[0], dtype=jnp.int32)
-        d = jax.vmap(lambda x, n: task.points(x) - targets_at(task, n))(X, n)
-        return jnp.mean(jnp.linalg.norm(d, axis=-1), axis=-1)
-
-    out = {}
-    for name in arrays.files:
-        if name.startswith("mpc_") and name.endswith("_X"):
-            X = arrays[name]  # [episodes, N+1, nx]
-            half = X.shape[1] // 2
-            out[name] = float(np.mean([np.mean(np.asarray(distance(jnp.asarray(x)))[half:]) for x in X]))
-    return out
-
-
 def _g(v) -> str:
     return "-" if v is None else f"{v:.4g}"
 
@@ -173,10 +141,8 @@ def main() -> None:
             folder = run(cfg, name=f"mpc_{mode}_it{args.max_iter}_every{args.every}_hz{args.replan_hz}")
             with open(os.path.join(folder, "metrics.json")) as f:
                 metrics = json.load(f)
-            errors = point_errors(folder)
             for r in metrics["mpc_rows"]:
-                row = {"task": task, "mode": mode, "offline_cost": metrics["d2c"]["cost"]} | r
-                results.append(row | {"point_error": errors.get(r["arrays"]["X"])})
+                results.append({"task": task, "mode": mode, "offline_cost": metrics["d2c"]["cost"]} | r)
             if args.floor:
                 floors += [floor(folder, w, 4000, 0) | {"task": task} for w in args.noise if w > 0]
     print(
@@ -190,7 +156,8 @@ def main() -> None:
             f"{_g(r['cost_median'])} | "
             f"{_g(r['offline_cost'])} | "
             f"{100 * r['goal_reached']:.0f} % | {_g(r['black_box_steps_per_control_step'])} | "
-            f"{1e3 * r['compute_per_step_s']:.0f} | {r['real_time_factor']:.2f} | {_g(r['point_error'])} |"
+            f"{1e3 * r['compute_per_step_s']:.0f} | {r['real_time_factor']:.2f} | "
+            f"{_g(r.get('point_error_median'))} |"
         )
 
     if floors:

@@ -34,7 +34,7 @@ from mjx_surrogate.runs.resolution import Resolved, mpc_params, plant_builder, r
 from mjx_surrogate.runs.results import Run
 from mjx_surrogate.surrogates import FitContext, fit_all
 from mjx_surrogate.systems.plant import make_plant, parse_plant, plant_label, plant_slug
-from mjx_surrogate.tasks import trajectory_cost
+from mjx_surrogate.tasks import point_distances, trajectory_cost
 
 DEFAULT_SAMPLES = 64  # sampling MPCs' samples per replan when D2C-MPC did not run
 
@@ -141,7 +141,14 @@ def _row(res, e: _Episodes, r, run_s: float, context: PlannerContext) -> tuple[d
         "compute_per_step_s": per_step,
         "real_time_factor": float(system.dt) / per_step,
     }
+    if task.points is not None:  # how closely the loops follow: the second half's mean distance
+        half = X.shape[1] // 2
+        errors = [float(np.mean(np.asarray(_point_distances(task, jnp.asarray(x)))[half:])) for x in X]
+        row["point_error_median"] = finite_or_none(np.median(errors))
     return row, X, U
+
+
+_point_distances = jax.jit(point_distances)
 
 
 def _one_step_error(model, X, U, optimum) -> float | None:

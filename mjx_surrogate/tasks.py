@@ -165,6 +165,14 @@ def _point_terms(task: Task, x: jax.Array, weights: jax.Array, t) -> jax.Array:
     return 0.5 * jnp.sum(weights * jnp.sum(d**2, axis=-1))
 
 
+def point_distances(task: Task, X: jax.Array) -> jax.Array:
+    """[N+1]: the goal points' mean distance (m) from their targets at each state of X
+    [N+1, nx] of an episode (moving targets where they are at that step); needs points."""
+    n = jnp.arange(X.shape[0], dtype=jnp.int32)
+    d = jax.vmap(lambda x, t: task.points(x) - targets_at(task, t))(X, n)
+    return jnp.mean(jnp.linalg.norm(d, axis=-1), axis=-1)
+
+
 def running_cost(task: Task, x: jax.Array, u: jax.Array, t=0) -> jax.Array:
     """l(x, u) for x [nx], u [nu] at stage t (module docstring)."""
     e, du = state_error(task, x), u - task.u_ref

@@ -13,7 +13,7 @@ import pytest
 from mjx_surrogate.runs import pipeline
 from mjx_surrogate.runs.config import Config, PointGoal, SystemConfig, TaskConfig
 from mjx_surrogate.runs.resolution import resolve
-from mjx_surrogate.tasks import targets_at
+from mjx_surrogate.tasks import point_distances, targets_at
 from tests.thirdparty import model_path
 
 DT = 0.02
@@ -68,6 +68,13 @@ def test_a_moving_target_resolves_once_and_the_goal_test_judges_it_where_it_ends
     assert pipeline.goal_test(fixed, path(xa), tol)["reached"]
     passes = pipeline.goal_passes(task, path(x1), tol)
     assert passes[-1] and not passes[0]
+    # the loops' tracking metric: each state's point against the target of its own step
+    d = np.asarray(point_distances(task, path(x1)))
+    assert d.shape == (N + 1,) and d[-1] == pytest.approx(0.0, abs=1e-12)
+    assert d[0] == pytest.approx(np.linalg.norm(_fingertip(m, x0) - p_a), abs=1e-12)
+    mid = (1 - ramp[N // 2, 0]) * x0 + ramp[N // 2, 0] * x1
+    expected = np.linalg.norm(_fingertip(m, mid) - (p_a + v * (N // 2) * DT))
+    assert d[N // 2] == pytest.approx(expected, abs=1e-12)
     # an orbit: a circle through the start, a quarter turn after a quarter period
     orbit = dataclasses.replace(
         goal, target=tuple(p_a), orbit_radius=0.05, orbit_period=N * DT, orbit_plane="xy"

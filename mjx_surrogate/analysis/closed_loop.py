@@ -155,14 +155,15 @@ def table(rows: list[dict], dt: float, verdict: dict | None = None, horizon: str
     """The side-by-side table (Markdown), one block per condition, after the verdict;
     ``horizon``: where the plans end, a sentence."""
     f = lambda v: "-" if v is None else f"{v:.4g}"  # noqa: E731
+    points = any("point_error_median" in r for r in rows)  # a task with point goals
     out = []
     for p, w in dict.fromkeys((r["plant"], r["process_noise"]) for r in rows):
         out += [
             f"\n### Plant {p}, process noise {w:g}\n",
             "| controller | closed-loop cost (median) | min - max | goal reached | in goal from, s "
             "(latest) | black-box steps per control step | iterations per replan | ms per control "
-            "step | real-time factor |",
-            "|---|---|---|---|---|---|---|---|---|",
+            "step | real-time factor |" + (" point error over the 2nd half, m (median) |" if points else ""),
+            "|---|---|---|---|---|---|---|---|---|" + ("---|" if points else ""),
         ]
         for r in rows:
             if (r["plant"], r["process_noise"]) != (p, w):
@@ -178,6 +179,7 @@ def table(rows: list[dict], dt: float, verdict: dict | None = None, horizon: str
                 f"{100 * r['goal_reached']:.0f} % | {_entered(r)} | "
                 f"{f(r['black_box_steps_per_control_step'])} | {f(r['iterations_per_replan'])} | "
                 f"{1e3 * r['compute_per_step_s']:.3g} | {r['real_time_factor']:.3g} |"
+                + (f" {f(r.get('point_error_median'))} |" if points else "")
             )
     head = ""
     if verdict:
