@@ -28,7 +28,7 @@ from mjx_surrogate.analysis.closed_loop import cause_text, closed_loop_verdict, 
 from mjx_surrogate.analysis.evaluation import finite_or_none
 from mjx_surrogate.control.planners import PLANNERS, PlannerContext, get_planner
 from mjx_surrogate.identification import data
-from mjx_surrogate.runs import pipeline, plots
+from mjx_surrogate.runs import pipeline, plots, realtime_rows
 from mjx_surrogate.runs.extension_settings import settings_of
 from mjx_surrogate.runs.resolution import Resolved, mpc_params, plant_builder, replan_every
 from mjx_surrogate.runs.results import Run
@@ -71,7 +71,24 @@ def _controller(controller: str, context: PlannerContext, res, record, plants, k
 
                     row, _ = record.stage(f"mpc/{controller}/{tag}", compute)
                     rows.append(row)
+                    if controller == "d2c" and m.realtime:
+                        rows.append(_realtime(res, context, record, plant, episodes, key))
     return rows
+
+
+def _realtime(res, context: PlannerContext, record, plant, e: "_Episodes", key) -> dict:
+    """The condition's episodes again in the wall-clock loop (``mpc.realtime``), with the
+    batch's keys: a stage of their own (``mpc/d2c/<tag>_rt``)."""
+    keys = jax.random.split(jax.random.fold_in(key, e.index), res.config.mpc.n_episodes)
+
+    def compute():
+        row, X, U = realtime_rows.condition(res, context, plant, e.noise, keys)
+        tag = f"{e.tag}_rt"
+        row |= {"plant": e.plant, "process_noise": e.noise, "arrays": {"X": f"{tag}_X", "U": f"{tag}_U"}}
+        return row, {f"{tag}_X": X, f"{tag}_U": U}
+
+    row, _ = record.stage(f"mpc/d2c/{e.tag}_rt", compute)
+    return row
 
 
 class _Episodes(NamedTuple):
@@ -241,7 +258,9 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         done = _controller(c, context, res, record, plants, k_mpc)
         rows += done
         if c == "d2c" and m.samples is None:  # the sampling MPCs get D2C-MPC's budget
-            calls = np.median([r["black_box_steps_per_control_step"] for r in done])
+            calls = np.median(
+                [r["black_box_steps_per_control_step"] for r in done if r["controller"] == "D2C-MPC"]
+            )
             context = context._replace(samples=max(2, int(round(calls * every / H))), samples_matched=True)
     record.set("mpc_rows", rows)
     N = m.steps  # the offline optimum's cost over an episode's steps: what "works" is judged on

@@ -95,3 +95,38 @@ def test_a_planner_faster_than_the_plant_gives_the_synchronous_episode():
     np.testing.assert_array_equal(r.stamps, np.arange(steps))
     np.testing.assert_allclose(r.X, np.asarray(sync.X), atol=1e-9)
     np.testing.assert_allclose(r.U, np.asarray(sync.U), atol=1e-9)
+
+
+@pytest.mark.slow  # over 5 s: the fast tier's budget
+def test_the_mpc_kind_runs_d2c_mpc_in_real_time_beside_its_synchronous_loop(tmp_path):
+    """``mpc.realtime`` adds a "D2C-MPC in real time" row per condition, its episodes run in
+    the wall-clock loop on the changed plant with the batch's keys: with the clock slowed so
+    that no plan is late, the synchronous rows' closed loops and costs, written to the run
+    folder and its table."""
+    import dataclasses
+    import json
+    import os
+
+    from configs.smoke_mpc import CONFIG
+    from experiments.run import run
+    from mjx_surrogate.runs.realtime_rows import LABEL
+
+    cfg = dataclasses.replace(
+        CONFIG,
+        mpc=dataclasses.replace(CONFIG.mpc, controllers=("d2c",), realtime=True, realtime_speed=0.25),
+        experiment=dataclasses.replace(CONFIG.experiment, out_dir=str(tmp_path), video=False),
+    )
+    folder = run(cfg, name="realtime")
+    with open(os.path.join(folder, "metrics.json")) as f:
+        rows = json.load(f)["mpc_rows"]
+    sync = [r for r in rows if r["controller"] == "D2C-MPC"]
+    late = [r for r in rows if r["controller"] == LABEL]
+    assert len(sync) == len(late) == 2  # one plant, two noise levels
+    arrays = np.load(os.path.join(folder, "arrays.npz"))
+    for a, b in zip(sync, late):
+        assert (a["plant"], a["process_noise"]) == (b["plant"], b["process_noise"])
+        assert b["plans_late_ticks_max"] == 0 and b["plant_late_ticks"] == 0
+        np.testing.assert_allclose(arrays[b["arrays"]["X"]], arrays[a["arrays"]["X"]], atol=1e-9)
+        np.testing.assert_allclose(b["costs"], a["costs"], rtol=1e-9)
+    with open(os.path.join(folder, "mpc_table.md")) as f:
+        assert f.read().count(f"| {LABEL} |") == 2

@@ -91,12 +91,14 @@ def run(
     process_noise: float = 0.0,
     speed: float = 1.0,
     clock: Callable[[], float] = time.perf_counter,
+    stop: Callable[[], bool] | None = None,
 ) -> RealTimeResult:
     """``steps`` ticks of the plant on the wall clock (module docstring) under the plans of
     ``replan``, run in a second thread; ``plan0``: the first replan's warm start [H, ...].
     Tick n's noise and a replan at n's key come from the n-th of ``steps`` keys split from
     ``key``, as in the synchronous episode (drawn before the clock starts): a planner that
-    always ends before the next tick gives the episode's closed loop."""
+    always ends before the next tick gives the episode's closed loop. ``stop() -> True``
+    (asked at every tick) ends the loop early: X and U then hold the ticks done."""
     x0 = np.asarray(x0, np.float64)
     halves = jax.vmap(jax.random.split)(jax.random.split(key, steps))  # [N, 2] keys
     W = process_noise * np.asarray(jax.vmap(lambda k: jax.random.normal(k, x0.shape))(halves[:, 1]))
@@ -138,6 +140,8 @@ def run(
     t0 = clock()
     try:
         for k in range(steps):
+            if stop is not None and stop():
+                break
             wait = t0 + k * period - clock()
             if wait > 0:
                 time.sleep(wait)

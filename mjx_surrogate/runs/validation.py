@@ -123,6 +123,12 @@ def _check_mpc(m: MPCConfig) -> None:
         raise ConfigError("mpc.first_plan", f"one of optimum, zeros, reference, got {m.first_plan!r}")
     if m.sysid_design not in ("gaussian", "orthogonal"):
         raise ConfigError("mpc.sysid_design", f"one of gaussian, orthogonal, got {m.sysid_design!r}")
+    if not (math.isfinite(m.realtime_speed) and m.realtime_speed > 0):
+        raise ConfigError(
+            "mpc.realtime_speed", f"the real-time loop's clock, > 0 (1: real time), got {m.realtime_speed}"
+        )
+    if m.realtime and "d2c" not in m.controllers:
+        raise ConfigError("mpc.realtime", "runs D2C-MPC in the wall-clock loop: add d2c to mpc.controllers")
 
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,99}$")

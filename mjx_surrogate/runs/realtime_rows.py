@@ -1,0 +1,87 @@
+"""The `mpc` kind's D2C-MPC in real time (``mpc.realtime``): each condition's episodes again,
+one after another, in the wall-clock loop of ``mjx_surrogate.control.realtime`` (the plant
+at its control period, the planner in a thread of its own, plans applied by their time
+stamps), with the synchronous batch's keys: where every replan ends within a tick, the same
+closed loops. A row per condition, "D2C-MPC in real time", beside the synchronous one.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mjx_surrogate import progress
+from mjx_surrogate.analysis.closed_loop import in_goal_from
+from mjx_surrogate.analysis.evaluation import finite_or_none
+from mjx_surrogate.control import mpc, realtime
+from mjx_surrogate.control.episode import first_plan
+from mjx_surrogate.runs import pipeline
+from mjx_surrogate.tasks import point_distances, trajectory_cost
+
+LABEL = "D2C-MPC in real time"
+
+
+def plant_step(plant):
+    """The plant's (x, u) -> x in NumPy: native MuJoCo for a MuJoCo system, else its step."""
+    if plant.mj_model is not None:
+        return realtime.native_plant(plant.mj_model, plant.substeps)
+    step = jax.jit(plant.step)
+    return lambda x, u: np.asarray(step(jnp.asarray(x), jnp.asarray(u)), np.float64)
+
+
+def condition(res, context, plant, noise: float, keys) -> tuple[dict, np.ndarray, np.ndarray]:
+    """(row, X [E, N+1, nx], U [E, N, nu]) of one condition's episodes in real time."""
+    cfg, system, task = res
+    m = cfg.mpc
+    replan = jax.jit(mpc.d2c_replan(system, context.plan_task, context.params, context.sysid))
+    step = plant_step(plant)
+    limits = (np.asarray(task.u_min), np.asarray(task.u_max))
+    runs = [
+        realtime.run(
+            replan,
+            step,
+            np.asarray(task.x0),
+            first_plan(context.U0, task.x0),
+            dt=float(system.dt),
+            steps=m.steps,
+            key=k,
+            limits=limits,
+            process_noise=noise,
+            speed=m.realtime_speed,
+            stop=progress.stop_requested,
+        )  # fmt: skip
+        for k in keys
+    ]
+    if progress.stop_requested():
+        raise progress.Stopped("during the real-time episodes")
+    X, U = np.stack([r.X for r in runs]), np.stack([r.U for r in runs])
+    cost = jax.jit(trajectory_cost)
+    costs = [float(cost(task, jnp.asarray(x), jnp.asarray(u))) for x, u in zip(X, U)]
+    goals = [pipeline.goal_test(task, x, cfg.task.goal_tolerance) for x in X]
+    entered = [in_goal_from(pipeline.goal_passes(task, x, cfg.task.goal_tolerance)) for x in X]
+    lag = np.concatenate([np.arange(m.steps) - r.stamps for r in runs])
+    replan_s = float(np.median(np.concatenate([r.replan_s for r in runs])))
+    row = {
+        "controller": LABEL,
+        "costs": [finite_or_none(c) for c in costs],
+        "cost_median": finite_or_none(np.median(costs)),
+        "goal_reached": sum(g["reached"] for g in goals) / len(goals),
+        "in_goal_from_s": [None if n is None else n * float(system.dt) for n in entered],
+        "final_goal_cost_median": finite_or_none(np.median([g["goal_cost_final"] or np.inf for g in goals])),
+        "black_box_steps_per_control_step": None,
+        "iterations_per_replan": None,
+        "compute_per_step_s": replan_s,  # a replan's median wall time: the planner's pace
+        "real_time_factor": float(system.dt) / replan_s,
+        "plans_late_ticks_median": float(np.median(lag)),
+        "plans_late_ticks_max": int(lag.max()),
+        "plant_late_ticks": int(sum(r.late_ticks for r in runs)),
+        "realtime_speed": m.realtime_speed,
+    }
+    if task.points is not None:
+        half = X.shape[1] // 2
+        d = jax.jit(point_distances)
+        row["point_error_median"] = finite_or_none(
+            np.median([np.mean(np.asarray(d(task, jnp.asarray(x)))[half:]) for x in X])
+        )
+    return row, X, U
