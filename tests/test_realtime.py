@@ -58,6 +58,17 @@ def test_the_plant_applies_the_newest_plan_at_the_row_of_its_own_tick():
     )  # fmt: skip
     w = [jax.random.normal(jax.random.split(k)[1], (1,)) for k in jax.random.split(jax.random.key(3), 5)]
     np.testing.assert_allclose(np.diff(noisy.X[:, 0]), 0.1 * np.concatenate(w), atol=1e-12)
+    stepped = []  # a stop request, asked before every tick, ends the loop with the ticks done
+
+    def plant(x, u):
+        stepped.append(1)
+        return x + u
+
+    stopped = realtime.run(
+        replan, plant, np.zeros(1), first_plan(jnp.zeros((H, 1)), jnp.zeros(1)), dt=dt, steps=N,
+        key=jax.random.key(0), limits=limits, stop=lambda: len(stepped) >= 5,
+    )  # fmt: skip
+    assert stopped.U.shape == (5, 1) and stopped.X.shape == (6, 1) and len(stepped) == 5
 
 
 @pytest.mark.slow  # over 5 s: the fast tier's budget

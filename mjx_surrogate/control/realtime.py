@@ -140,13 +140,14 @@ def run(
     t0 = clock()
     try:
         for k in range(steps):
+            wait = t0 + k * period - clock()
+            if -wait > period:
+                late += 1
+            while wait > 0 and not (stop is not None and stop()):  # a stop is seen within 0.1 s
+                time.sleep(min(wait, 0.1))
+                wait = t0 + k * period - clock()
             if stop is not None and stop():
                 break
-            wait = t0 + k * period - clock()
-            if wait > 0:
-                time.sleep(wait)
-            elif -wait > period:
-                late += 1
             if errors:
                 raise errors[0]
             with ready:

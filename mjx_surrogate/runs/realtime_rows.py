@@ -37,23 +37,27 @@ def condition(res, context, plant, noise: float, keys) -> tuple[dict, np.ndarray
     replan = jax.jit(mpc.d2c_replan(system, context.plan_task, context.params, context.sysid))
     step = plant_step(plant)
     limits = (np.asarray(task.u_min), np.asarray(task.u_max))
-    runs = [
-        realtime.run(
-            replan,
-            step,
-            np.asarray(task.x0),
-            first_plan(context.U0, task.x0),
-            dt=float(system.dt),
-            steps=m.steps,
-            key=k,
-            limits=limits,
-            process_noise=noise,
-            speed=m.realtime_speed,
-            stop=progress.stop_requested,
-        )  # fmt: skip
-        for k in keys
-    ]
-    if progress.stop_requested():
+    runs = []
+    desc = f"  D2C-MPC in real time, noise {noise:g}: episodes"
+    with progress.steps(desc, len(keys), cfg.experiment.progress) as meter:
+        for i, k in enumerate(keys):
+            meter.advance(f"episode {i}, {m.steps} ticks of {float(system.dt):g} s")
+            runs.append(
+                realtime.run(
+                    replan,
+                    step,
+                    np.asarray(task.x0),
+                    first_plan(context.U0, task.x0),
+                    dt=float(system.dt),
+                    steps=m.steps,
+                    key=k,
+                    limits=limits,
+                    process_noise=noise,
+                    speed=m.realtime_speed,
+                    stop=progress.stop_requested,
+                )  # fmt: skip
+            )
+    if progress.stop_requested():  # seen within a tick
         raise progress.Stopped("during the real-time episodes")
     X, U = np.stack([r.X for r in runs]), np.stack([r.U for r in runs])
     cost = jax.jit(trajectory_cost)
