@@ -174,6 +174,21 @@ def _ending_reference(task, end, X, U):
     return J + (terminal_cost(task, X[-1]) if end == task.T else 0.0)
 
 
+def _assert_stagewise(derivatives, grads, hessians, T: int, atol: float) -> None:
+    """The solver's cost derivatives (l_x, l_u, l_xx, l_uu, l_ux, V_x, V_xx) against the
+    gradient (X [T+1], U [T]) and the Hessian blocks (XX, XU, UU) of a whole-trajectory
+    reference, stage by stage."""
+    lx, lu, lxx, luu, lux, Vx, Vxx = derivatives
+    (gX, gU), (hXX, hXU, hUU) = grads, hessians
+    np.testing.assert_allclose(lx, gX[:T], atol=atol)
+    np.testing.assert_allclose(Vx, gX[T], atol=atol)
+    np.testing.assert_allclose(lu, gU, atol=atol)
+    np.testing.assert_allclose(lxx, [hXX[t, :, t] for t in range(T)], atol=atol)
+    np.testing.assert_allclose(Vxx, hXX[T, :, T], atol=atol)
+    np.testing.assert_allclose(luu, [hUU[t, :, t] for t in range(T)], atol=atol)
+    np.testing.assert_allclose(lux, [hXU[t, :, t].T for t in range(T)], atol=atol)
+
+
 @pytest.mark.slow  # over 5 s: the fast tier's budget
 @pytest.mark.parametrize("points", [False, True], ids=["quadratic", "point goals"])
 def test_a_task_that_ends_within_its_horizon_costs_and_differentiates_as_written(points):
@@ -204,14 +219,7 @@ def test_a_task_that_ends_within_its_horizon_costs_and_differentiates_as_written
         J, (lx, lu, lxx, luu, lux, Vx, Vxx) = derivatives(ended, X, U)
         J_ref, (gX, gU), ((hXX, hXU), (_, hUU)) = reference(task, end, X, U)
         assert float(J) == pytest.approx(float(J_ref), rel=1e-12)
-        T = task.T
-        np.testing.assert_allclose(lx, gX[:T], atol=1e-10)
-        np.testing.assert_allclose(Vx, gX[T], atol=1e-10)
-        np.testing.assert_allclose(lu, gU, atol=1e-10)
-        np.testing.assert_allclose(lxx, [hXX[t, :, t] for t in range(T)], atol=1e-10)
-        np.testing.assert_allclose(Vxx, hXX[T, :, T], atol=1e-10)
-        np.testing.assert_allclose(luu, [hUU[t, :, t] for t in range(T)], atol=1e-10)
-        np.testing.assert_allclose(lux, [hXU[t, :, t].T for t in range(T)], atol=1e-10)
+        _assert_stagewise((lx, lu, lxx, luu, lux, Vx, Vxx), (gX, gU), (hXX, hXU, hUU), task.T, 1e-10)
     full = at_step(task.replace(deadline=6), 0)  # ends at the horizon's end: the usual J
     assert float(trajectory_cost(full, X, U)) == pytest.approx(float(trajectory_cost(task, X, U)), rel=1e-12)
 
@@ -281,13 +289,7 @@ def test_moving_targets_cost_and_differentiate_where_the_targets_are_at_each_sta
         assert float(J) == pytest.approx(float(reference(X, U, n)), rel=1e-12)
         gX, gU = jax.grad(reference, (0, 1))(X, U, n)
         (hXX, hXU), (_, hUU) = jax.hessian(reference, (0, 1))(X, U, n)
-        np.testing.assert_allclose(lx, gX[:T], atol=1e-9)
-        np.testing.assert_allclose(Vx, gX[T], atol=1e-9)
-        np.testing.assert_allclose(lu, gU, atol=1e-9)
-        np.testing.assert_allclose(lxx, [hXX[t, :, t] for t in range(T)], atol=1e-9)
-        np.testing.assert_allclose(Vxx, hXX[T, :, T], atol=1e-9)
-        np.testing.assert_allclose(luu, [hUU[t, :, t] for t in range(T)], atol=1e-9)
-        np.testing.assert_allclose(lux, [hXU[t, :, t].T for t in range(T)], atol=1e-9)
+        _assert_stagewise((lx, lu, lxx, luu, lux, Vx, Vxx), (gX, gU), (hXX, hXU, hUU), T, 1e-9)
     # an episode of 9 steps from step 0: its terminal is against the targets after 9 steps
     Xe, Ue = jnp.asarray(rng.normal(size=(10, 4))), jnp.asarray(rng.normal(size=(9, 2)))
     Te = 9
