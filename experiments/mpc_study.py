@@ -24,7 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate import progress
-from mjx_surrogate.analysis.closed_loop import cause_text, closed_loop_verdict, in_goal_from, table
+from mjx_surrogate.analysis.closed_loop import cause_text, closed_loop_verdict, table
 from mjx_surrogate.analysis.evaluation import finite_or_none
 from mjx_surrogate.control.planners import PLANNERS, PlannerContext, get_planner
 from mjx_surrogate.identification import data
@@ -34,7 +34,7 @@ from mjx_surrogate.runs.resolution import Resolved, mpc_params, plant_builder, r
 from mjx_surrogate.runs.results import Run
 from mjx_surrogate.surrogates import FitContext, fit_all
 from mjx_surrogate.systems.plant import make_plant, parse_plant, plant_label, plant_slug
-from mjx_surrogate.tasks import point_distances, trajectory_cost
+from mjx_surrogate.tasks import trajectory_cost
 
 DEFAULT_SAMPLES = 64  # sampling MPCs' samples per replan when D2C-MPC did not run
 
@@ -140,32 +140,18 @@ def _row(res, e: _Episodes, r, run_s: float, context: PlannerContext) -> tuple[d
     kind = get_planner(e.controller)
     X, U = np.asarray(r.X), np.asarray(r.U)
     costs = np.asarray(r.cost, dtype=float)
-    goals = [pipeline.goal_test(task, x, cfg.task.goal_tolerance) for x in X]
-    entered = [in_goal_from(pipeline.goal_passes(task, x, cfg.task.goal_tolerance)) for x in X]
     per_step = run_s / (m.n_episodes * m.steps)
     row = {
         "controller": e.label,
         "plant": e.plant,
         "process_noise": e.noise,
-        "costs": [finite_or_none(c) for c in costs],
-        "cost_median": finite_or_none(np.median(costs)),
-        "goal_reached": sum(g["reached"] for g in goals) / len(goals),
-        # per episode: the time from which every state passes the goal test (None: not at the end)
-        "in_goal_from_s": [None if n is None else n * float(system.dt) for n in entered],
-        "final_goal_cost_median": finite_or_none(np.median([g["goal_cost_final"] or np.inf for g in goals])),
+        **pipeline.episode_outcomes(task, X, costs, cfg.task.goal_tolerance, float(system.dt)),
         "black_box_steps_per_control_step": kind.black_box_steps(context, r),
         "iterations_per_replan": float(np.mean(r.iterations)) if kind.iterative else None,
         "compute_per_step_s": per_step,
         "real_time_factor": float(system.dt) / per_step,
     }
-    if task.points is not None:  # how closely the loops follow: the second half's mean distance
-        half = X.shape[1] // 2
-        errors = [float(np.mean(np.asarray(_point_distances(task, jnp.asarray(x)))[half:])) for x in X]
-        row["point_error_median"] = finite_or_none(np.median(errors))
     return row, X, U
-
-
-_point_distances = jax.jit(point_distances)
 
 
 def _one_step_error(model, X, U, optimum) -> float | None:

@@ -18,6 +18,7 @@ import numpy as np
 
 from mjx_surrogate import progress
 from mjx_surrogate.analysis import evaluation
+from mjx_surrogate.analysis.closed_loop import in_goal_from
 from mjx_surrogate.analysis.evaluation import finite_or_none
 from mjx_surrogate.control import chunked
 from mjx_surrogate.control.effort import simulation_curve, simulation_metrics, steps_per_identification  # noqa: F401
@@ -33,7 +34,14 @@ from mjx_surrogate.runs.resolution import solver_params
 from mjx_surrogate.runs.restart import restart_stationary, spread_starts
 from mjx_surrogate.systems import System
 from mjx_surrogate.systems.system_jit import system_jit
-from mjx_surrogate.tasks import Task, goal_cost, has_terminal, trajectory_cost, weight_diagonal
+from mjx_surrogate.tasks import (
+    Task,
+    goal_cost,
+    has_terminal,
+    point_distances,
+    trajectory_cost,
+    weight_diagonal,
+)
 from mjx_surrogate.trajectory import open_loop
 
 
@@ -234,6 +242,31 @@ def goal_passes(task: Task, X: jax.Array, tolerance: float) -> np.ndarray:
     start = costs[0]
     bound = tolerance * (start if start > 0 else unit_goal_cost(task))
     return np.isfinite(costs) & (costs <= bound)
+
+
+def episode_outcomes(task: Task, X: np.ndarray, costs, tolerance: float, dt: float) -> dict:
+    """What a closed-loop row reports of its episodes X [E, N+1, nx] with costs [E]: the
+    costs and their median, the share that passed the goal test, each episode's time from
+    which every state passes it (None: not at the end), the median final goal cost and,
+    with point goals, the goal points' mean distance from their targets over each
+    episode's second half (median over episodes)."""
+    goals = [goal_test(task, x, tolerance) for x in X]
+    entered = [in_goal_from(goal_passes(task, x, tolerance)) for x in X]
+    out = {
+        "costs": [finite_or_none(c) for c in costs],
+        "cost_median": finite_or_none(np.median(costs)),
+        "goal_reached": sum(g["reached"] for g in goals) / len(goals),
+        "in_goal_from_s": [None if n is None else n * dt for n in entered],
+        "final_goal_cost_median": finite_or_none(np.median([g["goal_cost_final"] or np.inf for g in goals])),
+    }
+    if task.points is not None:  # how closely the loops follow
+        half = X.shape[1] // 2
+        errors = [float(np.mean(np.asarray(_point_distances(task, jnp.asarray(x)))[half:])) for x in X]
+        out["point_error_median"] = finite_or_none(np.median(errors))
+    return out
+
+
+_point_distances = jax.jit(point_distances)
 
 
 def goal_test(task: Task, X: jax.Array, tolerance: float) -> dict:

@@ -12,12 +12,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate import progress
-from mjx_surrogate.analysis.closed_loop import in_goal_from
-from mjx_surrogate.analysis.evaluation import finite_or_none
 from mjx_surrogate.control import mpc, realtime
 from mjx_surrogate.control.episode import first_plan
 from mjx_surrogate.runs import pipeline
-from mjx_surrogate.tasks import point_distances, trajectory_cost
+from mjx_surrogate.tasks import trajectory_cost
 
 LABEL = "D2C-MPC in real time"
 
@@ -62,17 +60,11 @@ def condition(res, context, plant, noise: float, keys) -> tuple[dict, np.ndarray
     X, U = np.stack([r.X for r in runs]), np.stack([r.U for r in runs])
     cost = jax.jit(trajectory_cost)
     costs = [float(cost(task, jnp.asarray(x), jnp.asarray(u))) for x, u in zip(X, U)]
-    goals = [pipeline.goal_test(task, x, cfg.task.goal_tolerance) for x in X]
-    entered = [in_goal_from(pipeline.goal_passes(task, x, cfg.task.goal_tolerance)) for x in X]
     lag = np.concatenate([np.arange(m.steps) - r.stamps for r in runs])
     replan_s = float(np.median(np.concatenate([r.replan_s for r in runs])))
     row = {
         "controller": LABEL,
-        "costs": [finite_or_none(c) for c in costs],
-        "cost_median": finite_or_none(np.median(costs)),
-        "goal_reached": sum(g["reached"] for g in goals) / len(goals),
-        "in_goal_from_s": [None if n is None else n * float(system.dt) for n in entered],
-        "final_goal_cost_median": finite_or_none(np.median([g["goal_cost_final"] or np.inf for g in goals])),
+        **pipeline.episode_outcomes(task, X, costs, cfg.task.goal_tolerance, float(system.dt)),
         "black_box_steps_per_control_step": None,
         "iterations_per_replan": None,
         "compute_per_step_s": replan_s,  # a replan's median wall time: the planner's pace
@@ -82,10 +74,4 @@ def condition(res, context, plant, noise: float, keys) -> tuple[dict, np.ndarray
         "plant_late_ticks": int(sum(r.late_ticks for r in runs)),
         "realtime_speed": m.realtime_speed,
     }
-    if task.points is not None:
-        half = X.shape[1] // 2
-        d = jax.jit(point_distances)
-        row["point_error_median"] = finite_or_none(
-            np.median([np.mean(np.asarray(d(task, jnp.asarray(x)))[half:]) for x in X])
-        )
     return row, X, U
