@@ -49,7 +49,9 @@ def _controller(controller: str, context: PlannerContext, res, record, plants, k
     rows = []
     with progress.steps(f"MPC {controller}", 1 + len(conditions), cfg.experiment.progress) as meter:
         meter.advance("fit the surrogates" if controller == "surrogates" else "set up")
-        planners = get_planner(controller).episodes(context)
+        kind = get_planner(controller)
+        planners = kind.episodes(context)
+        in_real_time = kind.replans(context) if m.realtime and kind.replans is not None else {}
         meter.extend(len(conditions) * (len(planners) - 1))
         for label, one in planners.items():
             for pi, (name, plant) in enumerate(plants.items()):
@@ -71,23 +73,23 @@ def _controller(controller: str, context: PlannerContext, res, record, plants, k
 
                     row, _ = record.stage(f"mpc/{controller}/{tag}", compute)
                     rows.append(row)
-                    if controller == "d2c" and m.realtime:
-                        rows.append(_realtime(res, context, record, plant, episodes, key))
+                    if label in in_real_time:
+                        rows.append(_realtime(res, in_real_time[label], record, plant, episodes, key))
     return rows
 
 
-def _realtime(res, context: PlannerContext, record, plant, e: "_Episodes", key) -> dict:
+def _realtime(res, planner, record, plant, e: "_Episodes", key) -> dict:
     """The condition's episodes again in the wall-clock loop (``mpc.realtime``), with the
-    batch's keys: a stage of their own (``mpc/d2c/<tag>_rt``)."""
+    batch's keys: a stage of their own (``mpc/<controller>/<tag>_rt``)."""
     keys = jax.random.split(jax.random.fold_in(key, e.index), res.config.mpc.n_episodes)
 
     def compute():
-        row, X, U = realtime_rows.condition(res, context, plant, e.noise, keys)
+        row, X, U = realtime_rows.condition(res, planner, e.label, plant, e.noise, keys)
         tag = f"{e.tag}_rt"
         row |= {"plant": e.plant, "process_noise": e.noise, "arrays": {"X": f"{tag}_X", "U": f"{tag}_U"}}
         return row, {f"{tag}_X": X, f"{tag}_U": U}
 
-    row, _ = record.stage(f"mpc/d2c/{e.tag}_rt", compute)
+    row, _ = record.stage(f"mpc/{e.controller}/{e.tag}_rt", compute)
     return row
 
 

@@ -56,7 +56,7 @@ BAD = [
     (["smoke_rollout", "--task.goals", "site:nosuchsite:0,0,1"], "task.goals[0].name"),
     (["smoke_mpc", "--mpc.sysid", "bogus"], "mpc.sysid"),
     (["smoke_mpc", "--mpc.realtime_speed", "0"], "mpc.realtime_speed"),
-    (["smoke_mpc", "--mpc.realtime", "--mpc.controllers", "mppi"], "mpc.realtime"),
+    (["smoke_mpc", "--mpc.realtime", "--mpc.controllers", "tvlqr"], "mpc.realtime"),
     (["smoke_mpc", "--mpc.sysid", "rollout", "--mpc.sysid_every", "2"], "mpc.sysid_every"),
     (["smoke_rollout", "--task.goals", "site:tip:0,0,1:velocity=1,2"], "task.goals"),
     (["smoke_rollout", "--task.goals", "site:tip:0,0,1:orbit=0.1,x"], "task.goals"),

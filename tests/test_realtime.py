@@ -108,31 +108,91 @@ def test_a_planner_faster_than_the_plant_gives_the_synchronous_episode():
     np.testing.assert_allclose(r.U, np.asarray(sync.U), atol=1e-9)
 
 
+@pytest.mark.parametrize("knots,spline", [(0, "zero"), (4, "linear"), (5, "cubic")])
+def test_a_spline_plan_moved_on_the_host_is_the_episodes_shift(knots, spline):
+    """The wall-clock loop's NumPy shift of a sampling plan equals the episode's (JAX) for
+    every shift up to past the horizon's end."""
+    from mjx_surrogate.control import mpc_sampling as ms
+
+    s = ms.SamplingSettings(knots=knots, spline=spline)
+    rng = np.random.default_rng(0)
+    plan = ms.first_spline_plan(jnp.asarray(rng.standard_normal((12, 2))), s, 0.5)
+    host = jax.tree.map(np.asarray, plan)
+    for r in (1, 3, 12, 15):
+        want = ms.moved_on(plan, min(r, 12) if knots == 0 else r, s)
+        got = ms.moved_on_host(host, r, s)
+        for a, b in zip(got, want):
+            np.testing.assert_allclose(a, np.asarray(b), atol=1e-12)
+    assert not np.allclose(ms.moved_on_host(host, 1, s).U, host.U)  # it moves
+
+
 @pytest.mark.slow  # over 5 s: the fast tier's budget
-def test_the_mpc_kind_runs_d2c_mpc_in_real_time_beside_its_synchronous_loop(tmp_path):
-    """``mpc.realtime`` adds a "D2C-MPC in real time" row per condition, its episodes run in
-    the wall-clock loop on the changed plant with the batch's keys: with the clock slowed so
-    that no plan is late, the synchronous rows' closed loops and costs, written to the run
-    folder and its table."""
+def test_a_sampling_planner_faster_than_the_plant_gives_the_synchronous_episode():
+    """Predictive sampling over 4 linear knots on the native MuJoCo pendulum under process
+    noise, the clock slowed: the synchronous episode's closed loop to 1e-9 (its plans moved
+    on by the host shift, its controls without gains)."""
+    from mjx_surrogate.control import mpc_sampling as ms
+    from mjx_surrogate.runs.config import Config, SystemConfig, TaskConfig
+    from mjx_surrogate.runs.resolution import resolve
+
+    _, system, task = resolve(
+        Config(system=SystemConfig(name="pendulum", backend="native"), task=TaskConfig(T=20))
+    )
+    s, hyper, steps = ms.SamplingSettings(samples=16, knots=4, spline="linear"), ms.hyper(1.0), 15
+    U0 = jnp.zeros((task.T, 1))
+    key = jax.random.key(1)
+    sync = ms.sampling_mpc(
+        system, task, U0, key=key, steps=steps, settings=s, hyper=hyper, process_noise=0.01
+    )  # fmt: skip
+    r = realtime.run(
+        jax.jit(ms.replanner(system, task, s, hyper)),
+        realtime.native_plant(system.mj_model, system.substeps),
+        np.asarray(task.x0),
+        ms.first_spline_plan(U0, s, hyper.sigma),
+        dt=float(system.dt),
+        steps=steps,
+        key=key,
+        limits=(np.asarray(task.u_min), np.asarray(task.u_max)),
+        process_noise=0.01,
+        speed=0.5,
+        shift=lambda plan, n: ms.moved_on_host(plan, n, s),
+    )
+    np.testing.assert_array_equal(r.stamps, np.arange(steps))
+    assert np.abs(np.asarray(sync.X)[:, 0]).max() > 0.1  # the plans move the pendulum
+    np.testing.assert_allclose(r.X, np.asarray(sync.X), atol=1e-9)
+    np.testing.assert_allclose(r.U, np.asarray(sync.U), atol=1e-9)
+
+
+@pytest.mark.slow  # over 5 s: the fast tier's budget
+def test_the_mpc_kind_runs_its_planners_in_real_time_beside_their_synchronous_loops(tmp_path):
+    """``mpc.realtime`` adds a "<planner> in real time" row per replanning planner and
+    condition (D2C-MPC, predictive sampling), its episodes run in the wall-clock loop on the
+    changed plant with the batch's keys: with the clock slowed so that no plan is late, the
+    synchronous rows' closed loops and costs, written to the run folder and its table."""
     import dataclasses
     import json
     import os
 
     from configs.smoke_mpc import CONFIG
     from experiments.run import run
-    from mjx_surrogate.runs.realtime_rows import LABEL
+    from mjx_surrogate.runs.realtime_rows import LABEL, label
 
     cfg = dataclasses.replace(
         CONFIG,
-        mpc=dataclasses.replace(CONFIG.mpc, controllers=("d2c",), realtime=True, realtime_speed=0.25),
+        mpc=dataclasses.replace(
+            CONFIG.mpc, controllers=("d2c", "predictive_sampling"), realtime=True, realtime_speed=0.25
+        ),
         experiment=dataclasses.replace(CONFIG.experiment, out_dir=str(tmp_path), video=False),
     )
     folder = run(cfg, name="realtime")
     with open(os.path.join(folder, "metrics.json")) as f:
         rows = json.load(f)["mpc_rows"]
-    sync = [r for r in rows if r["controller"] == "D2C-MPC"]
-    late = [r for r in rows if r["controller"] == LABEL]
-    assert len(sync) == len(late) == 2  # one plant, two noise levels
+    sampler = next(r["controller"] for r in rows if r["controller"].startswith("predictive sampling"))
+    assert LABEL == label("D2C-MPC") and label(sampler) in {r["controller"] for r in rows}
+    sync = [r for r in rows if r["controller"] in ("D2C-MPC", sampler)]
+    late = [r for r in rows if r["controller"] in (LABEL, label(sampler))]
+    assert len(sync) == len(late) == 4  # two planners, one plant, two noise levels
+    assert [label(r["controller"]) for r in sync] == [r["controller"] for r in late]
     arrays = np.load(os.path.join(folder, "arrays.npz"))
     for a, b in zip(sync, late):
         assert (a["plant"], a["process_noise"]) == (b["plant"], b["process_noise"])
@@ -140,4 +200,5 @@ def test_the_mpc_kind_runs_d2c_mpc_in_real_time_beside_its_synchronous_loop(tmp_
         np.testing.assert_allclose(arrays[b["arrays"]["X"]], arrays[a["arrays"]["X"]], atol=1e-9)
         np.testing.assert_allclose(b["costs"], a["costs"], rtol=1e-9)
     with open(os.path.join(folder, "mpc_table.md")) as f:
-        assert f.read().count(f"| {LABEL} |") == 2
+        table = f.read()
+    assert table.count(f"| {LABEL} |") == table.count(f"| {label(sampler)} |") == 2

@@ -20,9 +20,9 @@ from typing import Any, Literal, Optional
 import jax
 import jax.numpy as jnp
 
-from mjx_surrogate.control import mpc
+from mjx_surrogate.control import mpc, realtime
 from mjx_surrogate.control.d2c import problem
-from mjx_surrogate.control.episode import Plan, bound_episode
+from mjx_surrogate.control.episode import Plan, bound_episode, first_plan
 from mjx_surrogate.control.ilqr import ILQRParams
 from mjx_surrogate.control.mpc_sampling import reading
 from mjx_surrogate.control.sampling_planners import spread_scale
@@ -90,6 +90,31 @@ def hybrid_mpc(
     """One episode of D2C-MPC with ``n_samples`` sampling proposals per replan (module
     docstring); the rest as :func:`mpc.receding_horizon`."""
     plant_step = (plant if plant is not None else system).step
+    return mpc._ilqr_episode(
+        replanner(system, task, params, sysid, sigma, n_samples, knots, spline),
+        plant_step,
+        task,
+        U0,
+        key=key,
+        steps=steps,
+        process_noise=process_noise,
+        progress=progress,
+        replan_every=replan_every,
+    )
+
+
+def replanner(
+    system: System,
+    task: Task,
+    params: ILQRParams,
+    sysid: sid.SysIdParams,
+    sigma: jax.Array,
+    n_samples: int,
+    knots: int,
+    spline: str,
+):
+    """The hybrid's ``replan(x, plan, key, n) -> (Plan, info)`` (module docstring), as
+    :func:`hybrid_mpc`'s episode and the wall-clock loop call it."""
     lo, hi = task.u_min, task.u_max
 
     def replan(x, plan, k, n):
@@ -102,26 +127,25 @@ def hybrid_mpc(
         prob = problem(system, planned.replace(x0=x), sysid, "d2c")._replace(linearize_fine=None)
         return mpc.ilqr_replan(prob, start, params, k_solve)
 
-    return mpc._ilqr_episode(
-        replan,
-        plant_step,
-        task,
-        U0,
-        key=key,
-        steps=steps,
-        process_noise=process_noise,
-        progress=progress,
-        replan_every=replan_every,
-    )
+    return replan
+
+
+def _settings(c: Any) -> tuple[HybridSettings, jax.Array]:
+    """(the hybrid's own settings, its spread [nu] in control units) in context ``c``."""
+    own = c.planner_settings.get("d2c_sampling", HybridSettings())
+    scale = spread_scale(c.plan_task.u_min, c.plan_task.u_max, own.sigma_units)
+    sigma = c.config.mpc.sampling_sigma if own.sigma is None else own.sigma
+    return own, jnp.asarray(sigma * scale, c.task.x0.dtype)
+
+
+def _label(own: HybridSettings) -> str:
+    return f"D2C-MPC + sampling (S={own.samples})"
 
 
 def episodes(c: Any) -> dict:
     """The planner kind's episodes (``c``: a ``planners.PlannerContext``)."""
-    own = c.planner_settings.get("d2c_sampling", HybridSettings())
+    own, sigma = _settings(c)
     m = c.config.mpc
-    scale = spread_scale(c.plan_task.u_min, c.plan_task.u_max, own.sigma_units)
-    sigma = jnp.asarray((m.sampling_sigma if own.sigma is None else own.sigma) * scale, c.task.x0.dtype)
-
     one = bound_episode(
         hybrid_mpc,
         c.system,
@@ -137,7 +161,17 @@ def episodes(c: Any) -> dict:
         replan_every=c.replan_every,
     )
 
-    return {f"D2C-MPC + sampling (S={own.samples})": one}
+    return {_label(own): one}
+
+
+def replans(c: Any) -> dict:
+    """The planner kind's replans for the wall-clock loop (``control.realtime``)."""
+    own, sigma = _settings(c)
+    args = (c.params, c.sysid, sigma, own.samples, own.knots, own.spline)
+    planner = realtime.RealTimePlanner(
+        replanner(c.system, c.plan_task, *args), first_plan(c.U0, c.task.x0), realtime.moved_on
+    )
+    return {_label(own): planner}
 
 
 def proposal_steps(c: Any) -> float:

@@ -108,6 +108,29 @@ def moved_on(plan: SplinePlan, r: int, s: SamplingSettings) -> SplinePlan:
     return SplinePlan(_read(W, mean), mean, plan.spread)
 
 
+def moved_on_host(plan: SplinePlan, r: int, s: SamplingSettings) -> SplinePlan:
+    """:func:`moved_on` in NumPy, for the wall-clock loop (``control.realtime``); r may
+    exceed the horizon H (a plan past its end holds its last control)."""
+    H = plan.U.shape[0]
+    if s.knots == 0:
+        r = min(r, H)
+        mean = np.concatenate([plan.mean[r:], np.repeat(plan.mean[-1:], r, axis=0)])
+        return SplinePlan(mean, mean, plan.spread)
+    W, M = _matrices(H, s, r)
+    mean = M @ plan.mean if r else plan.mean
+    return SplinePlan(W @ mean, mean, plan.spread)
+
+
+def replanner(system: System, task: Task, settings: SamplingSettings, hyper: SamplingHyper):
+    """``replan(x, plan, key, n) -> (plan, cheapest cost)``: :func:`optimise` of the
+    horizon-H ``task`` at control step n (what :func:`sampling_mpc`'s episode calls)."""
+
+    def replan(x, plan, k, n):
+        return optimise(system, task, x, plan, k, settings, hyper, n)
+
+    return replan
+
+
 def optimise(
     system: System,
     task: Task,
@@ -161,12 +184,8 @@ def sampling_mpc(
     first plan U0 [H, nu] as a spline (:func:`first_spline_plan`), replanning every
     ``replan_every`` steps with :func:`optimise`."""
     plant_step = (plant if plant is not None else system).step
-
-    def replan(x, plan, k, n):
-        return optimise(system, task, x, plan, k, settings, hyper, n)
-
     X, U, J = episode(
-        replan,
+        replanner(system, task, settings, hyper),
         plant_step=plant_step,
         x0=task.x0,
         plan0=first_spline_plan(U0.astype(task.x0.dtype), settings, hyper.sigma),

@@ -21,8 +21,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate.control import mpc, mpc_hybrid, mpc_online, sampling_planners
-from mjx_surrogate.control.episode import bound_episode
+from mjx_surrogate.control import mpc, mpc_hybrid, mpc_online, realtime, sampling_planners
+from mjx_surrogate.control.episode import bound_episode, first_plan
 from mjx_surrogate.control.ilqr import ILQRParams
 from mjx_surrogate.control.sampling_rules import get_rule
 from mjx_surrogate.errors import registered
@@ -30,7 +30,7 @@ from mjx_surrogate.identification.sysid import SysIdParams
 from mjx_surrogate.surrogates.mlp import MLPModel
 from mjx_surrogate.surrogates.registry import mlp_spec
 from mjx_surrogate.surrogates.sindy import SindyModel
-from mjx_surrogate.tasks import Task
+from mjx_surrogate.tasks import Task, at_step
 
 
 class PlannerContext(NamedTuple):
@@ -62,13 +62,17 @@ class PlannerKind(NamedTuple):
     """``episodes(context) -> {label: Episode}``; ``black_box_steps(context, result)``:
     black-box control steps per control step of one condition's episodes [E, ...] (the
     plant's own step not counted), None where not counted; ``iterative``: it reports
-    iterations per replan."""
+    iterations per replan; ``replans(context) -> {label: RealTimePlanner}``: the same
+    planners (labels as ``episodes``') for the wall-clock loop, or None."""
 
     episodes: Callable[[PlannerContext], dict[str, Episode]]
     black_box_steps: Callable[[PlannerContext, mpc.MPCResult], float | None]
     iterative: bool = False
     description: str = ""
     settings: Any = None  # its own settings' defaults (``--mpc.<name>.<field>``), or None
+    # replans(context) -> {label: realtime.RealTimePlanner}, for ``mpc.realtime``; None: the
+    # planner does not replan from the measured state alone (TVLQR, online refits)
+    replans: Callable[[PlannerContext], dict[str, realtime.RealTimePlanner]] | None = None
 
 
 PLANNERS: dict[str, PlannerKind] = {}
@@ -102,6 +106,33 @@ def _replanning(name: str):
         return {"D2C-MPC" if name == "d2c" else f"oracle MPC ({method})": one}
 
     return episodes
+
+
+def _replanning_replans(name: str):
+    """D2C-MPC's or the oracle's replan for the wall-clock loop."""
+
+    def replans(c: PlannerContext) -> dict:
+        method = "d2c" if name == "d2c" else c.config.experiment.oracle
+        replan = mpc.d2c_replan(c.system, c.plan_task, c.params, c.sysid, method)
+        planner = realtime.RealTimePlanner(replan, first_plan(c.U0, c.task.x0), realtime.moved_on)
+        return {"D2C-MPC" if name == "d2c" else f"oracle MPC ({method})": planner}
+
+    return replans
+
+
+def _surrogate_replans(c: PlannerContext) -> dict:
+    """MPC on each fitted surrogate for the wall-clock loop (not the refitted ones: they
+    learn from the plant's steps between replans)."""
+    models, _ = c.fit()
+    plan0 = first_plan(c.U0, c.task.x0)
+
+    def on_model(model):
+        def replan(x, plan, k, n):
+            return mpc.surrogate_replan(model, at_step(c.plan_task, n), x, plan, c.params, k)
+
+        return realtime.RealTimePlanner(replan, plan0, realtime.moved_on)
+
+    return {f"{label} MPC": on_model(model) for label, model in models.items()}
 
 
 def _d2c_steps(c: PlannerContext, result: mpc.MPCResult) -> float:
@@ -168,12 +199,24 @@ def _surrogates(c: PlannerContext) -> dict[str, Episode]:
 
 
 for _name, _kind in {
-    "d2c": PlannerKind(_replanning("d2c"), _d2c_steps, True, "iLQR on LTV models identified at every replan"),
+    "d2c": PlannerKind(
+        _replanning("d2c"),
+        _d2c_steps,
+        True,
+        "iLQR on LTV models identified at every replan",
+        replans=_replanning_replans("d2c"),
+    ),
     "oracle": PlannerKind(
-        _replanning("oracle"), lambda c, r: None, True, "iLQR on the oracle's Jacobians (experiment.oracle)"
+        _replanning("oracle"),
+        lambda c, r: None,
+        True,
+        "iLQR on the oracle's Jacobians (experiment.oracle)",
+        replans=_replanning_replans("oracle"),
     ),
     "tvlqr": PlannerKind(_tracking, lambda c, r: 0.0, False, "TVLQR tracking of the offline optimum"),
-    "surrogates": PlannerKind(_surrogates, lambda c, r: 0.0, True, "iLQR on each global surrogate"),
+    "surrogates": PlannerKind(
+        _surrogates, lambda c, r: 0.0, True, "iLQR on each global surrogate", replans=_surrogate_replans
+    ),
     **{
         name: PlannerKind(
             sampling_planners.sampling_episodes(name),
@@ -181,6 +224,7 @@ for _name, _kind in {
             False,
             get_rule(name).description,
             sampling_planners.SETTINGS[name],
+            sampling_planners.sampling_replans(name),
         )
         for name in ("predictive_sampling", "mppi", "cem")
     },
@@ -190,6 +234,7 @@ for _name, _kind in {
         True,
         "D2C-MPC from the best of its warm start and S - 1 sampled proposals (iLQS)",
         mpc_hybrid.HybridSettings(),
+        mpc_hybrid.replans,
     ),
 }.items():
     register_planner(_name, _kind)

@@ -7,10 +7,13 @@ Notation: control period dt; the plant's tick k is due at wall time t_0 + k dt /
 (``speed`` 1: real time). A plan made from the state measured at tick n carries the stamp
 n; at tick k >= n the plant applies its row j = k - n (its last row past its end):
 
-    u_k = clip(U[j] + K[j] (x_k - X[j])),    x_{k+1} = f_plant(x_k, u_k) + w_k.
+    u_k = clip(U[j] + K[j] (x_k - X[j])),    x_{k+1} = f_plant(x_k, u_k) + w_k
+
+for a :class:`~mjx_surrogate.control.episode.Plan` (its gains K), u_k = clip(U[j]) for any
+other plan with controls ``U`` (a sampling planner's spline plan).
 
 The planner starts each replan from the newest measurement, warm-started from its newest
-plan moved on to that tick (:func:`moved_on`), and waits for a
+plan moved on to that tick (the planner's ``shift``; :func:`moved_on` for a Plan), and waits for a
 new measurement when it is done before the next tick. A plan's latency, the ticks between
 its stamp and its first use, is what the synchronous episode
 (:func:`mjx_surrogate.control.episode.episode`, every replan done before the plant moves)
@@ -21,7 +24,7 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Callable, NamedTuple
+from typing import Any, Callable, NamedTuple
 
 import jax
 import mujoco
@@ -32,6 +35,17 @@ from mjx_surrogate.control.episode import Plan
 # replan(x [nx], plan, key, n) -> (plan, info): a planner's replan (jitted), as the
 # synchronous episode calls it
 Replan = Callable[..., tuple]
+
+
+class RealTimePlanner(NamedTuple):
+    """A planner as the wall-clock loop runs it: ``replan`` (x [nx], plan, key, n) -> (plan,
+    info), its first warm start ``plan0`` (leaves [H, ...]) and ``shift(plan, steps) ->
+    plan``, the host-side move of a plan ``steps`` ticks on (NumPy: nothing to compile
+    while the clock runs)."""
+
+    replan: Replan
+    plan0: Any
+    shift: Callable[[Any, int], Any]
 
 
 class RealTimeResult(NamedTuple):
@@ -71,10 +85,12 @@ def moved_on(plan: Plan, steps: int) -> Plan:
     return Plan(*(np.concatenate([a[steps:], np.repeat(a[-1:], steps, axis=0)]) for a in plan))
 
 
-def control(plan: Plan, j: int, x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """u = clip(U[j] + K[j] (x - X[j])) of a plan [H, ...] (host arrays), its last row
-    from j >= H on."""
+def control(plan, j: int, x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """u = clip(U[j] + K[j] (x - X[j])) of a :class:`Plan` [H, ...] (host arrays), clip(U[j])
+    of any other plan with controls U; its last row from j >= H on."""
     j = min(j, plan.U.shape[0] - 1)
+    if not isinstance(plan, Plan):
+        return np.clip(plan.U[j], lo, hi)
     return np.clip(plan.U[j] + plan.K[j] @ (x - plan.X[j]), lo, hi)
 
 
@@ -92,9 +108,11 @@ def run(
     speed: float = 1.0,
     clock: Callable[[], float] = time.perf_counter,
     stop: Callable[[], bool] | None = None,
+    shift: Callable[[Any, int], Any] = moved_on,
 ) -> RealTimeResult:
     """``steps`` ticks of the plant on the wall clock (module docstring) under the plans of
-    ``replan``, run in a second thread; ``plan0``: the first replan's warm start [H, ...].
+    ``replan``, run in a second thread; ``plan0``: the first replan's warm start [H, ...]
+    (a :class:`Plan`, or any plan with controls U and the host ``shift`` that moves it).
     Tick n's noise and a replan at n's key come from the n-th of ``steps`` keys split from
     ``key``, as in the synchronous episode (drawn before the clock starts): a planner that
     always ends before the next tick gives the episode's closed loop. ``stop() -> True``
@@ -106,9 +124,9 @@ def run(
 
     def plan_at(x, warm, n):
         new, _ = replan(x, warm, halves[n, 0], np.int32(n))
-        return Plan(*(np.asarray(a, np.float64) for a in jax.block_until_ready(new)))
+        return jax.tree.map(lambda a: np.asarray(a, np.float64), jax.block_until_ready(new))
 
-    plan0 = Plan(*(np.asarray(a, np.float64) for a in plan0))
+    plan0 = jax.tree.map(lambda a: np.asarray(a, np.float64), plan0)
     state = {"plan": plan_at(x0, plan0, 0), "stamp": 0, "x": x0, "n": 0, "done": False}
     ready = threading.Condition()
     replan_s: list[float] = []
@@ -125,7 +143,7 @@ def run(
                     x, n, plan, stamp = state["x"], state["n"], state["plan"], state["stamp"]
                 seen = n
                 t = time.perf_counter()
-                new = plan_at(x, moved_on(plan, n - stamp), n)
+                new = plan_at(x, shift(plan, n - stamp), n)
                 replan_s.append(time.perf_counter() - t)
                 with ready:
                     state["plan"], state["stamp"] = new, n

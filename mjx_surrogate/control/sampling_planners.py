@@ -14,12 +14,13 @@ spread of at least ``sigma_min`` (the spread's units).
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Any, Literal, Optional
 
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate.control import mpc_sampling
+from mjx_surrogate.control import mpc_sampling, realtime
 from mjx_surrogate.control.episode import bound_episode
 from mjx_surrogate.control.mpc_sampling import SamplingHyper, SamplingSettings
 from mjx_surrogate.errors import ConfigError
@@ -152,6 +153,25 @@ def sampling_episodes(name: str):
         return {label(name, settings, own): one}
 
     return episodes
+
+
+def sampling_replans(name: str):
+    """The planner kind's ``replans(context)``: ``name``'s replan for the wall-clock loop
+    (``control.realtime``), its first plan the spline through the first plan U0."""
+
+    def replans(c: PlannerContext) -> dict:
+        settings, hyper, own = resolved(c, name)
+        replan = mpc_sampling.replanner(c.system, c.plan_task, settings, hyper)
+        U0 = c.U0.astype(c.task.x0.dtype)
+        plan0 = mpc_sampling.first_spline_plan(U0, settings, hyper.sigma)
+        shift = functools.partial(_shift_host, settings=settings)
+        return {label(name, settings, own): realtime.RealTimePlanner(replan, plan0, shift)}
+
+    return replans
+
+
+def _shift_host(plan, steps: int, settings):
+    return mpc_sampling.moved_on_host(plan, steps, settings)
 
 
 def sampling_steps(name: str):

@@ -393,10 +393,12 @@ class MPCConfig:
       design sysid_design ("orthogonal": with nx + nu samples the Gram matrix is exactly
       diagonal, paper Section 3; "gaussian": D2C 2.0's). The offline optimum keeps the
       solver's settings.
-    realtime: D2C-MPC's episodes of every condition run again, one by one, in the wall-clock
-      loop (``mjx_surrogate.control.realtime``: the plant at its control period, the planner
-      in a thread of its own, each plan applied by its time stamp), with the batch's keys:
-      a row "D2C-MPC in real time" (how late its plans were applied, the planner's pace).
+    realtime: every replanning planner's episodes of every condition (D2C-MPC, the oracle's
+      MPC, MPC on each surrogate, the sampling planners, the hybrid; not TVLQR tracking or the
+      online refits) run again, one by one, in the wall-clock loop
+      (``mjx_surrogate.control.realtime``: the plant at its control period, the planner in a
+      thread of its own, each plan applied by its time stamp), with the batch's keys: a row
+      "<planner> in real time" each (how late its plans were applied, the planner's pace).
       realtime_speed: that loop's clock (1: real time; 0.5: the plant at half speed).
     sysid_every: D2C-MPC identifies at every k-th step of the horizon and its last one,
       linearly interpolated between (MuJoCo MPC's derivative skip; one-step schemes; the
@@ -424,7 +426,7 @@ class MPCConfig:
     refit_updates: int = 20  # MLP refit: optimiser steps before every replan (0: no MLP refit)
     first_plan: Literal["optimum", "zeros", "reference"] = "optimum"  # every planner's first warm start
     sysid: Optional[str] = None  # D2C-MPC's identification scheme per replan (None: solver.sysid)
-    realtime: bool = False  # D2C-MPC's episodes also in the wall-clock loop, a row of their own
+    realtime: bool = False  # the replanning planners' episodes also in the wall-clock loop, rows of their own
     realtime_speed: float = 1.0  # that loop's clock: 1 is real time, < 1 slower
     n_samples: Optional[int] = None  # D2C-MPC's samples per identification (None: nx + nu)
     sysid_design: Literal["gaussian", "orthogonal"] = "orthogonal"  # D2C-MPC's perturbations

@@ -1,8 +1,11 @@
-"""The `mpc` kind's D2C-MPC in real time (``mpc.realtime``): each condition's episodes again,
-one after another, in the wall-clock loop of ``mjx_surrogate.control.realtime`` (the plant
-at its control period, the planner in a thread of its own, plans applied by their time
-stamps), with the synchronous batch's keys: where every replan ends within a tick, the same
-closed loops. A row per condition, "D2C-MPC in real time", beside the synchronous one.
+"""The `mpc` kind's planners in real time (``mpc.realtime``): each condition's episodes of
+every planner that replans from the measured state (``PlannerKind.replans``: D2C-MPC, the
+oracle's MPC, MPC on each surrogate, the sampling planners, the hybrid) again, one after
+another, in the wall-clock loop of ``mjx_surrogate.control.realtime`` (the plant at its
+control period, the planner in a thread of its own, plans applied by their time stamps),
+with the synchronous batch's keys: where every replan ends within a tick, the same closed
+loops. A row per planner and condition, "<planner> in real time" (:func:`label`), beside
+the synchronous one.
 """
 
 from __future__ import annotations
@@ -12,12 +15,17 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate import progress
-from mjx_surrogate.control import mpc, realtime
-from mjx_surrogate.control.episode import first_plan
+from mjx_surrogate.control import realtime
 from mjx_surrogate.runs import pipeline
 from mjx_surrogate.tasks import trajectory_cost
 
-LABEL = "D2C-MPC in real time"
+SUFFIX = " in real time"
+LABEL = "D2C-MPC" + SUFFIX
+
+
+def label(planner: str) -> str:
+    """The real-time row's label of the planner labelled ``planner``."""
+    return planner + SUFFIX
 
 
 def plant_step(plant):
@@ -28,15 +36,18 @@ def plant_step(plant):
     return lambda x, u: np.asarray(step(jnp.asarray(x), jnp.asarray(u)), np.float64)
 
 
-def condition(res, context, plant, noise: float, keys) -> tuple[dict, np.ndarray, np.ndarray]:
-    """(row, X [E, N+1, nx], U [E, N, nu]) of one condition's episodes in real time."""
+def condition(
+    res, planner: realtime.RealTimePlanner, name: str, plant, noise: float, keys
+) -> tuple[dict, np.ndarray, np.ndarray]:
+    """(row, X [E, N+1, nx], U [E, N, nu]) of one condition's episodes of ``planner``
+    (labelled ``name``) in real time."""
     cfg, system, task = res
     m = cfg.mpc
-    replan = jax.jit(mpc.d2c_replan(system, context.plan_task, context.params, context.sysid))
+    replan = jax.jit(planner.replan)
     step = plant_step(plant)
     limits = (np.asarray(task.u_min), np.asarray(task.u_max))
     runs = []
-    desc = f"  D2C-MPC in real time, noise {noise:g}: episodes"
+    desc = f"  {label(name)}, noise {noise:g}: episodes"
     with progress.steps(desc, len(keys), cfg.experiment.progress) as meter:
         for i, k in enumerate(keys):
             meter.advance(f"episode {i}, {m.steps} ticks of {float(system.dt):g} s")
@@ -45,7 +56,7 @@ def condition(res, context, plant, noise: float, keys) -> tuple[dict, np.ndarray
                     replan,
                     step,
                     np.asarray(task.x0),
-                    first_plan(context.U0, task.x0),
+                    planner.plan0,
                     dt=float(system.dt),
                     steps=m.steps,
                     key=k,
@@ -53,6 +64,7 @@ def condition(res, context, plant, noise: float, keys) -> tuple[dict, np.ndarray
                     process_noise=noise,
                     speed=m.realtime_speed,
                     stop=progress.stop_requested,
+                    shift=planner.shift,
                 )  # fmt: skip
             )
     if progress.stop_requested():  # seen within a tick
@@ -63,7 +75,7 @@ def condition(res, context, plant, noise: float, keys) -> tuple[dict, np.ndarray
     lag = np.concatenate([np.arange(m.steps) - r.stamps for r in runs])
     replan_s = float(np.median(np.concatenate([r.replan_s for r in runs])))
     row = {
-        "controller": LABEL,
+        "controller": label(name),
         **pipeline.episode_outcomes(task, X, costs, cfg.task.goal_tolerance, float(system.dt)),
         "black_box_steps_per_control_step": None,
         "iterations_per_replan": None,

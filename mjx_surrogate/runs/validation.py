@@ -127,8 +127,11 @@ def _check_mpc(m: MPCConfig) -> None:
         raise ConfigError(
             "mpc.realtime_speed", f"the real-time loop's clock, > 0 (1: real time), got {m.realtime_speed}"
         )
-    if m.realtime and "d2c" not in m.controllers:
-        raise ConfigError("mpc.realtime", "runs D2C-MPC in the wall-clock loop: add d2c to mpc.controllers")
+    if m.realtime and not any(get_planner(c).replans is not None for c in m.controllers):
+        live = [c for c in PLANNERS if get_planner(c).replans is not None]
+        raise ConfigError(
+            "mpc.realtime", f"runs replanning planners in the wall-clock loop: add one of {', '.join(live)}"
+        )
 
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,99}$")
