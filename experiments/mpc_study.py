@@ -74,17 +74,19 @@ def _controller(controller: str, context: PlannerContext, res, record, plants, k
                     row, _ = record.stage(f"mpc/{controller}/{tag}", compute)
                     rows.append(row)
                     if label in in_real_time:
-                        rows.append(_realtime(res, in_real_time[label], record, plant, episodes, key))
+                        planner = in_real_time[label]
+                        rows.append(_realtime(res, planner, context, record, plant, episodes, key))
     return rows
 
 
-def _realtime(res, planner, record, plant, e: "_Episodes", key) -> dict:
+def _realtime(res, planner, context: PlannerContext, record, plant, e: "_Episodes", key) -> dict:
     """The condition's episodes again in the wall-clock loop (``mpc.realtime``), with the
     batch's keys: a stage of their own (``mpc/<controller>/<tag>_rt``)."""
     keys = jax.random.split(jax.random.fold_in(key, e.index), res.config.mpc.n_episodes)
 
     def compute():
-        row, X, U = realtime_rows.condition(res, planner, e.label, plant, e.noise, keys)
+        every = context.replan_every
+        row, X, U = realtime_rows.condition(res, planner, e.label, plant, e.noise, keys, every)
         tag = f"{e.tag}_rt"
         row |= {"plant": e.plant, "process_noise": e.noise, "arrays": {"X": f"{tag}_X", "U": f"{tag}_U"}}
         return row, {f"{tag}_X": X, f"{tag}_U": U}

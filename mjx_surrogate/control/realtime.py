@@ -109,14 +109,19 @@ def run(
     clock: Callable[[], float] = time.perf_counter,
     stop: Callable[[], bool] | None = None,
     shift: Callable[[Any, int], Any] = moved_on,
+    replan_every: int = 1,
 ) -> RealTimeResult:
     """``steps`` ticks of the plant on the wall clock (module docstring) under the plans of
     ``replan``, run in a second thread; ``plan0``: the first replan's warm start [H, ...]
     (a :class:`Plan`, or any plan with controls U and the host ``shift`` that moves it).
     Tick n's noise and a replan at n's key come from the n-th of ``steps`` keys split from
     ``key``, as in the synchronous episode (drawn before the clock starts): a planner that
-    always ends before the next tick gives the episode's closed loop. ``stop() -> True``
+    always ends before the next tick gives the episode's closed loop. ``replan_every`` = r:
+    the planner replans from a measurement at least r ticks after its last one (the
+    episode's ``replan_every``; ``mpc.replan_hz``), from the newest one. ``stop() -> True``
     (asked at every tick) ends the loop early: X and U then hold the ticks done."""
+    if replan_every < 1:
+        raise ValueError(f"replan_every: >= 1, got {replan_every}")
     x0 = np.asarray(x0, np.float64)
     halves = jax.vmap(jax.random.split)(jax.random.split(key, steps))  # [N, 2] keys
     W = process_noise * np.asarray(jax.vmap(lambda k: jax.random.normal(k, x0.shape))(halves[:, 1]))
@@ -137,7 +142,7 @@ def run(
         try:
             while True:
                 with ready:
-                    ready.wait_for(lambda: state["done"] or state["n"] > seen)
+                    ready.wait_for(lambda: state["done"] or state["n"] >= seen + replan_every)
                     if state["done"] or state["n"] >= steps:
                         return
                     x, n, plan, stamp = state["x"], state["n"], state["plan"], state["stamp"]

@@ -37,10 +37,10 @@ def plant_step(plant):
 
 
 def condition(
-    res, planner: realtime.RealTimePlanner, name: str, plant, noise: float, keys
+    res, planner: realtime.RealTimePlanner, name: str, plant, noise: float, keys, every: int = 1
 ) -> tuple[dict, np.ndarray, np.ndarray]:
     """(row, X [E, N+1, nx], U [E, N, nu]) of one condition's episodes of ``planner``
-    (labelled ``name``) in real time."""
+    (labelled ``name``) in real time, replanning at most every ``every`` ticks."""
     cfg, system, task = res
     m = cfg.mpc
     replan = jax.jit(planner.replan)
@@ -65,6 +65,7 @@ def condition(
                     speed=m.realtime_speed,
                     stop=progress.stop_requested,
                     shift=planner.shift,
+                    replan_every=every,
                 )  # fmt: skip
             )
     if progress.stop_requested():  # seen within a tick
