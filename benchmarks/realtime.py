@@ -100,7 +100,7 @@ def measure(cfg, args) -> list[dict]:
                 row["real_time_factor"] = steps * dt / float(np.median([e[2] for e in eps]))
             else:
                 rts = [e[3] for e in eps]
-                lag = np.concatenate([np.arange(steps) - r.stamps for r in rts])
+                lag = np.concatenate([realtime.lateness(r.stamps) for r in rts])
                 row |= {
                     "lag_median": float(np.median(lag)),
                     "lag_max": int(lag.max()),

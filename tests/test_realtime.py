@@ -159,6 +159,7 @@ def test_a_sampling_planner_faster_than_the_plant_gives_the_synchronous_episode(
         replan_every=3,
     )
     np.testing.assert_array_equal(r.stamps, np.arange(steps) // 3 * 3)
+    assert not np.any(realtime.lateness(r.stamps, 3)) and realtime.lateness(r.stamps - 1, 3).min() == 1
     assert np.abs(np.asarray(sync.X)[:, 0]).max() > 0.1  # the plans move the pendulum
     np.testing.assert_allclose(r.X, np.asarray(sync.X), atol=1e-9)
     np.testing.assert_allclose(r.U, np.asarray(sync.U), atol=1e-9)

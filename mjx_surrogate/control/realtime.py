@@ -94,6 +94,14 @@ def control(plan, j: int, x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.n
     return np.clip(plan.U[j] + plan.K[j] @ (x - plan.X[j]), lo, hi)
 
 
+def lateness(stamps: np.ndarray, replan_every: int = 1) -> np.ndarray:
+    """[N] ticks each tick's plan came later than the synchronous episode's schedule, where
+    tick k applies the plan made at tick r floor(k / r) (r = ``replan_every``): 0 for a
+    planner that keeps up, whatever r."""
+    k = np.arange(len(stamps))
+    return k // replan_every * replan_every - np.asarray(stamps)
+
+
 def run(
     replan: Replan,
     plant_step: Callable[[np.ndarray, np.ndarray], np.ndarray],
