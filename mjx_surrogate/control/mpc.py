@@ -131,12 +131,8 @@ def surrogate_mpc(
     """One episode on ``plant`` whose replans run iLQR on a differentiable surrogate (a
     pytree with ``step(x, u)``: a SindyModel, an MLPModel), Jacobians by ``jax.jacfwd``
     through it: SINDy-MPC, MLP-MPC. U0 [H, nu]; no black-box call but the plant's steps."""
-
-    def replan(x, plan, k, n):
-        return surrogate_replan(model, at_step(task, n), x, plan, params, k)
-
     return _ilqr_episode(
-        replan,
+        surrogate_replanner(model, task, params),
         plant.step,
         task,
         U0,
@@ -222,6 +218,16 @@ def ilqr_replan(prob: Problem, plan: Plan, params: ILQRParams, key: jax.Array):
     -> (Plan, (cost, iterations, identified))."""
     r = ilqr_result(ilqr_advance(prob, warm_start(prob, plan, params, key), params))
     return Plan(r.U, r.X, r.K), (r.cost, r.iterations, r.identified)
+
+
+def surrogate_replanner(model, task: Task, params: ILQRParams):
+    """``replan(x, plan, key, n) -> (Plan, info)`` on the surrogate ``model``: the
+    horizon-H ``task`` planned at control step n (:func:`surrogate_mpc`'s replan)."""
+
+    def replan(x, plan, k, n):
+        return surrogate_replan(model, at_step(task, n), x, plan, params, k)
+
+    return replan
 
 
 def surrogate_replan(model, task: Task, x: jax.Array, plan: Plan, params: ILQRParams, key: jax.Array):

@@ -30,7 +30,7 @@ from mjx_surrogate.identification.sysid import SysIdParams
 from mjx_surrogate.surrogates.mlp import MLPModel
 from mjx_surrogate.surrogates.registry import mlp_spec
 from mjx_surrogate.surrogates.sindy import SindyModel
-from mjx_surrogate.tasks import Task, at_step
+from mjx_surrogate.tasks import Task
 
 
 class PlannerContext(NamedTuple):
@@ -127,9 +127,7 @@ def _surrogate_replans(c: PlannerContext) -> dict:
     plan0 = first_plan(c.U0, c.task.x0)
 
     def on_model(model):
-        def replan(x, plan, k, n):
-            return mpc.surrogate_replan(model, at_step(c.plan_task, n), x, plan, c.params, k)
-
+        replan = mpc.surrogate_replanner(model, c.plan_task, c.params)
         return realtime.RealTimePlanner(replan, plan0, realtime.moved_on)
 
     return {f"{label} MPC": on_model(model) for label, model in models.items()}

@@ -164,14 +164,10 @@ def sampling_replans(name: str):
         replan = mpc_sampling.replanner(c.system, c.plan_task, settings, hyper)
         U0 = c.U0.astype(c.task.x0.dtype)
         plan0 = mpc_sampling.first_spline_plan(U0, settings, hyper.sigma)
-        shift = functools.partial(_shift_host, settings=settings)
+        shift = functools.partial(mpc_sampling.moved_on_host, s=settings)
         return {label(name, settings, own): realtime.RealTimePlanner(replan, plan0, shift)}
 
     return replans
-
-
-def _shift_host(plan, steps: int, settings):
-    return mpc_sampling.moved_on_host(plan, steps, settings)
 
 
 def sampling_steps(name: str):
