@@ -44,10 +44,14 @@ def _points():
 
 
 @pytest.mark.slow  # the fast tier has it on the pendulum (test_exported_step.py)
-def test_batched_step_is_the_vmapped_step_bit_for_bit():
+def test_batched_step_is_the_vmapped_step_to_round_off():
+    """Bit for bit at XLA's default code generation; the suite's -O0 (conftest.py) moves the
+    last bits of the two programs apart (2e-16 relative seen). One substep fewer: 0.19."""
     physics = _box()
     X, U = _points()
-    np.testing.assert_array_equal(physics.step_batch(X, U), jax.jit(jax.vmap(physics.step))(X, U))
+    np.testing.assert_allclose(
+        physics.step_batch(X, U), jax.jit(jax.vmap(physics.step))(X, U), rtol=1e-13, atol=1e-15
+    )
 
 
 @pytest.mark.slow

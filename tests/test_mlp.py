@@ -35,8 +35,11 @@ def test_fits_a_smooth_map_to_a_stated_loss():
         np.testing.assert_array_equal(a, b)
     first = jax.tree.map(lambda a: a[0], res.checkpoints)
     init = mlp.init_params(SPEC, jax.random.split(jax.random.key(2))[0], 3, 2)
+    # initialised inside the training program and alone: equal up to float32 round-off
+    # (bit for bit at XLA's default code generation, not at the suite's -O0); one epoch
+    # of Adam at 3e-3 moves them by up to 0.09
     for a, b in zip(jax.tree.leaves(first), jax.tree.leaves(init)):
-        np.testing.assert_array_equal(a, b)
+        np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
 
 
 @pytest.mark.slow
