@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import socket
 import subprocess
@@ -51,7 +52,10 @@ TOL = {
 
 def _env() -> dict:
     env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    env.pop("XLA_FLAGS", None)  # the child configures its own runtime
+    # the child configures its own runtime; it keeps the suite's code generation level
+    level = re.findall(r"--xla_backend_optimization_level=\S+", env.pop("XLA_FLAGS", ""))
+    if level:
+        env["XLA_FLAGS"] = level[0]
     return env
 
 
