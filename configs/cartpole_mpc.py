@@ -6,7 +6,7 @@ pole at horizontal for 2.5 s, and closed loops that start from it follow it into
 divergence (docs/mpc.md). D2C-MPC's replans identify by forward differences with at most 3
 iterations and 4 step sizes: over 2 s with the solver's central differences, 5 iterations
 and 8 step sizes its closed loops cost 2412-2529 at 1.1-1.7x real time on 2 cores, over
-1.5 s with these 2059-2729 at 3.1-4.1x (docs/mpc.md)."""
+1.5 s with these 2059-2729 at 2.9-4.1x (docs/mpc.md)."""
 
 import dataclasses
 
