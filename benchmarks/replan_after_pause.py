@@ -81,10 +81,16 @@ def main() -> None:
     ap.add_argument("--gaps", type=float, nargs="*", default=[0.0, 0.5, 2.0, 5.0, 18.0, 50.0], help="ms")
     ap.add_argument("--replans", type=int, default=150)
     args = ap.parse_args()
+    if any(g < 0 for g in args.gaps) or args.replans < 1:
+        ap.error("--gaps: pauses >= 0 ms; --replans: >= 1")
+    from mjx_surrogate.errors import ConfigError
     from mjx_surrogate.runtime import configure_runtime
 
     configure_runtime()
-    one = replanner(args.preset)
+    try:
+        one = replanner(args.preset)
+    except ConfigError as e:
+        ap.error(f"--preset: {e}")
     print("| pause, ms | slept, main thread | spun, main thread | slept, planner thread |")
     print("|---|---|---|---|")
     for gap in args.gaps:
