@@ -77,6 +77,16 @@ def cuda_plugin_installed() -> bool:
     return any(importlib.util.find_spec(name) is not None for name in CUDA_PLUGINS)
 
 
+def native_compiler_options() -> dict | None:
+    """XLA options for programs whose steps are host calls (the native backend, host
+    functions): backend optimisation level 1, which compiles faster at about the same run
+    time (docs/performance.md); None where ``XLA_FLAGS`` names a level, which then holds
+    for every program."""
+    if "xla_backend_optimization_level" in os.environ.get("XLA_FLAGS", ""):
+        return None
+    return {"xla_backend_optimization_level": 1}
+
+
 def _add_flag(flag: str, applied: dict) -> None:
     flags = os.environ.get("XLA_FLAGS", "")
     if os.environ.get("MJX_SURROGATE_KEEP_XLA_FLAGS") or flag.split("=")[0] in flags:

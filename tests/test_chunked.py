@@ -2,6 +2,9 @@
 the one-program solve, no host callback in the programs, stop requests between chunks,
 no recompilation."""
 
+import os
+import re
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -150,9 +153,13 @@ def test_new_values_do_not_recompile_the_chunks(pendulum):
 @pytest.mark.slow
 def test_native_programs_compile_with_the_systems_options_to_the_same_iterates(pendulum, monkeypatch):
     # Native-backend programs compile with System.compiler_options (a lower XLA backend
-    # optimisation level), MJX ones with XLA's defaults.
+    # optimisation level), MJX ones with XLA's defaults; a level named in XLA_FLAGS (the
+    # suite's, tests/conftest.py) holds for every program instead.
     assert pendulum[0].backend == "native" and _pendulum("mjx").system.compiler_options is None
     _, native, task = _pendulum("native")
+    assert "xla_backend_optimization_level" in os.environ["XLA_FLAGS"] and native.compiler_options is None
+    flags = re.sub(r"--xla_backend_optimization_level=\S+", "", os.environ["XLA_FLAGS"])
+    monkeypatch.setenv("XLA_FLAGS", flags)  # as users run: options of the system's own
     task = task.replace(T=29)  # programs of their own, compiled in this test
     U0 = pendulum[2][:29]
     assert native.compiler_options == {"xla_backend_optimization_level": 1}

@@ -30,6 +30,7 @@ from jax.sharding import Mesh
 
 from mjx_surrogate import sharding
 from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.runtime import native_compiler_options
 
 StepFn = Callable[[jax.Array, jax.Array], jax.Array]
 
@@ -77,7 +78,7 @@ class FunctionSystem:
     def compiler_options(self) -> dict | None:
         """A host function is a callback, so its programs are never cached: they compile at
         XLA's backend optimisation level 1, as the native backend's (:class:`System`)."""
-        return {"xla_backend_optimization_level": 1} if self.backend == "host" else None
+        return native_compiler_options() if self.backend == "host" else None
 
     def on_one_device(self) -> "FunctionSystem":
         return self

@@ -13,6 +13,7 @@ from jax.sharding import Mesh
 
 from mjx_surrogate import sharding
 from mjx_surrogate.errors import ConfigError
+from mjx_surrogate.runtime import native_compiler_options
 from mjx_surrogate.systems import backend_mjx, backend_native, exported_step
 
 BACKENDS = ("mjx", "native")
@@ -103,8 +104,9 @@ class System:
     def compiler_options(self) -> dict | None:
         """XLA options for a solve's programs on this system. Native-backend programs compile
         at XLA's backend optimisation level 1: faster to compile at about the same run time
-        (measured in docs/performance.md, "Compile times"). None (XLA's defaults) on MJX."""
-        return {"xla_backend_optimization_level": 1} if self.backend == "native" else None
+        (measured in docs/performance.md, "Compile times"), unless ``XLA_FLAGS`` names a
+        level (:func:`runtime.native_compiler_options`). None (XLA's defaults) on MJX."""
+        return native_compiler_options() if self.backend == "native" else None
 
     @property
     def mjx_step(self):
