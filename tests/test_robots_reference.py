@@ -30,3 +30,11 @@ def test_the_reference_is_the_cheapest_of_every_start_of_both_methods_and_names_
     assert ref["cost"] == best and len(set(c for c, _, _ in every)) > 1  # the starts differ
     assert ref["from"] == f"{method}, {'the same start' if i == 0 else f'spread start {i}'}"
     assert np.isfinite(ref["cost"]) and ref["starts"] == 2
+    own = ref["d2c_best"]  # D2C's best of its three starts
+    assert own["cost"] == min(costs["d2c"]) and own["from"].startswith("d2c, ")
+    # the goal verdicts are the goal test's on the chosen solves: at a tolerance no state
+    # passes (0) both fail, at one every state passes both hold
+    for tol, reached in ((0.0, False), (1e9, True)):
+        again = robots.best_reference(res, d2c, oracle, U0, params, sysid, 2, jax.random.key(1), tol)
+        assert again["cost"] == ref["cost"] and again["goal_reached"] is reached, (tol, again)
+        assert again["d2c_best"]["goal_reached"] is reached
