@@ -1,5 +1,7 @@
 """mjx_surrogate/runs/video.py: frame rates, tiling, and a renderer without a GL context."""
 
+import os
+
 import mujoco
 import numpy as np
 import pytest
@@ -31,6 +33,20 @@ def test_a_label_is_written_on_a_dark_band_at_the_top_of_every_frame():
     assert np.all(band == band[0]) and band.mean() < 80  # the same band on every frame, dark
     assert (band[0].min(-1) > 200).sum() > 30  # and white text on it
     assert not np.array_equal(band[0], video.label(frames, "MPPI")[0, : video.LABEL_HEIGHT])
+
+
+def test_the_renderer_child_imports_neither_the_package_nor_jax():
+    """The child runs this module's file as a script: MuJoCo, NumPy, imageio and PIL only
+    (the package's import, which starts JAX, took 2.1 s of every video)."""
+    import subprocess
+    import sys
+
+    cmd = video.child_command(["--help"])
+    assert cmd[0] == sys.executable and cmd[3] == os.path.abspath(video.__file__)
+    done = subprocess.run([cmd[0], "-X", "importtime", *cmd[1:]], capture_output=True, text=True)
+    assert done.returncode == 0 and "keys" in done.stdout, done.stderr[-2000:]
+    imported = {ln.split("|")[-1].strip() for ln in done.stderr.splitlines() if ln.startswith("import time:")}
+    assert "argparse" in imported and not {"jax", "mjx_surrogate"} & imported, sorted(imported)[:50]
 
 
 @pytest.mark.slow
