@@ -170,7 +170,9 @@ def test_the_mpc_kind_runs_its_planners_in_real_time_beside_their_synchronous_lo
     """``mpc.realtime`` adds a "<planner> in real time" row per replanning planner and
     condition (D2C-MPC, predictive sampling), its episodes run in the wall-clock loop on the
     changed plant with the batch's keys: with the clock slowed so that no plan is late, the
-    synchronous rows' closed loops and costs, written to the run folder and its table."""
+    synchronous rows' closed loops and costs, written to the run folder and its table.
+    One condition (the changed plant with noise 0.01: each episode's noise is drawn from its
+    own key): the wall-clock loop runs its 4 episodes at a quarter of real time, 10 s."""
     import dataclasses
     import json
     import os
@@ -182,7 +184,11 @@ def test_the_mpc_kind_runs_its_planners_in_real_time_beside_their_synchronous_lo
     cfg = dataclasses.replace(
         CONFIG,
         mpc=dataclasses.replace(
-            CONFIG.mpc, controllers=("d2c", "predictive_sampling"), realtime=True, realtime_speed=0.25
+            CONFIG.mpc,
+            controllers=("d2c", "predictive_sampling"),
+            realtime=True,
+            realtime_speed=0.25,
+            process_noise=(0.01,),
         ),
         experiment=dataclasses.replace(CONFIG.experiment, out_dir=str(tmp_path), video=False),
     )
@@ -193,7 +199,7 @@ def test_the_mpc_kind_runs_its_planners_in_real_time_beside_their_synchronous_lo
     assert LABEL == label("D2C-MPC") and label(sampler) in {r["controller"] for r in rows}
     sync = [r for r in rows if r["controller"] in ("D2C-MPC", sampler)]
     late = [r for r in rows if r["controller"] in (LABEL, label(sampler))]
-    assert len(sync) == len(late) == 4  # two planners, one plant, two noise levels
+    assert len(sync) == len(late) == 2  # two planners, one plant, one noise level
     assert [label(r["controller"]) for r in sync] == [r["controller"] for r in late]
     arrays = np.load(os.path.join(folder, "arrays.npz"))
     for a, b in zip(sync, late):
@@ -203,4 +209,4 @@ def test_the_mpc_kind_runs_its_planners_in_real_time_beside_their_synchronous_lo
         np.testing.assert_allclose(b["costs"], a["costs"], rtol=1e-9)
     with open(os.path.join(folder, "mpc_table.md")) as f:
         table = f.read()
-    assert table.count(f"| {LABEL} |") == table.count(f"| {label(sampler)} |") == 2
+    assert table.count(f"| {LABEL} |") == table.count(f"| {label(sampler)} |") == 1
