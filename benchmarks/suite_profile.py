@@ -9,12 +9,13 @@ Summarise::
     python -m benchmarks.suite_profile DIR [--top 30]
 
 Per test: wall time, CPU time of the test process and of the subprocesses it waited for
-(``resource.getrusage``), and JAX's own compile events in the test process: tracing
-(``jaxpr_trace_duration``), lowering to MLIR and XLA compilation, with the number of
-programs compiled and how many took under 0.1 s, and the time Python's garbage collector
-ran in the test process (``gc.callbacks``). A program loaded from the persistent
-compilation cache is not an XLA compile. Work done in a subprocess counts in its CPU time
-only. A folder may hold several runs: the summary reads the newest.
+(``resource.getrusage``), the wall time in which neither ran (waiting), and JAX's own
+compile events in the test process: tracing (``jaxpr_trace_duration``), lowering to MLIR
+and XLA compilation, with the number of programs compiled and how many took under 0.1 s,
+and the time Python's garbage collector ran in the test process (``gc.callbacks``). A
+program loaded from the persistent compilation cache is not an XLA compile. Work done in a
+subprocess counts in its CPU time only. A folder may hold several runs: the summary reads
+the newest; files and tests are named short (``d2c::name`` for ``tests/test_d2c.py::test_name``).
 """
 
 from __future__ import annotations
@@ -126,21 +127,51 @@ def load(folder: str) -> dict[str, dict[str, float]]:
 
 
 def totals(records: dict[str, dict[str, float]], key=lambda test: "all") -> dict[str, dict[str, float]]:
-    """Sums of every field, grouped by ``key(test id)``."""
-    out: dict[str, dict[str, float]] = collections.defaultdict(lambda: dict.fromkeys(FIELDS, 0.0))
+    """Sums of every field and of each test's ``waiting_s``, grouped by ``key(test id)``."""
+    fields = FIELDS + ("waiting_s",)
+    out: dict[str, dict[str, float]] = collections.defaultdict(lambda: dict.fromkeys(fields, 0.0))
     for test, rec in records.items():
         row = out[key(test)]
         for field in FIELDS:
             row[field] += rec.get(field, 0.0)
+        row["waiting_s"] += waiting_s(rec)
     return dict(out)
 
 
+def short_name(test_id: str, width: int = 60) -> str:
+    """``tests/test_d2c.py::test_x[p]`` -> ``d2c::x[p]``, cut at its end to ``width``."""
+    path, _, name = test_id.partition("::")
+    base = os.path.basename(path).removeprefix("test_").removesuffix(".py")
+    text = f"{base}::{name.removeprefix('test_')}" if name else base
+    return text if len(text) <= width else text[: width - 3] + "..."
+
+
+def waiting_s(rec: dict[str, float]) -> float:
+    """A test's wall time in which neither its process nor its children ran: sleeps, wall
+    clocks, signals, other processes (on a loaded machine also CPU that others took)."""
+    return max(0.0, rec.get("wall_s", 0.0) - rec.get("cpu_s", 0.0) - rec.get("subprocess_cpu_s", 0.0))
+
+
+# column heads, two lines each, and the fields they show
+COLUMNS = (
+    ("wall", "s", "wall_s"),
+    ("cpu", "s", "cpu_s"),
+    ("child", "cpu s", "subprocess_cpu_s"),
+    ("compile", "s", "compile_s"),
+    ("trace", "s", "trace_s"),
+    ("lower", "s", "lower_s"),
+    ("programs", "", "programs"),
+    ("small", "programs", "small_programs"),
+    ("gc", "s", "gc_s"),
+    ("waiting", "s", "waiting_s"),
+)
+
+
 def _table(rows: dict[str, dict[str, float]], top: int) -> str:
-    labels = (f.replace("subprocess_", "child ").replace("_", " ") for f in FIELDS)
-    head = f"{'':60s}" + "".join(f"{label:>15s}" for label in labels)
-    lines = [head]
+    lines = [f"{'':60s}" + "".join(f"{c[i]:>10s}" for c in COLUMNS) for i in (0, 1)]
     for name, row in sorted(rows.items(), key=lambda kv: -kv[1]["wall_s"])[:top]:
-        lines.append(f"{name[-60:]:60s}" + "".join(f"{row[f]:15.1f}" for f in FIELDS))
+        cells = (f"{row[f]:10.0f}" if "programs" in f else f"{row[f]:10.1f}" for _, _, f in COLUMNS)
+        lines.append(f"{short_name(name):60s}" + "".join(cells))
     return "\n".join(lines)
 
 

@@ -66,3 +66,28 @@ def test_a_profiled_run_counts_each_tests_programs_and_its_childs_cpu(tmp_path):
     with pytest.raises(SystemExit) as exc:
         suite_profile.main([str(tmp_path / "nothing")])
     assert exc.value.code == 2
+
+
+def test_the_summary_names_tests_short_and_sums_each_tests_waiting(capsys, tmp_path):
+    """A test that waited (a sleep: wall over its CPU) keeps its waiting in its file's row,
+    whatever a busier test beside it (CPU over wall: threads) does; names lose their
+    ``tests/test_`` and are cut at their end."""
+    import json
+
+    blank = dict.fromkeys(suite_profile.FIELDS, 0.0)
+    records = {
+        "tests/test_a.py::test_sleeps": {**blank, "wall_s": 10.0, "cpu_s": 2.0, "subprocess_cpu_s": 1.0},
+        "tests/test_a.py::test_threads": {**blank, "wall_s": 4.0, "cpu_s": 9.0},
+        "tests/test_b.py::test_" + "x" * 80: {**blank, "wall_s": 1.0, "cpu_s": 1.0},
+    }
+    by_file = suite_profile.totals(records, lambda t: t.split("::")[0])
+    assert by_file["tests/test_a.py"]["waiting_s"] == 7.0 and by_file["tests/test_b.py"]["waiting_s"] == 0.0
+    assert suite_profile.short_name("tests/test_d2c.py::test_x[central]") == "d2c::x[central]"
+    assert suite_profile.short_name("tests/test_d2c.py") == "d2c"
+    long = suite_profile.short_name("tests/test_b.py::test_" + "x" * 80)
+    assert len(long) == 60 and long.startswith("b::xxx") and long.endswith("...")
+    (tmp_path / "profile-run-1.json").write_text(json.dumps(records))
+    assert suite_profile.main([str(tmp_path), "--top", "5"]) == 0
+    out = capsys.readouterr().out
+    row = next(line for line in out.splitlines() if line.startswith("a::sleeps"))
+    assert row.split()[-1] == "7.0"  # waiting: 10 s of wall, 3 s of CPU
