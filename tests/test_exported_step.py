@@ -1,5 +1,6 @@
 """The MJX step's disk-cached exported programs (mjx_surrogate/systems/exported_step.py)."""
 
+import functools
 import os
 
 import jax
@@ -8,6 +9,19 @@ import numpy as np
 import pytest
 
 from mjx_surrogate.systems import exported_step
+
+
+@functools.cache
+def _pendulum_reference():
+    """The pendulum at 2 substeps, native, and ``vmap(jacfwd)`` of its plain MJX step, jitted
+    once for the tests below (the program takes about 6 s to build)."""
+    from mjx_surrogate.systems import backend_mjx, system
+    from mjx_surrogate.systems.registry import default_config
+
+    xml = default_config("pendulum").xml()
+    model = system.build_system("pendulum", xml, 2, "native").mj_model
+    plain = backend_mjx.make_mjx_step(model, 2)
+    return xml, plain, jax.jit(jax.vmap(jax.jacfwd(plain, argnums=(0, 1))))
 
 
 def _inputs(system, n=7):
@@ -90,21 +104,19 @@ def test_a_native_systems_oracle_loads_its_programs_without_building_the_mjx_mod
     """A native system's MJX step and Jacobians (its exact oracle) are exported too, and a
     later system of the same model runs them from disk without building the MJX model."""
     from mjx_surrogate.systems import backend_mjx, system
-    from mjx_surrogate.systems.registry import default_config
 
+    xml, plain, reference = _pendulum_reference()
     monkeypatch.setattr(exported_step, "cache_folder", lambda: str(tmp_path))
-    xml = default_config("pendulum").xml()
 
     def fresh():  # not the registry's cached System: a later run's
         return system.build_system("pendulum", xml, 2, "native")
 
     first = fresh()
     x, u = _inputs(first, 5)
-    plain = backend_mjx.make_mjx_step(first.mj_model, 2)
     step = jax.jit(jax.vmap(first.mjx_step))(x, u)
     A, B = jax.jit(jax.vmap(first.mjx_jacobians))(x, u)
     np.testing.assert_array_equal(step, jax.jit(jax.vmap(plain))(x, u))
-    A_ref, B_ref = jax.jit(jax.vmap(jax.jacfwd(plain, argnums=(0, 1))))(x, u)
+    A_ref, B_ref = reference(x, u)
     np.testing.assert_allclose(A, A_ref, rtol=0, atol=1e-12)  # the chain rule over substeps
     np.testing.assert_allclose(B, B_ref, rtol=0, atol=1e-12)
     assert len(os.listdir(tmp_path)) == 4  # step and Jacobians, each for [nx] and [5, nx]
@@ -123,14 +135,14 @@ def test_the_batch_jacobians_export_only_the_batchs_program(tmp_path, monkeypatc
     """The exact oracle's batched Jacobians (``System.mjx_jacobians_batch``) write one
     program, the batch's: ``vmap`` of the per-point function exports the unbatched one too."""
     from mjx_surrogate.systems import system
-    from mjx_surrogate.systems.registry import default_config
 
+    xml, _, reference = _pendulum_reference()  # the plain step of the same model and substeps
     monkeypatch.setattr(exported_step, "cache_folder", lambda: str(tmp_path))
-    s = system.build_system("pendulum", default_config("pendulum").xml(), 2, "native")
-    x, u = _inputs(s, 6)
+    s = system.build_system("pendulum", xml, 2, "native")
+    x, u = _inputs(s, 5)
     A, B = jax.jit(s.mjx_jacobians_batch)(x, u)
     assert len(os.listdir(tmp_path)) == 1
-    A_ref, B_ref = jax.jit(jax.vmap(jax.jacfwd(s._mjx_physics.step, argnums=(0, 1))))(x, u)
+    A_ref, B_ref = reference(x, u)
     np.testing.assert_allclose(A, A_ref, rtol=0, atol=1e-12)  # the chain rule over substeps
     np.testing.assert_allclose(B, B_ref, rtol=0, atol=1e-12)
     # under an outer vmap (a multi-start oracle) the batches merge into one program
