@@ -260,3 +260,52 @@ def test_dry_friction_sets_the_perturbation_above_its_break_away(tmp_path):
     assert sigmas(1.0) == (2e-5, 2e-5)  # 10 f / kp = 2e-3, capped
     assert sigmas(0.0) == (1e-6, 1e-6)
     assert sigmas(0.005, sigma_x=3e-6) == (3e-6, 1e-5)
+
+
+LOOSE = """
+<mujoco>
+  <worldbody>
+    <body name="upper" pos="0 0 1">
+      <joint name="shoulder" type="hinge" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.04"/>
+      <body name="fore" pos="0.4 0 0">
+        <joint name="elbow" type="hinge" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+      </body>
+    </body>
+    {objects}
+  </worldbody>
+  <tendon>
+    <fixed name="both"><joint joint="shoulder" coef="1"/><joint joint="elbow" coef="0.5"/></fixed>
+  </tendon>
+  <actuator><motor tendon="both" ctrlrange="-1 1"/></actuator>
+</mujoco>
+"""
+BALL = '<body name="ball" pos="1 0 0.2"><freejoint/><geom type="sphere" size="0.05"/></body>'
+DOOR = (
+    '<body name="door" pos="-1 0 0.5"><joint type="hinge" axis="0 0 1"/>'
+    '<geom type="box" size="0.3 0.02 0.5"/></body>'
+)
+
+
+@pytest.mark.parametrize("objects, loose", [("", []), (BALL, ["ball"]), (BALL + DOOR, ["ball", "door"])])
+def test_loose_bodies_are_the_trees_no_actuator_moves_and_get_the_t_test(tmp_path, objects, loose):
+    """A tree whose every joint no actuator acts on (a ball, a door) is loose; the arm,
+    driven through a tendon only, is not. A user's model with loose objects gets
+    sysid_significance 3 where the scheme has the t-test; without them, 0; a given value
+    is kept."""
+    path = tmp_path / "arm.xml"
+    path.write_text(LOOSE.format(objects=objects))
+    assert model_defaults.loose_bodies(mujoco.MjModel.from_xml_path(str(path))) == loose
+
+    def significance(**solver) -> float:
+        cfg = Config(
+            system=SystemConfig(name="mjcf", mjcf_path=str(path), backend="native"),
+            task=TaskConfig(preset="hold"),
+            solver=SolverConfig(**solver),
+        )
+        return resolve(cfg).config.solver.sysid_significance
+
+    assert significance() == (3.0 if loose else 0.0)
+    assert significance(sysid_significance=0.0) == 0.0
+    assert significance(sysid_significance=1.5) == 1.5

@@ -190,7 +190,8 @@ class SolverConfig:
     sysid_noise_floor: Optional[float] = None  # zero entries below c eps |x| / sigma (None: model_defaults)
     sysid_perturb_x0: Optional[bool] = None  # one-step schemes perturb the given start (None: model_defaults)
     sysid_hold_limits: Optional[bool] = None  # one-step schemes hold joints at a limit (None: model_defaults)
-    sysid_significance: float = 0.0  # zero identified coefficients with |t| <= this (0: off)
+    # zero identified coefficients with |t| <= this (0: off; None: model_defaults.default_significance)
+    sysid_significance: Optional[float] = None
     sysid_rank_tol: float = _SYSID.rank_tol  # reduced scheme: energy the snapshot basis leaves out
     init: Optional[Literal["zeros", "random", "u_ref", "hold"]] = None  # None: model_defaults.default_init
     init_scale: float = 0.1

@@ -9,7 +9,8 @@ MJCF model (``system.name = "mjcf"``) gets settings that hold on robots as downl
 * identification: n_samples = max(20, 2 (nx + nu)), sigma = 1e-6 in float64 (up to 2e-5
   where actuated joints have dry friction: :func:`friction_sigma`), the noise floor
   (entries below the difference quotients' resolution are zero), and the given start x_0
-  not perturbed (t = 0 identifies B_0 alone);
+  not perturbed (t = 0 identifies B_0 alone), and on a model with loose objects (trees no
+  actuator moves) the t-test at 3 standard errors (:func:`default_significance`);
 * start: the controls that hold x0 still (:func:`hold_controls`);
 * task preset ``hold``: keep x0 (the model's qpos0 or ``task.x0_keyframe``) for 50 control
   steps, weights scaled to the actuators' ranges (:func:`hold_task`).
@@ -60,6 +61,42 @@ def default_noise_floor(system_name: str) -> float:
     10 eps |x| / sigma are zero: ``sysid.below_resolution``), 0 (off) for registered ones,
     whose paper settings stay as published."""
     return 10.0 if system_name in USER_SYSTEMS else 0.0
+
+
+LOOSE_OBJECT_SIGNIFICANCE = 3.0  # the t-test's threshold on a user's model with loose objects
+
+
+def loose_bodies(m: mujoco.MjModel) -> list[str]:
+    """Names of the kinematic trees (bodies whose parent is the world) that have degrees
+    of freedom on which no actuator acts, judged by the actuator moments at qpos0: loose
+    objects such as a ball, a door on its hinge or a target marker."""
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    moment = np.zeros((m.nu, m.nv))
+    if m.nu:
+        mujoco.mju_sparse2dense(moment, d.actuator_moment, d.moment_rownnz, d.moment_rowadr, d.moment_colind)
+    actuated = np.any(moment != 0.0, axis=0)  # [nv]
+    trees: dict[int, bool] = {}
+    for v in range(m.nv):
+        root = int(m.body_rootid[m.dof_bodyid[v]])
+        trees[root] = trees.get(root, False) or bool(actuated[v])
+    body = mujoco.mjtObj.mjOBJ_BODY
+    return [mujoco.mj_id2name(m, body, r) or f"body {r}" for r, acted_on in trees.items() if not acted_on]
+
+
+def default_significance(system_name: str, m: mujoco.MjModel | None) -> float:
+    """solver.sysid_significance when unset: LOOSE_OBJECT_SIGNIFICANCE (3) for a user's
+    MuJoCo model with loose objects (:func:`loose_bodies`), else 0 (off).
+
+    A loose object that bounces during a step leaves a large residual in its rows, which
+    least squares spreads over every regressor (the dm_control manipulator's ball and peg
+    came out with control coefficients up to 3e4); the t-test zeroes what the data cannot
+    tell from zero (``sysid_significance``). A model without loose objects keeps it off:
+    on locomotion the rows fitted across contact events carry the averaged slope the solve
+    needs (docs/method.md)."""
+    if system_name not in USER_SYSTEMS or m is None or not loose_bodies(m):
+        return 0.0
+    return LOOSE_OBJECT_SIGNIFICANCE
 
 
 def default_perturb_x0(system_name: str) -> bool:

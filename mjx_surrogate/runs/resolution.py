@@ -38,6 +38,7 @@ from mjx_surrogate.runs.model_defaults import (
     default_noise_floor,
     default_perturb_x0,
     default_sigma,
+    default_significance,
     friction_sigma,
 )
 from mjx_surrogate.runs.task_resolution import resolve_task
@@ -309,6 +310,10 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     perturb_x0 = default_perturb_x0(cfg.system.name) if perturb_x0 is None else perturb_x0
     hold_limits = cfg.solver.sysid_hold_limits
     hold_limits = default_hold_limits(cfg.system.name) if hold_limits is None else hold_limits
+    significance = cfg.solver.sysid_significance
+    if significance is None:  # the t-test where the model has loose objects and the scheme has it
+        tested = get_scheme(cfg.solver.sysid).t_test
+        significance = default_significance(cfg.system.name, system.mj_model) if tested else 0.0
     solver = dataclasses.replace(
         cfg.solver,
         n_samples=n_samples,
@@ -318,6 +323,7 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
         sysid_noise_floor=floor,
         sysid_perturb_x0=perturb_x0,
         sysid_hold_limits=hold_limits,
+        sysid_significance=significance,
     )
     resolved = dataclasses.replace(cfg, system=sc, task=tc, experiment=ex, solver=solver, mpc=mpc)
     return Resolved(resolved, system, task)

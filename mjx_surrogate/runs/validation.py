@@ -224,7 +224,7 @@ def _check_solver(s: SolverConfig) -> None:
             "solver.mu_min": s.mu_min,
             "solver.mu_raise_alpha": s.mu_raise_alpha,
             "solver.sysid_noise_floor": 0.0 if s.sysid_noise_floor is None else s.sysid_noise_floor,
-            "solver.sysid_significance": s.sysid_significance,
+            "solver.sysid_significance": s.sysid_significance or 0.0,
             "solver.sysid_rank_tol": s.sysid_rank_tol,
         }
     )
@@ -370,7 +370,7 @@ def _check_registered(cfg: Config) -> None:
                 field,
                 f"> 1 needs a one-step scheme ({one_step}); {name!r} identifies from rollouts",
             )
-    if cfg.solver.sysid_significance > 0 and not scheme.t_test:
+    if (cfg.solver.sysid_significance or 0.0) > 0 and not scheme.t_test:
         tested = ", ".join(n for n, s in SCHEMES.items() if s.t_test)
         raise ConfigError(
             "solver.sysid_significance",
