@@ -309,3 +309,24 @@ def test_loose_bodies_are_the_trees_no_actuator_moves_and_get_the_t_test(tmp_pat
     assert significance() == (3.0 if loose else 0.0)
     assert significance(sysid_significance=0.0) == 0.0
     assert significance(sysid_significance=1.5) == 1.5
+
+
+def test_resolve_warns_where_a_float64_config_meets_float32_jax(tmp_path):
+    """A user's MJCF runs in float64 (default_x64); resolved while JAX is in float32 (an API
+    user who did not call configure_runtime(x64=True)) the run would silently be float32,
+    so resolve warns, naming experiment.x64. In float64, and for a registered float32
+    system, it does not."""
+    import warnings
+
+    path = tmp_path / "arm.xml"
+    path.write_text(LOOSE.format(objects=""))
+    system = SystemConfig(name="mjcf", mjcf_path=str(path), backend="native")
+    cfg = Config(system=system, task=TaskConfig(preset="hold"))
+    with jax.enable_x64(False), pytest.warns(UserWarning, match="experiment.x64"):
+        resolve(cfg)
+    pendulum = Config(system=SystemConfig(name="pendulum"), task=TaskConfig(preset="pendulum_d2c"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        resolve(cfg)
+        with jax.enable_x64(False):
+            resolve(pendulum)

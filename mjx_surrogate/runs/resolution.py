@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from typing import NamedTuple
 
 import jax
@@ -39,6 +40,7 @@ from mjx_surrogate.runs.model_defaults import (
     default_perturb_x0,
     default_sigma,
     default_significance,
+    default_x64,
     friction_sigma,
 )
 from mjx_surrogate.runs.task_resolution import resolve_task
@@ -253,8 +255,16 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
 
     The system's batched work is spread over ``parallel.devices`` of the visible devices
     (of every process; ``local``: of this process only, for an experiment that one
-    process of a sweep runs alone)."""
+    process of a sweep runs alone). Warns where the config runs in float64
+    (``experiment.x64``, or by default: ``model_defaults.default_x64``) but JAX does not."""
     validate_static(cfg)
+    if (cfg.experiment.x64 or default_x64(cfg.system.name)) and not jax.config.jax_enable_x64:
+        warnings.warn(
+            f"experiment.x64: {cfg.system.name!r} runs in float64, but jax_enable_x64 is off, so this "
+            "run is float32, whose round-off swamps small perturbations: call "
+            "mjx_surrogate.configure_runtime(x64=True) before resolve",
+            stacklevel=2,
+        )
     sigma = default_sigma(cfg.system.name not in USER_SYSTEMS)
     sigma_x = sigma if cfg.solver.sigma_x is None else cfg.solver.sigma_x
     for field in ("x0", "x_goal"):  # as given, before anything is built or compiled
