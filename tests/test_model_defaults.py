@@ -330,3 +330,26 @@ def test_resolve_warns_where_a_float64_config_meets_float32_jax(tmp_path):
         resolve(cfg)
         with jax.enable_x64(False):
             resolve(pendulum)
+
+
+def test_d2c_mpc_keeps_the_t_test_only_where_its_scheme_has_one(tmp_path):
+    """The default t-test of a model with a loose ball reaches D2C-MPC's replans with the
+    solver's scheme and with a rollout scheme; the reduced scheme, which has no test,
+    gets 0."""
+    from mjx_surrogate.runs.config import MPCConfig
+    from mjx_surrogate.runs.resolution import mpc_params
+
+    path = tmp_path / "arm.xml"
+    path.write_text(LOOSE.format(objects=BALL))
+    system = SystemConfig(name="mjcf", mjcf_path=str(path), backend="native")
+
+    def significance(**mpc) -> float:
+        mpc = MPCConfig(controllers=("d2c",), **mpc)
+        cfg = Config(
+            system=system, task=TaskConfig(preset="hold"), experiment=ExperimentConfig(kind="mpc"), mpc=mpc
+        )
+        return mpc_params(resolve(cfg).config)[1].significance
+
+    assert significance() == 3.0
+    assert significance(sysid="rollout") == 3.0
+    assert significance(sysid="reduced", n_samples=8) == 0.0

@@ -241,12 +241,18 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
 def mpc_params(cfg: Config):
     """The (ILQRParams, SysIdParams) of a D2C-MPC replan: the solver's, with at most
     mpc.max_iter iterations of mpc.n_alphas step sizes and mpc's identification scheme,
-    samples, design and knots (``cfg`` resolved)."""
+    samples, design and knots; the solver's t-test where that scheme has one (``cfg``
+    resolved)."""
     params, sysid = solver_params(cfg)
     m = cfg.mpc
     params = params.replace(max_iter=m.max_iter, n_alphas=m.n_alphas or params.n_alphas)
+    scheme = m.sysid or sysid.scheme
     return params, sysid.replace(
-        scheme=m.sysid or sysid.scheme, n_samples=m.n_samples, design=m.sysid_design, every=m.sysid_every
+        scheme=scheme,
+        n_samples=m.n_samples,
+        design=m.sysid_design,
+        every=m.sysid_every,
+        significance=sysid.significance if get_scheme(scheme).t_test else 0.0,
     )
 
 
