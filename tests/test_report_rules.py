@@ -233,3 +233,31 @@ def test_the_pairwise_cosine_interval_is_a_bootstrap_over_distinct_pairs():
     np.testing.assert_allclose(spectra.pairwise_cosine_interval(same, np.random.default_rng(1)), 1.0)
     orth = np.eye(5)  # orthogonal rows: cosine 0 between every distinct pair, never the diagonal
     np.testing.assert_allclose(spectra.pairwise_cosine_interval(orth, np.random.default_rng(1)), 0.0)
+
+
+def test_code_revision_is_dirty_for_changed_code_not_for_rewritten_docs(tmp_path):
+    """A report rewrites its figures under docs/ before it names the code's commit: those
+    (and Markdown) leave the revision clean; a changed tracked code file marks it +dirty;
+    outside a checkout it is unknown."""
+    import subprocess
+
+    from mjx_surrogate.runs import results
+
+    def git(*args):
+        subprocess.run(["git", "-C", str(tmp_path), *args], check=True, capture_output=True)
+
+    (tmp_path / "docs").mkdir()
+    (tmp_path / "pkg.py").write_text("x = 1\n")
+    (tmp_path / "docs" / "fig.png").write_bytes(b"a")
+    (tmp_path / "README.md").write_text("a\n")
+    git("init", "-q")
+    git("add", ".")
+    git("-c", "user.email=t@t", "-c", "user.name=t", "commit", "-q", "-m", "c")
+    clean = results.code_revision(str(tmp_path))
+    assert len(clean) == 12 and "+" not in clean
+    (tmp_path / "docs" / "fig.png").write_bytes(b"b")
+    (tmp_path / "README.md").write_text("b\n")
+    assert results.code_revision(str(tmp_path)) == clean
+    (tmp_path / "pkg.py").write_text("x = 2\n")
+    assert results.code_revision(str(tmp_path)) == clean + "+dirty"
+    assert results.code_revision(str(tmp_path / "docs")) == "unknown"

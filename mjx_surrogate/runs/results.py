@@ -95,10 +95,12 @@ def versions() -> dict[str, str]:
     return out
 
 
-def code_revision() -> str:
-    """The git commit of the checkout this package runs from (``+dirty`` where its tracked
-    files differ from it), or ``unknown`` outside a git checkout (an installed wheel)."""
-    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+def code_revision(root: str | None = None) -> str:
+    """The git commit of the checkout this package runs from (or of ``root``), ``+dirty``
+    where its tracked files other than the docs (``docs/``, Markdown) differ from it, or
+    ``unknown`` outside a git checkout (an installed wheel). The docs do not count: a report
+    that rewrites its own figures under ``docs/`` describes the code as committed."""
+    root = root or os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
     def git(*args: str) -> str | None:
         try:
@@ -112,7 +114,8 @@ def code_revision() -> str:
     head = git("rev-parse", "--short=12", "HEAD")
     if not head or git("rev-parse", "--show-toplevel") != os.path.realpath(root):
         return "unknown"
-    return head + ("+dirty" if git("status", "--porcelain", "--untracked-files=no") else "")
+    changed = git("status", "--porcelain", "--untracked-files=no", "--", ".", ":!docs", ":!*.md")
+    return head + ("+dirty" if changed else "")
 
 
 def _umask() -> int:
