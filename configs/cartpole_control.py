@@ -1,7 +1,8 @@
 """Paper, Fig. "control": the cartpole from hanging to upright at the origin. The LTV
 approach (D2C) starts from a random trajectory; SINDy and MLP models trained on data
-around its optimum (two levels, two seeds) are then used for iLQR, and every controller is
-executed on the black box."""
+around its optimum (two levels, five seeds: data sets and initialisations, the MLPs trained
+at once along a leading axis) are then used for iLQR, and every controller is executed on
+the black box."""
 
 from configs import derive
 
@@ -10,7 +11,7 @@ CONFIG = derive(
     task={"preset": "cartpole_upright"},
     solver={"sysid": "central_difference", "init": "random", "init_scale": 0.1},
     experiment={"kind": "control"},
-    data={"levels": (0.05, 0.25), "n_seeds": 2},
+    data={"levels": (0.05, 0.25), "n_seeds": 5},
     # the MLP to its validation minimum (cartpole_predict's); the fixed-epoch one is left to
     # the prediction study
     surrogate={"sindy.libraries": ("cubic_trig", "quartic"), "mlp.fixed_epochs_beside": 0},

@@ -1,9 +1,11 @@
 """Experiment kind "control": optimal control with the global surrogates against the local
 LTV approach (D2C) and the exact oracle, all judged by their true cost on the black box.
 
-Stages: ``d2c`` (the optimum), ``exact`` (if enabled), then ``surrogates/<level>_<seed>``:
-a data set around the optimum, every kind of ``surrogate.kinds`` fitted on it, iLQR on each
-surrogate from the same start, its controls replayed on the black box.
+Stages: ``d2c`` (the optimum), ``exact`` (if enabled), then ``surrogates/<level>``:
+``data.n_seeds`` data sets around the optimum, every kind of ``surrogate.kinds`` fitted on
+each (the seeds at once where the kind can: the MLPs along a leading axis, over the
+system's mesh), iLQR on each surrogate from the same start, its controls replayed on the
+black box.
 """
 
 from __future__ import annotations
@@ -20,68 +22,79 @@ from mjx_surrogate.identification import data
 from mjx_surrogate.runs import pipeline, plots
 from mjx_surrogate.runs.resolution import Resolved, solver_params
 from mjx_surrogate.runs.results import Run
-from mjx_surrogate.surrogates import FitContext, fit_all
+from mjx_surrogate.surrogates import FitContext, fit_all_seeds
 
 GOAL_RULE = "goal cost at x_T <= task.goal_tolerance x goal cost at x_0 (docs/results.md)"
 
 
-def _surrogate_stage(res, X_d2c, U_d2c, U0, J_d2c, level, seed, key, params):
+def _surrogate_stage(res, X_d2c, U_d2c, U0, J_d2c, level, keys, params):
     cfg, system, task = res
     dc = cfg.data
 
     def compute():
-        n_steps = 1 + len(cfg.surrogate.kinds)  # + one per fitted model, once known
-        desc = f"surrogates {100 * level:g}% U_max, seed {seed}"
+        n = len(keys)
+        n_steps = 1 + len(cfg.surrogate.kinds)  # + one per fitted model and seed, once known
+        desc = f"surrogates {100 * level:g}% U_max, {n} seed{'s' if n > 1 else ''}"
         with progress.steps(desc, n_steps, cfg.experiment.progress) as meter:
             return _compute(meter)
 
     def _compute(meter):
-        meter.advance(f"sample {dc.n_traj} trajectories")
-        ds = data.sample(system, X_d2c, U_d2c, key, dc.n_traj, level, dc.x0_sigma, task.u_min, task.u_max)
-        train, test = data.split(ds, jax.random.fold_in(key, 1), dc.test_fraction)
-        fitted = fit_all(
-            FitContext(cfg, system, task.T),
-            data.transitions(train),
-            data.transitions(test),
-            jax.random.fold_in(key, 2),
-            meter,
-        )
+        meter.advance(f"sample {len(keys)} x {dc.n_traj} trajectories")
+        trains, tests = [], []
+        for key in keys:
+            ds = data.sample(system, X_d2c, U_d2c, key, dc.n_traj, level, dc.x0_sigma, task.u_min, task.u_max)
+            train, test = data.split(ds, jax.random.fold_in(key, 1), dc.test_fraction)
+            trains.append(data.transitions(train))
+            tests.append(data.transitions(test))
+        ctx = FitContext(cfg, system, task.T)
+        fitted = fit_all_seeds(ctx, trains, tests, [jax.random.fold_in(k, 2) for k in keys], meter)
         rows, arrays = [], {}
-        meter.extend(len(fitted))
-        for name, f in fitted.items():
-            meter.advance(f"iLQR on {name}, replay")
-            sol = solve_on_model(f.model, task, U0, params)
-            # on the host: the surrogate's arrays may live on the data set's device mesh,
-            # the black box's model on one device
-            sol = jax.tree.map(np.asarray, sol)
-            out = replay(system, task, sol.X, sol.U, sol.K)
-            row = {
-                "model": name,
-                "level": level,
-                "seed": seed,
-                "model_cost": finite_or_none(sol.cost),
-                "iterations": int(sol.iterations),
-                "true_cost_open": finite_or_none(out.cost_open),
-                "true_cost_closed": finite_or_none(out.cost_closed),
-                "final_error_open": finite_or_none(out.final_error_open),
-                "final_error_closed": finite_or_none(out.final_error_closed),
-            }
-            best = min(v for v in (row["true_cost_open"], row["true_cost_closed"], np.inf) if v is not None)
-            row["true_cost_over_d2c"] = best / J_d2c if np.isfinite(best) else None
-            tol = cfg.task.goal_tolerance
-            row["reached_goal"] = any(
-                pipeline.goal_test(task, Xr, tol)["reached"] for Xr in (out.X_open, out.X_closed)
-            )
-            rows.append(row)
-            tag = f"{name.replace(' ', '_')}_{level:g}"
-            row["arrays"] = {k: f"control_{tag}_s{seed}_{k}" for k in ("U", "X", "K")}
-            arrays[f"control_{tag}_s{seed}_U"] = sol.U
-            arrays[f"control_{tag}_s{seed}_X"] = sol.X  # the model's nominal: closed loop needs it
-            arrays[f"control_{tag}_s{seed}_K"] = sol.K
-            arrays[f"control_{tag}_s{seed}_X_closed"] = out.X_closed
+        meter.extend(sum(len(f) for f in fitted))
+        for seed, models in enumerate(fitted):
+            for name, f in models.items():
+                meter.advance(f"iLQR on {name}, seed {seed}, replay")
+                row, row_arrays = _control_row(res, f.model, name, level, seed, U0, J_d2c, params)
+                rows.append(row)
+                arrays.update(row_arrays)
         return {"rows": rows}, arrays
 
     return compute
+
+
+def _control_row(res, model, name, level, seed, U0, J_d2c, params):
+    """iLQR on one fitted surrogate from U0, its controls replayed on the black box."""
+    cfg, system, task = res
+    sol = solve_on_model(model, task, U0, params)
+    # on the host: the surrogate's arrays may live on the data set's device mesh,
+    # the black box's model on one device
+    sol = jax.tree.map(np.asarray, sol)
+    out = replay(system, task, sol.X, sol.U, sol.K)
+    row = {
+        "model": name,
+        "level": level,
+        "seed": seed,
+        "model_cost": finite_or_none(sol.cost),
+        "iterations": int(sol.iterations),
+        "true_cost_open": finite_or_none(out.cost_open),
+        "true_cost_closed": finite_or_none(out.cost_closed),
+        "final_error_open": finite_or_none(out.final_error_open),
+        "final_error_closed": finite_or_none(out.final_error_closed),
+    }
+    best = min(v for v in (row["true_cost_open"], row["true_cost_closed"], np.inf) if v is not None)
+    row["true_cost_over_d2c"] = best / J_d2c if np.isfinite(best) else None
+    tol = cfg.task.goal_tolerance
+    row["reached_goal"] = any(
+        pipeline.goal_test(task, Xr, tol)["reached"] for Xr in (out.X_open, out.X_closed)
+    )
+    tag = f"{name.replace(' ', '_')}_{level:g}"
+    row["arrays"] = {k: f"control_{tag}_s{seed}_{k}" for k in ("U", "X", "K")}
+    arrays = {
+        f"control_{tag}_s{seed}_U": sol.U,
+        f"control_{tag}_s{seed}_X": sol.X,  # the model's nominal: closed loop needs it
+        f"control_{tag}_s{seed}_K": sol.K,
+        f"control_{tag}_s{seed}_X_closed": out.X_closed,
+    }
+    return row, arrays
 
 
 def run(res: Resolved, record: Run, key: jax.Array) -> str:
@@ -116,17 +129,16 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
 
     rows, trajectories = [], {}
     for i, level in enumerate(dc.levels):
-        for s in range(dc.n_seeds):
-            k = jax.random.fold_in(jax.random.fold_in(k_data, i), s)
-            out, arrays = record.stage(
-                f"surrogates/{level:g}_{s}",
-                _surrogate_stage(res, X_d2c, U_d2c, U0, J_d2c, level, s, k, params),
-            )
-            rows += out["rows"]
-            if s == 0:
-                for r in out["rows"]:
-                    tag = f"{r['model'].replace(' ', '_')}_{level:g}"
-                    trajectories[f"{r['model']} {100 * level:g}%"] = arrays[f"control_{tag}_s0_X_closed"]
+        keys = [jax.random.fold_in(jax.random.fold_in(k_data, i), s) for s in range(dc.n_seeds)]
+        out, arrays = record.stage(
+            f"surrogates/{level:g}",
+            _surrogate_stage(res, X_d2c, U_d2c, U0, J_d2c, level, keys, params),
+        )
+        rows += out["rows"]
+        for r in out["rows"]:
+            if r["seed"] == 0:
+                tag = f"{r['model'].replace(' ', '_')}_{level:g}"
+                trajectories[f"{r['model']} {100 * level:g}%"] = arrays[f"control_{tag}_s0_X_closed"]
     record.set("surrogate_rows", rows)
     t = np.arange(task.T + 1) * system.dt
     labels = list(system.state_labels)
@@ -171,4 +183,29 @@ def _table(m: dict) -> str:
             f"{f(r['true_cost_open'])} | {f(r['true_cost_closed'])} | "
             f"{f(r['true_cost_over_d2c'])} | {r['reached_goal']} |"
         )
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + _over_seeds(m["surrogate_rows"], f)) + "\n"
+
+
+def _over_seeds(rows: list[dict], f) -> list[str]:
+    """Per model and level, true / D2C over the seeds: median and range (a diverged replay
+    counts as infinitely worse), and how many seeds reached the goal."""
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault((r["model"], r["level"]), []).append(r)
+    if all(len(g) < 2 for g in groups.values()):
+        return []
+    out = [
+        "",
+        "Over the seeds (data sets and initialisations; a diverged replay counts as infinitely worse):",
+        "",
+        "| model | level (% U_max) | seeds | true / D2C, median | min - max | reached goal |",
+        "|---|---|---|---|---|---|",
+    ]
+    for (model, level), g in groups.items():
+        ratio = np.array([np.inf if r["true_cost_over_d2c"] is None else r["true_cost_over_d2c"] for r in g])
+        shown = lambda v: "diverged" if not np.isfinite(v) else f(float(v))  # noqa: E731
+        out.append(
+            f"| {model} | {100 * level:g} | {len(g)} | {shown(np.median(ratio))} | "
+            f"{shown(ratio.min())} - {shown(ratio.max())} | {sum(r['reached_goal'] for r in g)} of {len(g)} |"
+        )
+    return out

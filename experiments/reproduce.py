@@ -64,7 +64,11 @@ def quick(cfg, name: str):
         cfg,
         system=cfg.system if is_function_system(cfg.system.name) else r(cfg.system, backend="native"),
         solver=r(cfg.solver, max_iter=min(cfg.solver.max_iter, 40)),
-        data=r(cfg.data, n_traj=min(cfg.data.n_traj, 40 if name.startswith("fish") else 60), n_seeds=1),
+        data=r(
+            cfg.data,
+            n_traj=min(cfg.data.n_traj, 40 if name.startswith("fish") else 60),
+            n_seeds=min(cfg.data.n_seeds, 2),  # a control study's seeds fitted at once
+        ),
         surrogate=r(
             cfg.surrogate,
             mlp=r(

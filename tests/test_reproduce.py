@@ -226,7 +226,9 @@ def assert_each_kinds_outputs(out: str, meters: dict) -> None:
     for name in ("cartpole_control",):  # pendulum_control: the same kind, left to the full run
         folder, m = _metrics(out, name)
         rows = m["surrogate_rows"]
-        assert {r["model"] for r in rows} >= {"MLP"} and len(rows) == 2, rows
+        assert {r["model"] for r in rows} >= {"MLP"} and len(rows) == 4, rows
+        assert sorted(r["seed"] for r in rows) == [0, 0, 1, 1]  # two seeds, fitted at once
+        assert "Over the seeds" in open(os.path.join(folder, "control_table.md")).read()
         assert all("true_cost_open" in r and "true_cost_closed" in r for r in rows)
         finite = [r["true_cost_over_d2c"] for r in rows if r["true_cost_over_d2c"] is not None]
         assert finite and min(finite) > 0.99, (name, finite)

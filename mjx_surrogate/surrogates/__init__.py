@@ -8,6 +8,7 @@ from mjx_surrogate.surrogates.registry import (
     Surrogate,
     SurrogateKind,
     fit_all,
+    fit_all_seeds,
     get_surrogate,
     register_surrogate,
 )
@@ -19,6 +20,7 @@ __all__ = [
     "Surrogate",
     "SurrogateKind",
     "fit_all",
+    "fit_all_seeds",
     "get_surrogate",
     "register_surrogate",
 ]

@@ -230,12 +230,19 @@ def train_seeds(
     y: jax.Array,
     z_test: jax.Array,
     y_test: jax.Array,
+    z_val: jax.Array | None = None,
+    y_val: jax.Array | None = None,
     mesh: Mesh | None = None,
 ) -> TrainResult:
     """K networks at once: keys [K], z [K, M, nz], y [K, M, nx] (one data set per seed),
-    the K trainings spread over ``mesh`` (:mod:`mjx_surrogate.sharding`)."""
-    many = lambda *a: jax.vmap(lambda k, a, b, c, d: train(spec, k, a, b, c, d))(*a)  # noqa: E731
-    return sharding.map_batch(many, mesh, keys, z, y, z_test, y_test)
+    test sets [K, M_test, ...] and optional validation sets [K, V, ...] as :func:`train`'s,
+    the K trainings spread over ``mesh`` (:mod:`mjx_surrogate.sharding`). A vmapped
+    ``while_loop`` runs until every seed has stopped; each keeps its own stopping epoch."""
+    if z_val is None:
+        many = lambda *a: jax.vmap(lambda k, a, b, c, d: train(spec, k, a, b, c, d))(*a)  # noqa: E731
+        return sharding.map_batch(many, mesh, keys, z, y, z_test, y_test)
+    many = lambda *a: jax.vmap(partial(train, spec))(*a)  # noqa: E731
+    return sharding.map_batch(many, mesh, keys, z, y, z_test, y_test, z_val, y_val)
 
 
 @jax.jit

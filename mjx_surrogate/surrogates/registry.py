@@ -46,12 +46,16 @@ class SurrogateKind(NamedTuple):
     raises ConfigError before any compile (``n_train``: training transitions); settings:
     the kind's own settings' defaults (a frozen dataclass instance, set as
     ``--surrogate.<name>.<field>``; ``fit`` reads the run's values with
-    ``mjx_surrogate.settings_of(ctx.config, "surrogate", name)``)."""
+    ``mjx_surrogate.settings_of(ctx.config, "surrogate", name)``). fit_seeds (optional):
+    fit(ctx, trains, tests, keys) -> [{label: Fitted}] on K data sets of equal sizes at
+    once (the seeds along a leading axis, spread over the system's mesh), each as ``fit``
+    would fit it alone; without it :func:`fit_all_seeds` calls ``fit`` per data set."""
 
     fit: Callable[..., dict[str, Fitted]]
     validate: Callable[[Any, Any, int], None] = lambda config, system, n_train: None
     description: str = ""
     settings: Any = None
+    fit_seeds: Callable[..., list[dict[str, Fitted]]] | None = None
 
 
 SURROGATES: dict[str, SurrogateKind] = {}
@@ -79,6 +83,30 @@ def fit_all(ctx: FitContext, train, test, key: jax.Array, meter=None) -> dict[st
         for label, f in fitted.items():
             jax.block_until_ready(f.model)
             out[label] = f._replace(info={"fit_s": (time.perf_counter() - t0) / len(fitted), **f.info})
+    return out
+
+
+def fit_all_seeds(
+    ctx: FitContext, trains: list, tests: list, keys: list, meter=None
+) -> list[dict[str, Fitted]]:
+    """:func:`fit_all` on K data sets (``trains[s]``, ``tests[s]``, ``keys[s]``): the same
+    models per data set, a kind with ``fit_seeds`` fitting all K at once. Per data set, in
+    order; ``fit_s`` is each model's share of its kind's time."""
+    out: list[dict[str, Fitted]] = [{} for _ in trains]
+    for i, name in enumerate(ctx.config.surrogate.kinds):
+        if meter is not None:
+            meter.advance(f"fit {name}, {len(trains)} data sets")
+        kind, kind_keys = get_surrogate(name), [jax.random.fold_in(k, i) for k in keys]
+        t0 = time.perf_counter()
+        if kind.fit_seeds is not None and len(trains) > 1:
+            fitted = kind.fit_seeds(ctx, trains, tests, kind_keys)
+        else:
+            fitted = [kind.fit(ctx, tr, te, k) for tr, te, k in zip(trains, tests, kind_keys)]
+        jax.block_until_ready([f.model for fs in fitted for f in fs.values()])
+        share = (time.perf_counter() - t0) / max(sum(len(fs) for fs in fitted), 1)
+        for s, fs in enumerate(fitted):
+            for label, f in fs.items():
+                out[s][label] = f._replace(info={"fit_s": share, **f.info})
     return out
 
 
@@ -188,6 +216,42 @@ def _fit_mlp(ctx: FitContext, train, test, key) -> dict[str, Fitted]:
     return out
 
 
+def _fit_mlp_seeds(ctx: FitContext, trains: list, tests: list, keys: list) -> list[dict[str, Fitted]]:
+    """:func:`_fit_mlp` on K data sets at once (``mlp.train_seeds`` over the system's mesh):
+    per data set its own validation split, initialisation and stopping epoch."""
+    from mjx_surrogate.surrogates import mlp
+
+    m = ctx.config.surrogate.mlp
+    spec = mlp_spec(ctx.config)
+    pairs = [_pairs(t.x, t.u, t.x_next, spec.increment) for t in trains]
+    held = [_pairs(t.x, t.u, t.x_next, spec.increment) for t in tests]
+    if len({(p[0].shape, h[0].shape) for p, h in zip(pairs, held)}) > 1:  # unequal sizes: one by one
+        return [_fit_mlp(ctx, tr, te, k) for tr, te, k in zip(trains, tests, keys)]
+    stack = lambda arrays: jnp.asarray(np.stack(arrays))  # noqa: E731
+    z, y = stack([p[0] for p in pairs]), stack([p[1] for p in pairs])
+    zt, yt = stack([h[0] for h in held]), stack([h[1] for h in held])
+    K, mesh = len(trains), getattr(ctx.system, "mesh", None)
+    if spec.patience > 0:
+        block = ctx.trajectory_length or 1
+        splits = [
+            mlp.validation_split(jax.random.fold_in(k, 1), z.shape[1], m.validation_fraction, block)
+            for k in keys
+        ]
+        fit_i, val_i = np.stack([f for f, _ in splits]), np.stack([v for _, v in splits])
+        take = lambda a, idx: jnp.stack([a[s][idx[s]] for s in range(K)])  # noqa: E731
+        args = (take(z, fit_i), take(y, fit_i), zt, yt, take(z, val_i), take(y, val_i))
+    else:
+        args = (z, y, zt, yt)
+    trained = mlp.train_seeds(spec, jnp.stack(keys), *args, mesh=mesh)
+    out = [{"MLP": _mlp_fitted(mlp.unstack(trained, s))} for s in range(K)]
+    if m.fixed_epochs_beside > 0:
+        fixed = spec._replace(epochs=m.fixed_epochs_beside, patience=0, stop_window=0, checkpoints=())
+        both = mlp.train_seeds(fixed, jnp.stack(keys), z, y, zt, yt, mesh=mesh)
+        for s in range(K):
+            out[s][f"MLP {m.fixed_epochs_beside} epochs"] = _mlp_fitted(mlp.unstack(both, s))
+    return out
+
+
 def _pairs(x: jax.Array, u: jax.Array, x_next: jax.Array, increment: bool) -> tuple[np.ndarray, np.ndarray]:
     """The MLP's inputs z = [x, u] [n, nx + nu] and targets [n, nx] of transitions, as NumPy."""
     from mjx_surrogate.surrogates import mlp
@@ -264,7 +328,9 @@ def _fit_pod_sindy(ctx: FitContext, train, test, key) -> dict[str, Fitted]:
 register_surrogate(
     "sindy", SurrogateKind(_fit_sindy, _validate_sindy, "SINDy-style least squares, one model per library")
 )
-register_surrogate("mlp", SurrogateKind(_fit_mlp, _validate_mlp, "Flax MLP, the paper's"))
+register_surrogate(
+    "mlp", SurrogateKind(_fit_mlp, _validate_mlp, "Flax MLP, the paper's", fit_seeds=_fit_mlp_seeds)
+)
 register_surrogate(
     "pod_sindy",
     SurrogateKind(
