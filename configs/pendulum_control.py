@@ -1,7 +1,8 @@
 """Control with the surrogates on the pendulum (the paper's control study, on its second
 system): from random controls to upright (D2C 2.0's pendulum task). D2C finds the optimum
 with local LTV models; SINDy and MLP models trained on data around that optimum (two
-levels, five seeds) drive iLQR from the same start, and every controller runs on the black box."""
+levels, five seeds) drive iLQR from the same start, and every controller runs on the black box;
+D2C and the oracle also from 5 more random starts, each judged against the other."""
 
 import dataclasses
 

@@ -17,9 +17,11 @@ import numpy as np
 from mjx_surrogate import progress
 from mjx_surrogate.analysis.evaluation import finite_or_none, replay
 from mjx_surrogate.control import chunked
+from mjx_surrogate.control.ilqr import StopReason
 from mjx_surrogate.control.surrogate_control import solve_on_model
 from mjx_surrogate.identification import data
 from mjx_surrogate.runs import pipeline, plots
+from mjx_surrogate.runs.extension_settings import settings_of
 from mjx_surrogate.runs.resolution import Resolved, solver_params
 from mjx_surrogate.runs.results import Run
 from mjx_surrogate.surrogates import FitContext, fit_all_seeds
@@ -97,10 +99,44 @@ def _control_row(res, model, name, level, seed, U0, J_d2c, params):
     return row, arrays
 
 
+def _starts_stage(res, n: int, key: jax.Array, params, sysid):
+    """D2C and the oracle (where it is on) from n random starts of solver.init, solved along
+    a leading axis: each start's D2C cost against the oracle's from the same start."""
+    cfg, system, task = res
+    ex, sc = cfg.experiment, cfg.solver
+
+    def compute():
+        k_init, k_solve = jax.random.split(key)
+        U0s = pipeline.start_controls(system, task, sc.init, sc.init_scale, k_init, n)
+        with progress.meter(f"D2C from {n} starts", sc.max_iter, ex.progress) as pm:
+            d2c = chunked.solve(system, task, U0s, k_solve, params, sysid, "d2c", pm).out
+        exact = None
+        if ex.exact_oracle:
+            with progress.meter(f"oracle from {n} starts", sc.max_iter, ex.progress) as pm:
+                exact = chunked.solve_exact(system, task, U0s, params, pm, ex.oracle).out
+        rows = []
+        for i in range(n):
+            row = {
+                "start": i,
+                "d2c_cost": finite_or_none(d2c.costs[i]),
+                "d2c_status": StopReason(int(d2c.stop_reasons[i])).verdict,
+                "d2c_iterations": int(d2c.iterations[i]),
+            }
+            if exact is not None:
+                J = finite_or_none(exact.costs[i])
+                row |= {"oracle_cost": J, "oracle_status": StopReason(int(exact.stop_reasons[i])).verdict}
+                gap = None if J is None or row["d2c_cost"] is None else (row["d2c_cost"] - J) / abs(J)
+                row["relative_gap"] = gap
+            rows.append(row)
+        return {"n": n, "rows": rows}, {"starts_U0": U0s, "starts_d2c_costs": d2c.costs}
+
+    return compute
+
+
 def run(res: Resolved, record: Run, key: jax.Array) -> str:
     cfg, system, task = res
     ex, sc, dc = cfg.experiment, cfg.solver, cfg.data
-    params, _ = solver_params(cfg)
+    params, sysid = solver_params(cfg)
     k_opt, k_data = jax.random.split(key)
     record.add_arrays({"x0": task.x0})
     record.set("goal_rule", GOAL_RULE)
@@ -126,6 +162,13 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
         m_ex, _ = record.stage("exact", exact_stage)
         if m_ex["cost"] is not None:
             record.set("d2c_vs_exact_relative_gap", (J_d2c - m_ex["cost"]) / abs(m_ex["cost"]))
+
+    n_starts = settings_of(cfg, "experiment", "control").starts
+    if n_starts:
+        m_starts, _ = record.stage(
+            "starts", _starts_stage(res, n_starts, jax.random.fold_in(key, 3), params, sysid)
+        )
+        record.set("starts", m_starts)
 
     rows, trajectories = [], {}
     for i, level in enumerate(dc.levels):
@@ -173,6 +216,7 @@ def _table(m: dict) -> str:
     lines = [
         f"D2C (local LTV) true cost: {f(m['d2c']['cost'])}; exact oracle: "
         f"{f(m['exact'].get('cost')) if 'exact' in m else 'not run'}\n",
+        *_starts_table(m.get("starts"), f),
         "| model | level (% U_max) | seed | cost on model | true cost open loop | "
         "true cost closed loop | true / D2C | reached goal |",
         "|---|---|---|---|---|---|---|---|",
@@ -184,6 +228,27 @@ def _table(m: dict) -> str:
             f"{f(r['true_cost_over_d2c'])} | {r['reached_goal']} |"
         )
     return "\n".join(lines + _over_seeds(m["surrogate_rows"], f)) + "\n"
+
+
+def _starts_table(starts: dict | None, f) -> list[str]:
+    """D2C and the oracle from each random start (``experiment.control.starts``)."""
+    if not starts:
+        return []
+    out = [
+        f"From {starts['n']} random starts (`experiment.control.starts`), each solved by D2C and by "
+        "the oracle:",
+        "",
+        "| start | D2C cost | D2C status | oracle cost | oracle status | D2C against the oracle |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in starts["rows"]:
+        gap = r.get("relative_gap")
+        gap_text = "-" if gap is None else f"{100 * gap:+.3g} %"
+        out.append(
+            f"| {r['start']} | {f(r['d2c_cost'])} | {r['d2c_status']} | {f(r.get('oracle_cost'))} | "
+            f"{r.get('oracle_status', 'not run')} | {gap_text} |"
+        )
+    return out + [""]
 
 
 def _over_seeds(rows: list[dict], f) -> list[str]:

@@ -129,9 +129,10 @@ RULES: dict[str, Rule] = {
     "control": Rule(
         "the paper's",
         "the LTV approach reaches the optimum from a random start; the surrogate-based controllers do not",
-        "D2C converged, within {exact_gap_pct} % of the exact oracle where it ran, and every "
-        "surrogate-based controller is more than {surrogate_worse_pct} % worse than D2C on the "
-        "black box",
+        "D2C converged, within {exact_gap_pct} % of the exact oracle where it ran (from the "
+        "run's start and from each of `experiment.control.starts` random starts), and every "
+        "surrogate-based controller (every model, level and seed) is more than "
+        "{surrogate_worse_pct} % worse than D2C on the black box",
         (("exact_gap", 0.01), ("surrogate_worse", 0.01)),
     ),
     "swimmer15": Rule(

@@ -105,6 +105,8 @@ def quick(cfg, name: str):
             data=r(cfg.data, levels=(0.05,)),
             experiment=r(cfg.experiment, exact_oracle=False),
             surrogate=r(cfg.surrogate, sindy=r(sindy, libraries=sindy.libraries[:1])),
+            # and the random starts, judged against that oracle (tests/test_control_study.py)
+            extensions={**cfg.extensions, "experiment.control": {"starts": 0}},
         )
     if cfg.experiment.kind == "mpc":  # one short condition, one episode, the verdict's controllers
         m = cfg.mpc

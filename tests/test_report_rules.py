@@ -261,3 +261,51 @@ def test_code_revision_is_dirty_for_changed_code_not_for_rewritten_docs(tmp_path
     (tmp_path / "pkg.py").write_text("x = 2\n")
     assert results.code_revision(str(tmp_path)) == clean + "+dirty"
     assert results.code_revision(str(tmp_path / "docs")) == "unknown"
+
+
+def control_metrics(ratios=(3.0, 50.0), gap=1e-6, status="converged", start_gaps=(0.0, 1e-4)) -> dict:
+    """A control study's metrics: D2C against the oracle from its start and from random
+    starts, and the surrogate rows (true cost over D2C's), one per seed."""
+    rows = [{"model": "MLP", "level": 0.05, "seed": s, "true_cost_over_d2c": r} for s, r in enumerate(ratios)]
+    starts = [
+        {
+            "start": i,
+            "d2c_cost": 1.0,
+            "d2c_status": "converged",
+            "relative_gap": g,
+            "oracle_status": "converged",
+        }
+        for i, g in enumerate(start_gaps)
+    ]
+    return {
+        "d2c": {"status": status, "iterations": 40},
+        "d2c_vs_exact_relative_gap": gap,
+        "surrogate_rows": rows,
+        "starts": {"n": len(starts), "rows": starts},
+    }
+
+
+@pytest.mark.parametrize(
+    "contradicting, cause",
+    [
+        ({"ratios": (3.0, 1.005)}, "within 1 % of D2C or better: MLP at 5 % (seed 1)"),  # one seed as good
+        ({"ratios": (3.0, 0.9)}, "seed 1"),  # a surrogate beats D2C
+        ({"gap": 0.02}, "D2C ended +2 % from the oracle's cost"),
+        ({"status": "stalled"}, "did not converge"),
+        ({"start_gaps": (0.0, 0.05)}, "from random start 1 D2C ended +5 % from the oracle's cost"),
+        ({"start_gaps": (0.0, None)}, "from random start 1 D2C ended without a finite cost"),
+        ({"ratios": ()}, "no surrogate-based controller ran"),
+    ],
+)
+def test_the_control_rule_turns_with_data_that_contradict_it(contradicting, cause):
+    """Held on metrics that support the paper's claim; not held, with the cause named,
+    on each kind of contradicting outcome (a seed's surrogate as good as D2C, D2C off the
+    oracle from its own start or from one random start, an unconverged D2C)."""
+    from experiments.report_control import control_verdict
+
+    rule = RULES["control"]
+    held, worse, causes = control_verdict(control_metrics(), rule)
+    assert held is True and len(worse) == 2 and causes == []
+    held, _, causes = control_verdict(control_metrics(**contradicting), rule)
+    assert held is False and any(cause in c for c in causes), causes
+    assert control_verdict({}, rule)[0] is None  # no run: no verdict

@@ -10,6 +10,7 @@ defaults, set as ``--experiment.<kind>.<field>``, :mod:`mjx_surrogate.runs.exten
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 from typing import Any, Callable, NamedTuple, Union
 
@@ -108,6 +109,23 @@ def _mpc_needs(config) -> frozenset:
     return frozenset({IDENTIFICATION} | surrogates)
 
 
+@dataclasses.dataclass(frozen=True)
+class ControlSettings:
+    """The control study's own settings (``--experiment.control.<field>``).
+
+    starts: D2C and the exact oracle (where ``experiment.exact_oracle`` is on) also from
+    this many random starts of ``solver.init`` (drawn from the experiment's seed, solved
+    along a leading axis), each D2C solve judged against the oracle's from the same start:
+    the claim "the LTV approach reaches the optimum from a random start" over several
+    draws; 0: only the run's own start."""
+
+    starts: int = 0
+
+    def check(self) -> None:
+        if self.starts < 0 or self.starts == 1:
+            raise ConfigError("starts", f"must be 0 (off) or at least 2, got {self.starts}")
+
+
 _FIT = frozenset({IDENTIFICATION, SURROGATES, LTV_BASELINE})
 for _name, _kind in {
     "rollout": ExperimentKind(
@@ -142,8 +160,10 @@ for _name, _kind in {
     "control": ExperimentKind(
         "experiments.control_study:run",
         _FIT,
-        writes="iLQR on each surrogate, its controls judged on the black box",
+        writes="iLQR on each surrogate, its controls judged on the black box; D2C and the "
+        "oracle from experiment.control.starts random starts",
         description="surrogate-based control against D2C and the oracle",
+        settings=ControlSettings(),
     ),
     "horizon": ExperimentKind(
         "experiments.horizon_study:run",
