@@ -47,3 +47,15 @@ def test_random_starts_are_each_judged_against_the_oracle_from_the_same_start(tm
     assert [r["model"] for r in m["surrogate_rows"]] == ["SINDy cubic_trig"]
     assert "From 2 random starts" in open(os.path.join(folder, "control_table.md")).read()
     assert list(m["stages"]) == ["d2c", "exact", "starts", "surrogates/0.1"]
+
+
+@pytest.mark.parametrize("starts", ["1", "-2"])
+def test_a_bad_number_of_starts_exits_2_naming_the_field_before_any_run(tmp_path, capsys, starts):
+    from experiments import run as cli
+
+    assert cli.main(["smoke_control", "--out", str(tmp_path), "--experiment.control.starts", starts]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: experiment.control.starts: must be 0 (off) or at least 2, got {starts}"), (
+        err
+    )
+    assert len(err.strip().splitlines()) == 1 and not os.listdir(tmp_path)
