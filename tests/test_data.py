@@ -29,6 +29,7 @@ def test_u_max_and_perturbation_statistics(systems):
     np.testing.assert_array_equal(ds.U, again.U)
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 def test_u_max_is_the_actuator_limit_and_data_hold_the_applied_controls(systems):
     sys_ = systems("pendulum")
     T = 8
@@ -46,6 +47,7 @@ def test_u_max_is_the_actuator_limit_and_data_hold_the_applied_controls(systems)
     np.testing.assert_allclose(wide.X, rollout(sys_, wide.X[:, 0], wide.U), atol=1e-12)
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 def test_split_by_trajectory_and_transitions(systems):
     sys_ = systems("pendulum")
     X_star = jnp.zeros((6, 2)).at[:, 0].set(np.pi)

@@ -318,6 +318,7 @@ def test_help_lists_the_settings_of_registered_extensions(doc, capsys):
     assert "--solver.coordinate.{step}" in out and "--experiment.random_controls.{n,scale}" in out
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 def test_a_registered_model_strategy_with_its_setting_runs_from_the_command_line(tmp_path):
     """The page's periodic strategy: the run identifies exactly at every period-th
     iteration, its setting reaches the strategy, and the solve ends on the default's

@@ -37,6 +37,7 @@ def _data_set(system, key, n_traj: int, T: int) -> Transitions:
     return Transitions(x, u, jax.jit(jax.vmap(system.step))(x, u))
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 @pytest.mark.parametrize("patience", [3, 0])
 def test_seeds_at_once_give_each_data_set_its_own_fit(patience):
     system = make_system("pendulum", backend="native")

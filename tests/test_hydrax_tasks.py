@@ -53,6 +53,7 @@ def _hydrax_formula(name, X, U, dt):
     return dt * running.sum() + 10 * angle[-1] + rest[-1]
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 @pytest.mark.parametrize("name", ["pendulum", "cartpole"])
 def test_the_task_cost_is_hydrax_s_plus_a_constant_of_the_start(name):
     """On random plans through the model, J - (the running state cost at x_0) is hydrax's
@@ -65,6 +66,7 @@ def test_the_task_cost_is_hydrax_s_plus_a_constant_of_the_start(name):
     assert mine == pytest.approx(_hydrax_formula(name, X, Uc, float(system.dt)), rel=1e-10)
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 def test_the_chordal_error_squares_to_the_angle_cost_and_its_derivatives_are_gauss_newton():
     Q, Qf = np.diag([1.0, 2.0, 0.1, 0.3]), np.diag([3.0, 4.0, 0.5, 0.6])
     task = make_task(np.zeros(4), [0.3, np.pi, 0, 0], Q, Qf, 0.2 * np.eye(1), 5, hinges=(1,), chordal=True)

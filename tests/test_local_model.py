@@ -6,6 +6,7 @@ this; a strategy of one's own plugs in through ``Problem.strategy``."""
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from mjx_surrogate.control import local_model as lm
 from mjx_surrogate.control import model_strategies as ms
@@ -87,6 +88,7 @@ def test_every_iteration_identifies_when_the_nominal_moved_and_keeps_the_model_a
     assert bool(s.propose(st, ms.no_proposal()).identify)
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 def test_the_proposal_is_carried_out_identify_carry_or_keep():
     p = make_problem()
     m, how = make(p, ms.Proposal(TRUE, FALSE, FALSE))
@@ -167,6 +169,7 @@ def test_the_model_for_a_reduced_problem_carries_its_basis():
     np.testing.assert_array_equal(m.V, V)
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 def test_a_strategy_of_ones_own_plugs_in_through_the_problem():
     """A strategy that identifies only every other iteration (its own state: a counter), on
     a linear system: the loop identifies where it says, and the minimum is the same."""

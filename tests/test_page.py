@@ -96,6 +96,7 @@ def _browser():
     return pytest.importorskip("playwright.sync_api")
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 def test_the_page_renders_in_a_headless_browser(folder, tmp_path_factory):
     sync_playwright = _browser().sync_playwright
     path = page.write(str(folder))

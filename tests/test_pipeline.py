@@ -203,6 +203,7 @@ def test_a_converged_solve_that_misses_its_goal_says_the_cost_stops_short():
     assert pipeline.status_hint("max_iter", {"goal": goal}) is None
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 def test_the_optimum_stage_of_the_other_kinds_honours_several_starts():
     """pipeline.optimum_stage (the offline optimum of the mpc, control, horizon, analysis
     and predict kinds) solves each of solver.n_starts starts and keeps the cheapest, as the

@@ -12,6 +12,7 @@ from mjx_surrogate.runs.config import Config, SystemConfig, TaskConfig
 from mjx_surrogate.runs.resolution import resolve
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 def test_jax_d2c_matches_numpy_reference_on_pendulum():
     res = resolve(
         Config(system=SystemConfig(name="pendulum", backend="native"), task=TaskConfig(preset="pendulum_d2c"))

@@ -299,6 +299,7 @@ def _assert_native_steps_are_mj_step(m: mujoco.MjModel, rng, label: str) -> None
         np.testing.assert_array_equal(got[i], want, err_msg=f"{label} row {i}")
 
 
+@pytest.mark.slow  # over 5 s: the fast tier's budget
 def test_every_third_party_model_steps_natively_as_mj_step():
     """Load every dm_control suite model and gymnasium asset as users download them
     (sensors, servos, contacts, free joints, mocap) and check the identification's one-step
