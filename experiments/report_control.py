@@ -75,7 +75,7 @@ def control_sections(L: list, folders: dict, fig: Callable, section: Callable, v
         text = (
             f"D2C cost {_replay_text(d2c, f)}, goal reached: {d2c.get('reached_goal')}; exact "
             f"oracle {exact_text}.{starts_text} {len(worse)} of {len(rows)} surrogate-based "
-            f"controllers are more than 1 % worse than D2C on the black box.\n\n"
+            f"controllers are more than 1 % worse than D2C on the black box.{_no_step_text(rows)}\n\n"
             + read(folders.get(name), "control_table.md")
         )
         if causes:
@@ -89,6 +89,20 @@ def control_sections(L: list, folders: dict, fig: Callable, section: Callable, v
             verdict(held),
             rule.note(),
         )
+
+
+def _no_step_text(rows: list[dict]) -> str:
+    """Where iLQR on a surrogate made no step (no finite cost on the model, 0 iterations),
+    its controls are the random start's: the row's true cost is the start's, not a plan's."""
+    stuck = [r for r in rows if r.get("model_cost") is None and r.get("iterations") == 0]
+    if not stuck:
+        return ""
+    names = sorted({r["model"] for r in stuck})
+    return (
+        f" In {len(stuck)} of {len(rows)} rows ({', '.join(names)}) iLQR made no step on the "
+        "surrogate (its cost there is not finite from the start): those controls are the random "
+        "start's, and their true cost is the start's."
+    )
 
 
 def _within(gap: float | None, tol: float) -> bool:

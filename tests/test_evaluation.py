@@ -60,3 +60,16 @@ def test_a_backed_off_scale_must_help_on_more_draws_than_chance_explains():
     with_nan[1, :20] = np.nan  # a blown-up closed loop counts against it
     assert not _clearly_helps(levels, with_nan, opened)
     assert _clearly_helps(np.array([0.0]), closed(0), opened)  # only levels > 0 are judged
+
+
+def test_the_open_loop_replay_applies_the_controls_whatever_the_nominal():
+    """A surrogate on which iLQR diverged leaves a nominal X that is not finite: the open
+    loop is still U's rollout on the black box (here x_T = sum of U); the closed loop
+    around that nominal is not finite."""
+    from mjx_surrogate.analysis.evaluation import replay
+
+    U = jnp.full((T, 1), 0.05)
+    X = jnp.full((T + 1, 1), jnp.nan)
+    out = replay(SYSTEM, TASK, X, U, jnp.full((T, 1, 1), -0.5))
+    np.testing.assert_allclose(np.asarray(out.X_open)[:, 0], 0.05 * np.arange(T + 1), atol=1e-12)
+    assert np.isfinite(float(out.cost_open)) and not np.isfinite(float(out.cost_closed))

@@ -309,3 +309,14 @@ def test_the_control_rule_turns_with_data_that_contradict_it(contradicting, caus
     held, _, causes = control_verdict(control_metrics(**contradicting), rule)
     assert held is False and any(cause in c for c in causes), causes
     assert control_verdict({}, rule)[0] is None  # no run: no verdict
+
+
+def test_rows_whose_ilqr_made_no_step_are_named_as_the_start_replayed():
+    from experiments.report_control import _no_step_text
+
+    planned = {"model": "SINDy poly2", "model_cost": 3.0, "iterations": 12}
+    stuck = {"model": "MLP", "model_cost": None, "iterations": 0}
+    diverged_later = {"model": "SINDy quartic", "model_cost": None, "iterations": 7}
+    assert _no_step_text([planned, diverged_later]) == ""
+    text = _no_step_text([planned, stuck, stuck, diverged_later])
+    assert text.startswith(" In 2 of 4 rows (MLP) iLQR made no step"), text

@@ -309,10 +309,14 @@ def assert_every_optimum_replays_natively(out):
         for row in metrics.get("surrogate_rows", []):  # iLQR on a surrogate, on the black box
             U, X, K = (arrays[row["arrays"][k]] for k in "UXK")
             lim = np.asarray(task.u_min), np.asarray(task.u_max)
-            for gains, reported in ((0 * K, row["true_cost_open"]), (K, row["true_cost_closed"])):
+            open_loop = (np.zeros_like(X), 0 * K)  # U alone, whatever the surrogate's nominal
+            for (Xn, gains), reported in (
+                (open_loop, row["true_cost_open"]),
+                ((X, K), row["true_cost_closed"]),
+            ):
                 if reported is None:  # diverged on the black box
                     continue
-                xs, us = _native_closed_loop(model, cfg.system.substeps, arrays["x0"], U, X, gains, *lim)
+                xs, us = _native_closed_loop(model, cfg.system.substeps, arrays["x0"], U, Xn, gains, *lim)
                 J = float(trajectory_cost(task, jnp.asarray(xs), jnp.asarray(us)))
                 if reported > 100 * metrics["d2c"]["cost"]:
                     # blown up (poles spinning at 1e4 rad/s): round-off decides the digits,

@@ -37,9 +37,12 @@ class Replay(NamedTuple):
 @system_jit(static_argnames=("system",))
 def replay(system: System, task: Task, X: jax.Array, U: jax.Array, K: jax.Array) -> Replay:
     """Execute the nominal X [T+1, nx], U [T, nu] with gains K [T, nu, nx] on the black box,
-    open and closed loop, controls clipped to the task's limits."""
+    open and closed loop, controls clipped to the task's limits. The open loop applies U
+    alone: a nominal X that is not finite (a surrogate on which iLQR diverged) leaves it
+    finite; the closed loop around such a nominal is not."""
     zeros = jnp.zeros_like(U)
-    Xo, Uo = feedback_rollout(system.step, task.x0, X, U, jnp.zeros_like(K), zeros, task.u_min, task.u_max)
+    open_loop = (jnp.zeros_like(X), U, jnp.zeros_like(K), zeros)  # u = U + 0 (x - 0)
+    Xo, Uo = feedback_rollout(system.step, task.x0, *open_loop, task.u_min, task.u_max)
     Xc, Uc = feedback_rollout(system.step, task.x0, X, U, K, zeros, task.u_min, task.u_max)
     err = lambda Xr: jnp.linalg.norm(Xr[-1] - task.x_goal)  # noqa: E731
     return Replay(trajectory_cost(task, Xo, Uo), trajectory_cost(task, Xc, Uc), Xo, Xc, err(Xo), err(Xc))
