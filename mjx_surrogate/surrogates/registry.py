@@ -74,16 +74,7 @@ def fit_all(ctx: FitContext, train, test, key: jax.Array, meter=None) -> dict[st
     """Fit every kind of ``ctx.config.surrogate.kinds`` on Transitions ``train`` (``test``
     for held-out losses); kind i draws from ``fold_in(key, i)``. Labels stay in order.
     ``meter``: a :class:`mjx_surrogate.progress.StepMeter`, advanced once per kind."""
-    out: dict[str, Fitted] = {}
-    for i, name in enumerate(ctx.config.surrogate.kinds):
-        if meter is not None:
-            meter.advance(f"fit {name}")
-        t0 = time.perf_counter()
-        fitted = get_surrogate(name).fit(ctx, train, test, jax.random.fold_in(key, i))
-        for label, f in fitted.items():
-            jax.block_until_ready(f.model)
-            out[label] = f._replace(info={"fit_s": (time.perf_counter() - t0) / len(fitted), **f.info})
-    return out
+    return fit_all_seeds(ctx, [train], [test], [key], meter)[0]
 
 
 def fit_all_seeds(
@@ -95,7 +86,7 @@ def fit_all_seeds(
     out: list[dict[str, Fitted]] = [{} for _ in trains]
     for i, name in enumerate(ctx.config.surrogate.kinds):
         if meter is not None:
-            meter.advance(f"fit {name}, {len(trains)} data sets")
+            meter.advance(f"fit {name}" + (f", {len(trains)} data sets" if len(trains) > 1 else ""))
         kind, kind_keys = get_surrogate(name), [jax.random.fold_in(k, i) for k in keys]
         t0 = time.perf_counter()
         if kind.fit_seeds is not None and len(trains) > 1:
