@@ -1,10 +1,12 @@
 """Experiment kind "predict": the paper's prediction experiments.
 
 1. Stage ``optimum``: the task's optimum (X*, U*) by D2C on the black box.
-2. Stage ``results/<level>`` for each perturbation level: a data set of perturbed
-   trajectories around it, split train : test by trajectory; every registered surrogate
-   kind of ``surrogate.kinds`` and the local LTV model fitted on the training set;
-   one-step and open-loop multi-step predictions on the test trajectories.
+2. Stage ``results/<level>`` for each perturbation level: ``data.n_seeds`` data sets of
+   perturbed trajectories around it, each split train : test by trajectory; every
+   registered surrogate kind of ``surrogate.kinds`` (the seeds at once where the kind can)
+   and the local LTV model fitted on each training set; one-step and open-loop multi-step
+   predictions on each test set. A model's metrics are the medians over the data sets,
+   with each data set's under ``per_seed``; the figures show the first data set's.
 """
 
 from __future__ import annotations
@@ -23,11 +25,14 @@ from mjx_surrogate.identification import data, step_models, sysid
 from mjx_surrogate.runs import pipeline, plots
 from mjx_surrogate.runs.resolution import Resolved
 from mjx_surrogate.runs.results import Run
-from mjx_surrogate.surrogates import FitContext, fit_all
+from mjx_surrogate.surrogates import FitContext, fit_all_seeds
+
+PER_SEED = ("one_step_rmse", "multi_step_median", "multi_step_rmse", "diverged")
 
 
-def level_stage(res: Resolved, X_star, U_star, level: float, i: int, key: jax.Array):
-    """A stage: the data set at one level, every model fitted and evaluated."""
+def level_stage(res: Resolved, X_star, U_star, level: float, i: int, keys: list):
+    """A stage: ``len(keys)`` data sets at one level (one per key; the first key's data set
+    is the single-seed study's), every model fitted and evaluated on each."""
     cfg, system, task = res
     dc = cfg.data
 
@@ -37,47 +42,74 @@ def level_stage(res: Resolved, X_star, U_star, level: float, i: int, key: jax.Ar
             return _compute(meter)
 
     def _compute(meter):
-        k_data, k_split, k_fit = jax.random.split(key, 3)
-        meter.advance(f"sample {dc.n_traj} trajectories")
+        splits = [jax.random.split(k, 3) for k in keys]
+        meter.advance(f"sample {len(keys)} x {dc.n_traj} trajectories")
         t0 = time.perf_counter()
         lim = (task.u_min, task.u_max)
-        ds = data.sample(system, X_star, U_star, k_data, dc.n_traj, level, dc.x0_sigma, *lim)
-        ds = jax.block_until_ready(ds)
+        sample = partial(data.sample, system, X_star, U_star)
+        sets = [sample(k[0], dc.n_traj, level, dc.x0_sigma, *lim) for k in splits]
+        sets = jax.block_until_ready(sets)
         t_data = time.perf_counter() - t0
-        train, test = data.split(ds, k_split, dc.test_fraction)
-        fitted = fit_all(
-            FitContext(cfg, system, task.T), data.transitions(train), data.transitions(test), k_fit, meter
+        parts = [data.split(ds, k[1], dc.test_fraction) for ds, k in zip(sets, splits)]
+        fitted = fit_all_seeds(
+            FitContext(cfg, system, task.T),
+            [data.transitions(tr) for tr, _ in parts],
+            [data.transitions(te) for _, te in parts],
+            [k[2] for k in splits],
+            meter,
         )
-        steps = {name: step_models.as_pytree(f.model) for name, f in fitted.items()}
-        info = {name: f.info for name, f in fitted.items()}
         meter.advance("fit LTV")
-        t0 = time.perf_counter()
-        steps["LTV"] = step_models.fit_ltv(train, X_star, U_star).as_pytree()
-        info["LTV"] = {"fit_s": time.perf_counter() - t0}
-        if cfg.surrogate.reduced_ltv_tol is not None:
+        steps, info = [], []
+        for (train, _), fs in zip(parts, fitted):
+            st = {name: step_models.as_pytree(f.model) for name, f in fs.items()}
+            inf = {name: f.info for name, f in fs.items()}
             t0 = time.perf_counter()
-            tol = cfg.surrogate.reduced_ltv_tol
-            steps["LTV reduced"] = step_models.fit_reduced_ltv(train, X_star, U_star, tol).as_pytree()
-            info["LTV reduced"] = {"fit_s": time.perf_counter() - t0}
+            st["LTV"] = step_models.fit_ltv(train, X_star, U_star).as_pytree()
+            inf["LTV"] = {"fit_s": time.perf_counter() - t0}
+            if cfg.surrogate.reduced_ltv_tol is not None:
+                t0 = time.perf_counter()
+                tol = cfg.surrogate.reduced_ltv_tol
+                st["LTV reduced"] = step_models.fit_reduced_ltv(train, X_star, U_star, tol).as_pytree()
+                inf["LTV reduced"] = {"fit_s": time.perf_counter() - t0}
+            steps.append(st)
+            info.append(inf)
         meter.advance("prediction errors")
-        per_model, arrays = {}, {}
-        arrays[f"level{i}_test_X"] = data.finite_trajectories(test).X[0]
-        for name, step_t in steps.items():
-            m, pred = prediction_errors(step_t, test)
-            per_model[name] = {**m, **info[name]}
-            arrays[f"level{i}_pred_{name.replace(' ', '_')}"] = pred[0]
-        for name, f in fitted.items():
+        arrays = {f"level{i}_test_X": data.finite_trajectories(parts[0][1]).X[0]}
+        seeds = [{} for _ in keys]
+        for s, ((_, test), st) in enumerate(zip(parts, steps)):
+            for name, step_t in st.items():
+                seeds[s][name], pred = prediction_errors(step_t, test)
+                if s == 0:
+                    arrays[f"level{i}_pred_{name.replace(' ', '_')}"] = pred[0]
+        per_model = {name: {**_over_seeds([m[name] for m in seeds]), **info[0][name]} for name in steps[0]}
+        for name, f in fitted[0].items():
             for k, v in f.arrays.items():
                 arrays[f"{name.replace(' ', '_').lower()}_{k}_{level:g}"] = v
+        spreads = [float(locality.relative_spread(ds.X, X_star)) for ds in sets]
         per_model["_data"] = {
             "sample_s": t_data,
-            "n_train": int(train.X.shape[0]),
-            "n_test": int(test.X.shape[0]),
-            "relative_spread": float(locality.relative_spread(ds.X, X_star)),
+            "n_train": int(parts[0][0].X.shape[0]),
+            "n_test": int(parts[0][1].X.shape[0]),
+            "n_seeds": len(keys),
+            "relative_spread": float(np.median(spreads)),
+            "relative_spread_per_seed": spreads,
         }
         return per_model, arrays
 
     return compute
+
+
+def _over_seeds(ms: list[dict]) -> dict:
+    """A model's metrics over the data sets: each the median (a diverged, None, value counts
+    as infinitely large, and a median that is infinite is None), each data set's under
+    ``per_seed``."""
+    out = {}
+    for k in PER_SEED:
+        v = [m[k] for m in ms]
+        med = float(np.median([np.inf if x is None else x for x in v]))
+        out[k] = med if np.isfinite(med) else None
+    out["per_seed"] = {k: [m[k] for m in ms] for k in PER_SEED}
+    return out
 
 
 @partial(jax.jit, static_argnums=0)
@@ -115,7 +147,9 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
     phase = (list(system.angle_pairs) or [None])[0]
     results = {}
     for i, (level, k) in enumerate(zip(dc.levels, jax.random.split(k_levels, len(dc.levels)))):
-        per_model, arrays = record.stage(f"results/{level:g}", level_stage(res, X_star, U_star, level, i, k))
+        keys = [k] + [jax.random.fold_in(k, s) for s in range(1, dc.n_seeds)]
+        stage = level_stage(res, X_star, U_star, level, i, keys)
+        per_model, arrays = record.stage(f"results/{level:g}", stage)
         results[f"{level:g}"] = per_model
         preds = {
             n: arrays[f"level{i}_pred_{n.replace(' ', '_')}"] for n in per_model if not n.startswith("_")
@@ -166,12 +200,13 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             f"{key_}_vs_level.png",
             lambda: plots.error_vs_level(np.asarray(dc.levels), errs, label, f"{system.name}: test {label}"),
         )
+    over = f" (each the median over {dc.n_seeds} data sets)" if dc.n_seeds > 1 else ""
     record.folder.write_text(
         "rmse_table.md",
         (
-            "**One-step test RMSE**\n\n"
+            f"**One-step test RMSE{over}**\n\n"
             + _rmse_table(dc.levels, clean, "one_step_rmse")
-            + "\n**Open-loop multi-step test RMSE (median over test trajectories)**\n\n"
+            + f"\n**Open-loop multi-step test RMSE (median over test trajectories){over}**\n\n"
             + _rmse_table(dc.levels, clean, "multi_step_median")
         ),
     )
