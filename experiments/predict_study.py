@@ -196,9 +196,25 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
             ]
             for n in names
         }
+        ranges = None
+        if dc.n_seeds > 1:  # the band: least and largest over the data sets (a diverged one: inf)
+            ranges = {
+                n: np.asarray(
+                    [
+                        [
+                            f(np.inf if v is None else v for v in clean[f"{lv:g}"][n]["per_seed"][key_])
+                            for lv in dc.levels
+                        ]
+                        for f in (min, max)
+                    ]
+                )
+                for n in names
+            }
+        title = f"{system.name}: test {label}"
+        title += f"\nmedian and range over {dc.n_seeds} data sets" if ranges else ""
         record.figure(
             f"{key_}_vs_level.png",
-            lambda: plots.error_vs_level(np.asarray(dc.levels), errs, label, f"{system.name}: test {label}"),
+            lambda: plots.error_vs_level(np.asarray(dc.levels), errs, label, title, ranges),
         )
     over = f" (each the median over {dc.n_seeds} data sets)" if dc.n_seeds > 1 else ""
     record.folder.write_text(

@@ -89,3 +89,21 @@ def test_the_prediction_claim_holds_only_where_it_holds_on_every_data_set():
     m3["results"]["0.1"]["_data"]["relative_spread_per_seed"][2] = 0.8
     held, text = report._predict_claim(m3, scale=100.0)
     assert held is False and "spread 0.8 >= 0.5" in text
+
+
+def test_the_error_figure_bands_each_model_between_its_least_and_largest_data_set():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.collections import PolyCollection
+
+    from mjx_surrogate.runs import plots
+
+    levels = np.array([0.1, 0.6])
+    errs = {"SINDy": [1.0, 9.0], "LTV": [0.5, 2.0]}
+    band = {"SINDy": np.array([[0.8, 7.0], [1.5, np.inf]])}  # a diverged data set at 60 %
+    fig = plots.error_vs_level(levels, errs, "RMSE", "t", band)
+    (poly,) = [c for c in fig.axes[0].collections if isinstance(c, PolyCollection)]
+    ys = poly.get_paths()[0].vertices[:, 1]
+    assert np.nanmin(ys) == pytest.approx(0.8) and np.nanmax(ys[np.isfinite(ys)]) == pytest.approx(1.5)
+    assert not [c for c in plots.error_vs_level(levels, errs, "RMSE").axes[0].collections]

@@ -163,13 +163,24 @@ def predictions(
     return fig
 
 
-def error_vs_level(levels: np.ndarray, errors: dict[str, np.ndarray], ylabel: str, title: str = ""):
-    """Prediction error of each model against the perturbation level (log scale)."""
+def error_vs_level(
+    levels: np.ndarray,
+    errors: dict[str, np.ndarray],
+    ylabel: str,
+    title: str = "",
+    ranges: dict[str, np.ndarray] | None = None,
+):
+    """Prediction error of each model against the perturbation level (log scale); where
+    ``ranges[name]`` [2, n_levels] is given (the least and largest over data sets), a band."""
     fig, ax = plt.subplots(figsize=(5, 3.4))
+    x = 100 * np.asarray(levels)
     for name, e in errors.items():
         e = np.asarray(e, float)
         e = np.where(np.isfinite(e), e, np.nan)
-        ax.plot(100 * np.asarray(levels), e, marker="o", label=name)
+        (line,) = ax.plot(x, e, marker="o", label=name)
+        if ranges is not None and name in ranges:
+            lo, hi = (np.where(np.isfinite(r), r, np.nan) for r in np.asarray(ranges[name], float))
+            ax.fill_between(x, lo, hi, color=line.get_color(), alpha=0.15, lw=0)
     ax.set_yscale("log")
     ax.set_xlabel("control perturbation (% of U_max)")
     ax.set_ylabel(ylabel)
