@@ -231,14 +231,21 @@ def run(res: Resolved, record: Run, key: jax.Array) -> str:
 
 
 def _finding(levels, clean: dict) -> dict:
-    """Does the global-model error grow with the level while the LTV stays accurate?"""
+    """Does each model's error grow from the lowest to the highest level (medians over the
+    data sets), and on how many of the data sets does it?"""
     out = {}
     lo, hi = f"{min(levels):g}", f"{max(levels):g}"
+
+    def grows(a, b) -> bool:
+        return (a is not None and b is not None and b > a) or (a is not None and b is None)
+
     for name in clean[lo]:
         a, b = clean[lo][name]["multi_step_median"], clean[hi][name]["multi_step_median"]
+        pa, pb = (clean[lv][name]["per_seed"]["multi_step_median"] for lv in (lo, hi))
         out[name] = {
             "multi_step_median_lowest_level": a,
             "multi_step_median_highest_level": b,
-            "grows": (a is not None and b is not None and b > a) or (a is not None and b is None),
+            "grows": grows(a, b),
+            "grows_on_data_sets": sum(grows(x, y) for x, y in zip(pa, pb)),
         }
     return out

@@ -107,3 +107,17 @@ def test_the_error_figure_bands_each_model_between_its_least_and_largest_data_se
     ys = poly.get_paths()[0].vertices[:, 1]
     assert np.nanmin(ys) == pytest.approx(0.8) and np.nanmax(ys[np.isfinite(ys)]) == pytest.approx(1.5)
     assert not [c for c in plots.error_vs_level(levels, errs, "RMSE").axes[0].collections]
+
+
+def test_the_runs_finding_counts_the_data_sets_on_which_the_error_grows():
+    from experiments.predict_study import _finding
+
+    def model(median, seeds):
+        return {"multi_step_median": median, "per_seed": {"multi_step_median": seeds}}
+
+    clean = {
+        "0.1": {"SINDy": model(1.0, [1.0, 2.0, 0.5])},
+        "0.6": {"SINDy": model(1.5, [1.5, 1.0, None])},  # a diverged data set's error grows
+    }
+    f = _finding([0.1, 0.6], clean)["SINDy"]
+    assert f["grows"] is True and f["grows_on_data_sets"] == 2
