@@ -146,8 +146,9 @@ def _predict_claim(m: dict, scale: float | None = None) -> tuple[bool | None, st
     if len(views) > 1:
         ratios = [v["ratio"] for v in views if v["ratio"] is not None]
         text += (
-            f" Over the {len(views)} data sets of each level (`data.n_seeds`; the figures above are "
-            "medians over them): at the lowest level the LTV error over the best global model's "
+            f" Over the {len(views)} data sets of each level (`data.n_seeds`; the errors above are "
+            "medians over them, the epochs and the prediction plots the first data set's): at the "
+            "lowest level the LTV error over the best global model's "
             + (f"ranges {_f(min(ratios))}-{_f(max(ratios))}" if ratios else "is not finite")
             + f"; the rule holds on {sum(v['held'] for v in views)} of {len(views)}."
         )
