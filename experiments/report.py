@@ -103,6 +103,7 @@ def _judge_prediction(m: dict, scale: float | None) -> dict:
         and ratio <= rule.value("ltv_over_global")
         and local,
         "grows": grows,
+        "accurate": accurate,
         "ratio": ratio,
         "local": local,
         "spread": spread,
@@ -163,14 +164,45 @@ def _predict_claim(m: dict, scale: float | None = None) -> tuple[bool | None, st
             + f"; open-loop gain of the optimum {_f(loc.get('open_loop_gain'))}."
         )
     held = all(v["held"] for v in views)
-    if not held and not all(v["local"] for v in views):
-        worst = max((v["spread"] for v in views if v["spread"] is not None), default=None)
-        text += (
-            f" Cause: the data did not stay local even at the lowest level (spread "
-            f"{_f(worst)} >= {LOCAL_SPREAD:g}): the perturbed trajectories move about "
-            "as far from the optimum as the manoeuvre itself, where no model is local."
-        )
+    if not held:
+        text += _prediction_causes(views, res[lo], glob, scale)
     return held, text
+
+
+def _prediction_causes(views: list[dict], lowest: dict, glob: list, scale: float | None) -> str:
+    """Why the prediction claim did not hold: each part of the rule that failed, on how
+    many of the data sets."""
+    n, causes = len(views), []
+    of = lambda k: f"{k} of {n} data sets" if n > 1 else "its data set"  # noqa: E731
+    for name in glob:
+        k = sum(not v["grows"][name] for v in views)
+        if k:
+            e = lowest[name]["multi_step_median"]
+            above = scale is not None and e is not None and e > scale
+            causes.append(
+                f"{name}'s error does not grow on {of(k)}"
+                + (
+                    f" (at the lowest level it is already {_f(e / scale)}x the RMS state: its "
+                    "open-loop predictions blow up at every level)"
+                    if above
+                    else ""
+                )
+            )
+    k = sum(v["ratio"] is None or v["ratio"] > RULES["prediction"].value("ltv_over_global") for v in views)
+    if k:
+        causes.append(f"at the lowest level the LTV model predicts worse than the best global one on {of(k)}")
+    k = sum(not v["accurate"] for v in views)
+    if k and scale is not None:
+        pct = 100 * RULES["prediction"].value("ltv_state_fraction")
+        causes.append(f"the lowest level's LTV error is {pct:g} % of the RMS state or more on {of(k)}")
+    if not all(v["local"] for v in views):
+        worst = max((v["spread"] for v in views if v["spread"] is not None), default=None)
+        causes.append(
+            f"the data did not stay local even at the lowest level (spread {_f(worst)} >= "
+            f"{LOCAL_SPREAD:g}): the perturbed trajectories move about as far from the optimum "
+            "as the manoeuvre itself, where no model is local"
+        )
+    return (" Cause: " + "; ".join(causes) + ".") if causes else ""
 
 
 def _mlp_epochs_text(res: dict, levels: list) -> str:

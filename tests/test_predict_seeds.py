@@ -79,11 +79,19 @@ def test_the_prediction_claim_holds_only_where_it_holds_on_every_data_set():
     # than the global model there, and the claim does not hold
     held, text = report._predict_claim(_per_seed_metrics([0.5, 0.6, 1.3]), scale=100.0)
     assert held is False and "ranges 0.5-1.3; the rule holds on 2 of 3" in text
+    assert "Cause: at the lowest level the LTV model predicts worse than the best global one on 1 of" in text
     # a global model whose error does not grow on one data set fails it too
     m = _per_seed_metrics([0.5, 0.6, 0.7])
     m2 = copy.deepcopy(m)
     m2["results"]["0.6"]["SINDy"]["per_seed"]["multi_step_median"][1] = 0.5
-    assert report._predict_claim(m2, scale=100.0)[0] is False
+    held, text = report._predict_claim(m2, scale=100.0)
+    assert held is False and "Cause: SINDy's error does not grow on 1 of 3 data sets." in text
+    # a global model whose predictions blow up at every level: the cause says so
+    m4 = copy.deepcopy(m)
+    for lv, e in (("0.1", 500.0), ("0.6", 200.0)):
+        m4["results"][lv]["SINDy"] = {"multi_step_median": e, "per_seed": {"multi_step_median": [e] * 3}}
+    held, text = report._predict_claim(m4, scale=100.0)
+    assert held is False and "does not grow on 3 of 3 data sets (at the lowest level it is already 5x" in text
     # and one data set that did not stay local at the lowest level
     m3 = copy.deepcopy(m)
     m3["results"]["0.1"]["_data"]["relative_spread_per_seed"][2] = 0.8
