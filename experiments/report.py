@@ -182,8 +182,8 @@ def _prediction_causes(views: list[dict], lowest: dict, glob: list, scale: float
             causes.append(
                 f"{name}'s error does not grow on {of(k)}"
                 + (
-                    f" (at the lowest level it is already {_f(e / scale)}x the RMS state: its "
-                    "open-loop predictions blow up at every level)"
+                    f" (its median error at the lowest level is already {_f(e / scale)}x the RMS "
+                    "state: its open-loop predictions blow up there)"
                     if above
                     else ""
                 )

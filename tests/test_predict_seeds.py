@@ -91,7 +91,7 @@ def test_the_prediction_claim_holds_only_where_it_holds_on_every_data_set():
     for lv, e in (("0.1", 500.0), ("0.6", 200.0)):
         m4["results"][lv]["SINDy"] = {"multi_step_median": e, "per_seed": {"multi_step_median": [e] * 3}}
     held, text = report._predict_claim(m4, scale=100.0)
-    assert held is False and "does not grow on 3 of 3 data sets (at the lowest level it is already 5x" in text
+    assert held is False and "(its median error at the lowest level is already 5x the RMS state" in text
     # and one data set that did not stay local at the lowest level
     m3 = copy.deepcopy(m)
     m3["results"]["0.1"]["_data"]["relative_spread_per_seed"][2] = 0.8
