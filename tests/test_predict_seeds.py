@@ -129,3 +129,17 @@ def test_the_runs_finding_counts_the_data_sets_on_which_the_error_grows():
     }
     f = _finding([0.1, 0.6], clean)["SINDy"]
     assert f["grows"] is True and f["grows_on_data_sets"] == 2
+
+
+def test_the_pde_prediction_claim_is_judged_on_every_data_set():
+    from experiments.report_pde import _local_wins
+
+    def model(seeds):
+        return {"multi_step_median": float(np.median(seeds)), "per_seed": {"multi_step_median": seeds}}
+
+    # the medians say the local model wins (0.5 < 1.0); on the second data set it loses
+    level = {"SINDy": model([1.0, 0.4, 2.0]), "LTV": model([0.5, 0.5, 0.6])}
+    level["LTV reduced"] = model([0.7, 0.9, 0.8])
+    assert _local_wins(level, ["SINDy"], ["LTV", "LTV reduced"]) == [True, False, True]
+    one = {"SINDy": {"multi_step_median": None}, "LTV": {"multi_step_median": 3.0}}  # a diverged global model
+    assert _local_wins(one, ["SINDy"], ["LTV"]) == [True]
