@@ -20,7 +20,7 @@ import numpy as np
 
 from mjx_surrogate import progress
 from mjx_surrogate.analysis import locality
-from mjx_surrogate.analysis.evaluation import prediction_errors
+from mjx_surrogate.analysis.evaluation import error_grows, prediction_errors
 from mjx_surrogate.identification import data, step_models, sysid
 from mjx_surrogate.runs import pipeline, plots
 from mjx_surrogate.runs.resolution import Resolved
@@ -236,16 +236,13 @@ def _finding(levels, clean: dict) -> dict:
     out = {}
     lo, hi = f"{min(levels):g}", f"{max(levels):g}"
 
-    def grows(a, b) -> bool:
-        return (a is not None and b is not None and b > a) or (a is not None and b is None)
-
     for name in clean[lo]:
         a, b = clean[lo][name]["multi_step_median"], clean[hi][name]["multi_step_median"]
         pa, pb = (clean[lv][name]["per_seed"]["multi_step_median"] for lv in (lo, hi))
         out[name] = {
             "multi_step_median_lowest_level": a,
             "multi_step_median_highest_level": b,
-            "grows": grows(a, b),
-            "grows_on_data_sets": sum(grows(x, y) for x, y in zip(pa, pb)),
+            "grows": error_grows(a, b),
+            "grows_on_data_sets": sum(error_grows(x, y) for x, y in zip(pa, pb)),
         }
     return out

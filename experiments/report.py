@@ -9,6 +9,7 @@ import shutil
 
 from experiments import report_control, report_ltv, report_mpc, report_pde
 from experiments.report_rules import RULES, convergence_claim, mlp_variance_claim, rules_table, theory_claim
+from mjx_surrogate.analysis.evaluation import error_grows
 from mjx_surrogate.runs.results import read_json, versions
 
 
@@ -78,7 +79,7 @@ def _grows(lo: float | None, hi: float | None) -> bool:
     """A global model's error grows from the lowest to the highest level (or diverges at
     the highest); one that already diverges at the lowest level counts as failing there, as
     the claim says of global models."""
-    return lo is None or hi is None or hi > lo
+    return lo is None or error_grows(lo, hi)
 
 
 def _judge_prediction(m: dict, scale: float | None) -> dict:

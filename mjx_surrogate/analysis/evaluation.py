@@ -203,6 +203,12 @@ def prediction_errors(step_t: step_models.StepT, test: Dataset) -> tuple[dict, n
     return out, np.asarray(pred)
 
 
+def error_grows(lo: float | None, hi: float | None) -> bool:
+    """A prediction error grows from the lowest to the highest level: it is larger there,
+    or it diverges (None) there, from a finite value at the lowest level."""
+    return lo is not None and (hi is None or hi > lo)
+
+
 def finite_or_none(v) -> float | None:
     """A float for JSON, None where it is not finite (or is None)."""
     if v is None:
