@@ -20,9 +20,10 @@ def _global_models(res: dict) -> list[str]:
     return [n for n in res if not n.startswith("_") and not n.startswith("LTV")]
 
 
-def _local_wins(at_level: dict, glob: list, local: list) -> list[bool]:
-    """Per data set of one level (``data.n_seeds``; the medians where the run has one): is
-    the best local model's multi-step error below the best global model's?"""
+def _local_over_global(at_level: dict, glob: list, local: list) -> list[float]:
+    """Per data set of one level (``data.n_seeds``; the medians where the run has one): the
+    best local model's multi-step error over the best global model's (a diverged model's
+    error is inf; below 1: the local model predicts better)."""
     inf = float("inf")
 
     def errors(name: str) -> list:
@@ -32,7 +33,12 @@ def _local_wins(at_level: dict, glob: list, local: list) -> list[bool]:
     def best(names: list) -> list[float]:
         return [min(inf if e is None else e for e in col) for col in zip(*(errors(n) for n in names))]
 
-    return [a < b for a, b in zip(best(local), best(glob))]
+    def ratio(a: float, b: float) -> float:
+        if a == inf or b == inf:
+            return inf if a == inf else 0.0
+        return a / b if b > 0 else (1.0 if a == 0 else inf)
+
+    return [ratio(a, b) for a, b in zip(best(local), best(glob))]
 
 
 def pde_sections(L: list, folders: dict, fig: Callable, _section, _verdict, _f, _read) -> None:
@@ -75,7 +81,8 @@ def pde_sections(L: list, folders: dict, fig: Callable, _section, _verdict, _f, 
         best = min(glob, key=lambda n: res[lo][n]["multi_step_median"] or float("inf"))
         local = {n: res[lo][n]["multi_step_median"] for n in res[lo] if n.startswith("LTV")}
         best_local = min(local, key=lambda n: local[n] if local[n] is not None else float("inf"))
-        wins = _local_wins(res[lo], glob, list(local))
+        ratios = _local_over_global(res[lo], glob, list(local))
+        wins = [r < 1 for r in ratios]
         held = all(wins)
         text = (
             f"At {100 * p['levels'][0]:g} % U_max the best global model is {best} "
@@ -85,7 +92,9 @@ def pde_sections(L: list, folders: dict, fig: Callable, _section, _verdict, _f, 
             "step t). "
             + (
                 f"Judged on each of the {len(wins)} data sets of the level (`data.n_seeds`; the errors "
-                f"are medians over them): the best local model is the better on {sum(wins)}."
+                f"above are medians over them): the best local model's error over the best global "
+                f"model's ranges {_f(min(ratios))}-{_f(max(ratios))}; the local model is the better on "
+                f"{sum(wins)} of {len(wins)}."
                 if len(wins) > 1
                 else "Judged on one data set per level (`data.n_seeds` 1): no interval."
             )

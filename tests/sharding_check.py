@@ -80,6 +80,7 @@ def main() -> None:
         r["mjx/local"] = mjx_blocks(local)
     else:
         r["mlp/local"] = mlp_workload(local)
+        r["sindy/local"] = sindy_workload(local)
     stamp("local workloads done")
     # every process, in step; the native backend keeps one device per process
     r["native/global"] = workloads("native", every, list(PARTS))
@@ -255,6 +256,31 @@ def mlp_workload(mesh) -> dict:
         "test_loss": _diff(got["test_loss"], ref["test_loss"]),
         "params": max(_diff(g, r) for g, r in zip(got["params"], ref["params"])),
     }
+
+
+def sindy_workload(mesh) -> dict:
+    """A SINDy fit as the prediction study makes it (``sindy`` kind, quadratic library) on
+    transitions whose rows are spread over ``mesh``, against the fit on one device: the
+    coefficients' difference and the number of devices the solve's result lies on."""
+    import types
+
+    import jax
+    from jax.sharding import NamedSharding, PartitionSpec
+
+    from mjx_surrogate.runs.config import Config, SindyConfig, SurrogateConfig
+    from mjx_surrogate.surrogates import registry
+
+    nx, nu, R = 3, 1, 64
+    kx, ku, kn = jax.random.split(jax.random.key(6), 3)
+    x, u = jax.random.normal(kx, (R, nx)), jax.random.normal(ku, (R, nu))
+    train = types.SimpleNamespace(x=x, u=u, x_next=x + 0.1 * u + 0.01 * jax.random.normal(kn, (R, nx)))
+    rows = NamedSharding(mesh, PartitionSpec(mesh.axis_names[0]))
+    spread = types.SimpleNamespace(**{f: jax.device_put(v, rows) for f, v in vars(train).items()})
+    config = Config(surrogate=SurrogateConfig(kinds=("sindy",), sindy=SindyConfig(libraries=("poly2",))))
+    ctx = registry.FitContext(config, types.SimpleNamespace(nx=nx, nu=nu, angle_pairs=()))
+    ref = registry.get_surrogate("sindy").fit(ctx, train, train, None)["SINDy poly2"].model.coef
+    got = registry.get_surrogate("sindy").fit(ctx, spread, spread, None)["SINDy poly2"].model.coef
+    return {"coef": _diff(got, ref), "coef_devices": len(got.sharding.device_set)}
 
 
 if __name__ == "__main__":

@@ -132,7 +132,7 @@ def test_the_runs_finding_counts_the_data_sets_on_which_the_error_grows():
 
 
 def test_the_pde_prediction_claim_is_judged_on_every_data_set():
-    from experiments.report_pde import _local_wins
+    from experiments.report_pde import _local_over_global
 
     def model(seeds):
         return {"multi_step_median": float(np.median(seeds)), "per_seed": {"multi_step_median": seeds}}
@@ -140,6 +140,8 @@ def test_the_pde_prediction_claim_is_judged_on_every_data_set():
     # the medians say the local model wins (0.5 < 1.0); on the second data set it loses
     level = {"SINDy": model([1.0, 0.4, 2.0]), "LTV": model([0.5, 0.5, 0.6])}
     level["LTV reduced"] = model([0.7, 0.9, 0.8])
-    assert _local_wins(level, ["SINDy"], ["LTV", "LTV reduced"]) == [True, False, True]
+    assert _local_over_global(level, ["SINDy"], ["LTV", "LTV reduced"]) == [0.5, 1.25, 0.3]
     one = {"SINDy": {"multi_step_median": None}, "LTV": {"multi_step_median": 3.0}}  # a diverged global model
-    assert _local_wins(one, ["SINDy"], ["LTV"]) == [True]
+    assert _local_over_global(one, ["SINDy"], ["LTV"]) == [0.0]
+    both = {"SINDy": {"multi_step_median": None}, "LTV": {"multi_step_median": None}}
+    assert _local_over_global(both, ["SINDy"], ["LTV"]) == [float("inf")]  # no win where both diverge

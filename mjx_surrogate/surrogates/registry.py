@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from mjx_surrogate import sharding
 from mjx_surrogate.errors import ConfigError, registered
 
 
@@ -154,9 +155,10 @@ def _sindy_options(config) -> dict:
 def _fit_sindy(ctx: FitContext, train, test, key) -> dict[str, Fitted]:
     from mjx_surrogate.surrogates import sindy
 
+    x, u, x_next = sharding.on_one_device(train.x, train.u, train.x_next)  # rows spread: 3.3x slower
     out = {}
     for name, spec in library_specs(ctx.config, ctx.system).items():
-        model = sindy.fit(spec, train.x, train.u, train.x_next, **_sindy_options(ctx.config))
+        model = sindy.fit(spec, x, u, x_next, **_sindy_options(ctx.config))
         out[f"SINDy {name}"] = Fitted(
             model, {"n_features": int(model.coef.shape[0]), "nonzero": int(jnp.sum(model.coef != 0))}
         )
@@ -307,10 +309,11 @@ def _fit_pod_sindy(ctx: FitContext, train, test, key) -> dict[str, Fitted]:
     from mjx_surrogate.surrogates import pod_sindy
 
     pc = ctx.config.surrogate.pod_sindy
+    x, u, x_next = sharding.on_one_device(train.x, train.u, train.x_next)
     out = {}
     for name, spec in _pod_specs(ctx.config, ctx.system).items():
         options = _sindy_options(ctx.config)
-        model, captured = pod_sindy.fit(spec, train.x, train.u, train.x_next, pc.rank, **options)
+        model, captured = pod_sindy.fit(spec, x, u, x_next, pc.rank, **options)
         info = {"n_features": int(model.reduced.coef.shape[0]), "rank": pc.rank, "pod_energy": captured}
         out[f"POD{pc.rank}-SINDy {name}"] = Fitted(model, info)
     return out
