@@ -156,7 +156,8 @@ RULES: dict[str, Rule] = {
     "pde_prediction": Rule(
         "the paper's, carried to a PDE",
         "a local LTV model predicts the trajectories near the optimum better than every global surrogate",
-        "at the lowest level the best local model's multi-step error is below the best global model's",
+        "on every data set of the lowest level the best local model's multi-step error is below "
+        "the best global model's",
     ),
     "closed_loop": Rule(
         "the paper's, carried into closed loop",
