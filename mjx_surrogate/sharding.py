@@ -75,7 +75,8 @@ def on_one_device(*arrays: jax.Array) -> tuple[jax.Array, ...]:
     """``arrays`` gathered whole on this process's first device, for a dense solve that
     should not be partitioned: XLA splits the SVD of a least-squares problem whose rows are
     spread over 2 CPU devices into a program 3.3x slower than on one (9000 x 2701, float64,
-    24.7 s against 7.4 s), and the same solves mapped over two CPU devices at once have hung.
+    24.7 s against 7.4 s), and the same solves mapped over two CPU devices at once have hung
+    (two LAPACK kernels at once: docs/performance.md, "No LAPACK in compiled programs").
     An array spread over several processes is returned as it is."""
     device = jax.local_devices()[0]
     whole = lambda a: not isinstance(a, jax.Array) or a.is_fully_addressable  # noqa: E731
