@@ -29,7 +29,8 @@ around D2C's (``runs.restart.spread_starts``, a quarter of each actuator's half 
 reports the best cost of all 2 N + 2 solves as the reference, with D2C's gap to it: on
 contact tasks the oracle from one start stalls and is no ceiling. The table says whether
 the reference passes the goal test, and gives D2C's best of its own N + 1 starts with its
-goal verdict.
+goal verdict. ``--max-iter N`` sets ``solver.max_iter`` of every solve (default: the
+solver's 100), for tasks whose solves end at that budget.
 """
 
 from __future__ import annotations
@@ -203,9 +204,14 @@ TASKS = {
 
 
 def task_config(
-    name: str, significance: float | None = None, backend: str = "native", sigma: float | None = None
+    name: str,
+    significance: float | None = None,
+    backend: str = "native",
+    sigma: float | None = None,
+    max_iter: int | None = None,
 ):
-    """The Config of ``TASKS[name]`` on ``backend``, or None if its model cannot be downloaded."""
+    """The Config of ``TASKS[name]`` on ``backend``, or None if its model cannot be downloaded
+    (``max_iter``: solver.max_iter, None: the default)."""
     from mjx_surrogate.runs.config import (
         Config,
         ExperimentConfig,
@@ -223,10 +229,11 @@ def task_config(
     if goal is not None:
         kind, obj, key, shift, *extra = goal
         goals = (PointGoal(name=obj, kind=kind, target=_site(path, obj, key, shift), **(extra or [{}])[0]),)
+    budget = {} if max_iter is None else {"max_iter": max_iter}
     return Config(
         system=SystemConfig(name="mjcf", mjcf_path=path, backend=backend, **system),
         task=TaskConfig(goals=goals, **task),
-        solver=SolverConfig(sysid_significance=significance, sigma_x=sigma, sigma_u=sigma),
+        solver=SolverConfig(sysid_significance=significance, sigma_x=sigma, sigma_u=sigma, **budget),
         experiment=ExperimentConfig(progress=False),
     )
 
@@ -283,6 +290,7 @@ def run_task(
     backend: str = "native",
     sigma: float | None = None,
     reference_starts: int = 0,
+    max_iter: int | None = None,
 ) -> dict | None:
     import jax
     import jax.numpy as jnp
@@ -293,7 +301,7 @@ def run_task(
     from mjx_surrogate.runs import pipeline
     from mjx_surrogate.runs.resolution import resolve, solver_params
 
-    cfg = task_config(name, significance, backend, sigma)
+    cfg = task_config(name, significance, backend, sigma, max_iter)
     if cfg is None:
         return None
     t0 = time.perf_counter()
@@ -399,17 +407,22 @@ def main() -> None:
         default=0,
         help="also solve D2C and the oracle from this many spread starts; the best is the reference",
     )
+    ap.add_argument(
+        "--max-iter", type=int, default=None, help="solver.max_iter of every solve (default: the solver's)"
+    )
     ap.add_argument("--out", default=None, help="also write the rows as JSON here")
     a = ap.parse_args()
     if a.reference_starts < 0:
         ap.error(f"--reference-starts: a number of starts >= 0, got {a.reference_starts}")
+    if a.max_iter is not None and a.max_iter < 1:
+        ap.error(f"--max-iter: a number of iterations >= 1, got {a.max_iter}")
     from mjx_surrogate.runtime import configure_runtime
 
     configure_runtime(x64=True)
     names = [n for n in TASKS if a.tasks is None or any(s in n for s in a.tasks)]
     rows = []
     for name in names:
-        row = run_task(name, a.significance, a.backend, a.sigma, a.reference_starts)
+        row = run_task(name, a.significance, a.backend, a.sigma, a.reference_starts, a.max_iter)
         if row is None:
             print(f"{name}: model not reachable, skipped", file=sys.stderr)
             continue
