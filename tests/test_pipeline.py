@@ -195,12 +195,16 @@ def test_a_stationary_solve_is_restarted_from_spread_starts_with_their_budget_co
 
 def test_a_converged_solve_that_misses_its_goal_says_the_cost_stops_short():
     """The hint names the goal cost's share of the start's against the test's; a solve that
-    reached its goal, or did not converge, gets no such hint."""
+    reached its goal gets no hint, one that ran out of iterations the hint to give it room."""
     goal = {"reached": False, "goal_cost_start": 0.01, "goal_cost_final": 0.00354, "tolerance": 0.01}
     hint = pipeline.status_hint("converged", {"goal": goal})
     assert "goal cost 35.4 % of the start's; the test asks 1 %" in hint and "weigh the goal more" in hint
     assert pipeline.status_hint("converged", {"goal": {**goal, "reached": True}}) is None
-    assert pipeline.status_hint("max_iter", {"goal": goal}) is None
+    budget = pipeline.status_hint("max_iter", {"goal": goal, "iterations": 100})
+    assert "ran out (100 iterations)" in budget and "goal is not reached" in budget
+    assert "--solver.max_iter" in budget and "weigh the goal" not in budget
+    reached = pipeline.status_hint("max_iter", {"goal": {**goal, "reached": True}, "iterations": 100})
+    assert "--solver.max_iter" in reached and "goal is not reached" not in reached
 
 
 @pytest.mark.slow  # over 5 s: the fast tier's budget

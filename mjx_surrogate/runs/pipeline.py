@@ -372,7 +372,8 @@ def summary(
 
 def status_hint(status: str, metrics: dict) -> str | None:
     """What to try after a solve that made no progress (also after its search and restarts),
-    diverged, or converged at a point that misses its goal (None otherwise)."""
+    diverged, ran out of iterations, or converged at a point that misses its goal (None
+    otherwise)."""
     if status == "stationary" and (restart := metrics.get("restart")) is not None:
         searched = "the sampling search and " if "sampling_search" in metrics else ""
         return (
@@ -395,6 +396,13 @@ def status_hint(status: str, metrics: dict) -> str | None:
             "the controls and cost of that last finite iterate are kept"
         )
     goal = metrics.get("goal") or {}
+    if status == "max_iter":
+        missed = " and its goal is not reached yet" if goal.get("reached") is False else ""
+        return (
+            f"the iteration budget ran out ({metrics.get('iterations')} iterations) before a stopping "
+            f"rule held{missed}: the cost may still fall; give the solve room to finish "
+            "(--solver.max_iter 1000)"
+        )
     start, final = goal.get("goal_cost_start"), goal.get("goal_cost_final")
     if status == "converged" and goal.get("reached") is False and start and final is not None:
         return (
