@@ -155,7 +155,7 @@ def test_a_sampling_planner_faster_than_the_plant_gives_the_synchronous_episode(
         limits=(np.asarray(task.u_min), np.asarray(task.u_max)),
         process_noise=0.01,
         speed=0.5,
-        shift=lambda plan, n: ms.moved_on_host(plan, n, s),
+        shift=lambda plan, n: ms.moved_on_host(plan, n, s, np.asarray(ms.unbounded(task))),
         replan_every=3,
     )
     np.testing.assert_array_equal(r.stamps, np.arange(steps) // 3 * 3)

@@ -68,6 +68,31 @@ def test_a_cubic_plan_moved_on_is_the_same_cubic_later():
     assert np.asarray(held.mean)[-1] == np.asarray(plan.mean)[-1]
 
 
+def test_a_plan_on_an_actuator_without_limits_holds_its_end_past_the_last_knot():
+    """A limited actuator's cubic plan extends its end polynomial past the last knot, as
+    hydrax's do (the clip bounds it); an unlimited one's holds the spline's end value, so
+    the extension cannot compound from replan to replan. On the device and on the host."""
+    s = SamplingSettings(knots=4, spline="cubic")
+    p = np.array([0.002, -0.03, 0.1, 0.5])
+    u = np.polyval(p, np.arange(H))
+    plan = mpc_sampling.first_spline_plan(jnp.asarray(np.stack([u, -u], 1)), s, 1.0)
+    free = jnp.array([False, True])  # the first actuator limited, the second not
+    later = mpc_sampling.moved_on(plan, 3, s, free)
+    extended = mpc_sampling.moved_on(plan, 3, s)
+    end = float(np.polyval(p, H))  # the last knot's time is the horizon's end, step H
+    np.testing.assert_allclose(np.asarray(later.mean)[:, 0], np.asarray(extended.mean)[:, 0])
+    np.testing.assert_allclose(np.asarray(later.mean)[-1, 1], -end, atol=1e-10)
+    assert abs(float(extended.mean[-1, 1]) + end) > 1e-3  # the extension would differ there
+    np.testing.assert_allclose(np.asarray(later.mean)[:-1, 1], np.asarray(extended.mean)[:-1, 1])
+    host = mpc_sampling.SplinePlan(*(np.asarray(a) for a in plan))
+    on_host = mpc_sampling.moved_on_host(host, 3, s, np.asarray(free))
+    np.testing.assert_allclose(on_host.mean, np.asarray(later.mean), atol=1e-12)
+    np.testing.assert_allclose(on_host.U, np.asarray(later.U), atol=1e-12)
+    limits = ([-1.0, -np.inf], [1.0, 2.0])  # the second unbounded below
+    task = make_task(np.zeros(1), np.zeros(1), np.eye(1), np.eye(1), np.eye(2), H, *limits)
+    assert np.asarray(mpc_sampling.unbounded(task)).tolist() == [False, True]
+
+
 def test_each_rule_updates_as_its_algorithm_says():
     """Predictive sampling keeps the mean as a draw and moves to the cheapest; MPPI to the
     softmax(-J / lambda) average; CEM to the elites' mean and spread, floored."""
@@ -122,11 +147,13 @@ def test_zero_spread_applies_the_first_plan_moved_on_between_replans(replan_ever
 
 def test_between_replans_the_plant_gets_the_splines_controls():
     """Knotted plans: the controls applied between two replans are the plan's spline read
-    at those steps, so with linear knots and no spread they continue U0's line."""
+    at those steps, so with linear knots and no spread they continue U0's line (on a
+    limited actuator; an unlimited one's plans hold their end past the last knot)."""
     U0 = jnp.asarray((0.1 * np.arange(H) - 0.3)[:, None])
     s = SamplingSettings(samples=4, knots=3, spline="linear")
+    key = jax.random.key(0)
     r = mpc_sampling.sampling_mpc(
-        _linear(), _task(), U0, key=jax.random.key(0), steps=9, settings=s, hyper=hyper(0.0), replan_every=3
+        _linear(), _task(10.0), U0, key=key, steps=9, settings=s, hyper=hyper(0.0), replan_every=3
     )
     np.testing.assert_allclose(np.asarray(r.U)[:, 0], 0.1 * np.arange(9) - 0.3, atol=1e-12)
 

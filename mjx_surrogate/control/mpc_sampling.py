@@ -76,11 +76,13 @@ def reading(H: int, knots: int, spline: str) -> np.ndarray | None:
     return splines.basis(spline, splines.knot_times(H, knots), np.arange(H))
 
 
-def _matrices(H: int, s: SamplingSettings, r: int = 0):
-    """(W [H, k] or None for W = I, M [k, k]: the knots moved on r steps, or None for r 0)."""
+def _matrices(H: int, s: SamplingSettings, r: int = 0, hold: bool = False):
+    """(W [H, k] or None for W = I, M [k, k]: the knots moved on r steps, or None for r 0;
+    ``hold``: past the last knot the spline's end value, not its extension)."""
     tau = splines.knot_times(H, s.knots)
     kind = "zero" if s.knots == 0 else s.spline
-    M = splines.basis(kind, tau, tau + r) if r else None
+    t = np.minimum(tau + r, tau[-1]) if hold else tau + r
+    M = splines.basis(kind, tau, t) if r else None
     return reading(H, s.knots, s.spline), M
 
 
@@ -97,18 +99,32 @@ def first_spline_plan(U0: jax.Array, s: SamplingSettings, sigma) -> SplinePlan:
     return SplinePlan(_read(W, mean), mean, spread)
 
 
-def moved_on(plan: SplinePlan, r: int, s: SamplingSettings) -> SplinePlan:
+def unbounded(task: Task) -> jax.Array:
+    """[nu] bool: the actuators without both control limits, whose plans nothing clips."""
+    return ~(jnp.isfinite(task.u_min) & jnp.isfinite(task.u_max))
+
+
+def moved_on(plan: SplinePlan, r: int, s: SamplingSettings, free: jax.Array | None = None) -> SplinePlan:
     """The plan r control steps later: its spline re-read at the knot times plus r (beyond
-    the horizon's end each spline's own extension: the last knot held, or extrapolated)."""
+    the horizon's end each spline's own extension: the last knot held, or extrapolated, as
+    hydrax's splines do). On the actuators ``free`` [nu] marks (:func:`unbounded`) a linear
+    or cubic spline's end value is held there instead: no clip bounds that extension, and
+    from replan to replan it compounds."""
     if s.knots == 0:  # a knot per step: the plan shifted, its last control held
         mean = jnp.concatenate([plan.mean[r:], jnp.repeat(plan.mean[-1:], r, axis=0)])
         return SplinePlan(mean, mean, plan.spread)
     W, M = _matrices(plan.U.shape[0], s, r)
     mean = jnp.einsum("ik,kj->ij", jnp.asarray(M, plan.mean.dtype), plan.mean)
+    if free is not None and s.spline != "zero":
+        _, M_hold = _matrices(plan.U.shape[0], s, r, hold=True)
+        held = jnp.einsum("ik,kj->ij", jnp.asarray(M_hold, plan.mean.dtype), plan.mean)
+        mean = jnp.where(free, held, mean)
     return SplinePlan(_read(W, mean), mean, plan.spread)
 
 
-def moved_on_host(plan: SplinePlan, r: int, s: SamplingSettings) -> SplinePlan:
+def moved_on_host(
+    plan: SplinePlan, r: int, s: SamplingSettings, free: np.ndarray | None = None
+) -> SplinePlan:
     """:func:`moved_on` in NumPy, for the wall-clock loop (``control.realtime``); r may
     exceed the horizon H (a plan past its end holds its last control)."""
     H = plan.U.shape[0]
@@ -118,6 +134,8 @@ def moved_on_host(plan: SplinePlan, r: int, s: SamplingSettings) -> SplinePlan:
         return SplinePlan(mean, mean, plan.spread)
     W, M = _matrices(H, s, r)
     mean = M @ plan.mean if r else plan.mean
+    if r and free is not None and s.spline != "zero":
+        mean = np.where(free, _matrices(H, s, r, hold=True)[1] @ plan.mean, mean)
     return SplinePlan(W @ mean, mean, plan.spread)
 
 
@@ -194,7 +212,7 @@ def sampling_mpc(
         process_noise=process_noise,
         progress=progress,
         replan_every=replan_every,
-        shift=lambda plan, r: moved_on(plan, r, settings),
+        shift=lambda plan, r: moved_on(plan, r, settings, unbounded(task)),
     )
     ones = jnp.full(J.shape, settings.iterations, jnp.int32)
     return MPCResult(X, U, trajectory_cost(task, X, U), J, ones, jnp.zeros(J.shape + (1,), jnp.int8))

@@ -164,7 +164,8 @@ def sampling_replans(name: str):
         replan = mpc_sampling.replanner(c.system, c.plan_task, settings, hyper)
         U0 = c.U0.astype(c.task.x0.dtype)
         plan0 = mpc_sampling.first_spline_plan(U0, settings, hyper.sigma)
-        shift = functools.partial(mpc_sampling.moved_on_host, s=settings)
+        free = np.asarray(mpc_sampling.unbounded(c.plan_task))
+        shift = functools.partial(mpc_sampling.moved_on_host, s=settings, free=free)
         return {label(name, settings, own): realtime.RealTimePlanner(replan, plan0, shift)}
 
     return replans
