@@ -23,6 +23,7 @@ from mjx_surrogate.runs.config import Config
 from mjx_surrogate.runs.experiment_kinds import analysis_library_specs
 from mjx_surrogate.runs.resolution import Resolved, solver_params
 from mjx_surrogate.runs.results import Run
+from mjx_surrogate.sharding import on_one_device
 from mjx_surrogate.surrogates import mlp, sindy
 from mjx_surrogate.surrogates.registry import library_specs, mlp_spec
 from mjx_surrogate.systems import System
@@ -140,7 +141,7 @@ def _sindy_fits(s: _Study, sets: list) -> tuple[list, dict]:
     sc = s.cfg.surrogate
     spec = s.specs[s.cfg.analysis.convergence_library]
     fits = [
-        sindy.fit(spec, tr.x, tr.u, tr.x_next, increment=sc.increment, method=sc.sindy.method)
+        sindy.fit(spec, *on_one_device(tr.x, tr.u, tr.x_next), increment=sc.increment, method=sc.sindy.method)
         for tr, _ in sets
     ]
     C = np.stack([np.asarray(m.coef) for m in fits])
@@ -267,7 +268,9 @@ def _variance(s: _Study) -> tuple[dict, dict]:
             sets = _datasets(system, s.task, s.X_star, s.U_star, key, cfg, level)
             thetas = [sindy.design(s.specs[name], tr.x, tr.u) for tr, _ in sets]
             ys = [tr.x_next - tr.x if cfg.surrogate.increment else tr.x_next for tr, _ in sets]
-            pooled = sindy.lstsq(jnp.concatenate(thetas), jnp.concatenate(ys), cfg.surrogate.sindy.method)
+            pooled = sindy.lstsq(
+                *on_one_device(jnp.concatenate(thetas), jnp.concatenate(ys)), cfg.surrogate.sindy.method
+            )
             D = np.asarray(spectra.error_projections(thetas, ys, pooled))  # [S, P, nx]
             rhs = np.asarray(jnp.stack([sindy.projections(th, y) for th, y in zip(thetas, ys)]))
             var[f"SINDy {name} {100 * level:g}%"] = {
