@@ -21,7 +21,7 @@ solve and the NumPy reference N times each and reports the median (the exact ora
 ``--polish`` also runs the exact oracle from D2C's solution: how much exact Jacobians can
 still improve it (printed after the table row). ``--solver`` sets any solver fields over the
 preset's (as ``benchmarks/sample_efficiency.py``'s variants), e.g. D2C 2.0's scheme on the
-fish: ``--solver sysid_design=gaussian,sysid_every=1,sysid_refine_tol=0``. The NumPy
+fish: ``--solver sysid.design=gaussian,sysid.every=1,solver.sysid_refine_tol=0``. The NumPy
 reference draws i.i.d. Gaussian samples at every step; a row whose engine scheme differs
 says so in its per-iteration column.
 """
@@ -65,7 +65,7 @@ def bench(
 
     import jax
     import reference_d2c_numpy as d2c_numpy  # the test oracle, tests/reference_d2c_numpy.py
-    from sample_efficiency import solver_overrides
+    from sample_efficiency import with_overrides
 
     from configs import load as load_config
     from mjx_surrogate.control.d2c import solve_d2c, solve_exact
@@ -77,17 +77,18 @@ def bench(
     cfg = load_config(f"{name}_d2c")
     jax.config.update("jax_enable_x64", cfg.experiment.x64)  # the preset's precision
     cfg = dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, backend=backend))
-    over = {
-        k: v
-        for k, v in dict(
-            max_iter=max_iter, rel_tol=rel_tol, sysid=sysid, n_samples=n_samples, sigma_x=sigma, sigma_u=sigma
-        ).items()
-        if v
+    solver_over = {k: v for k, v in dict(max_iter=max_iter, rel_tol=rel_tol).items() if v}
+    sysid_over = {
+        k: v for k, v in dict(scheme=sysid, n_samples=n_samples, sigma_x=sigma, sigma_u=sigma).items() if v
     }
-    if solver != "base":  # n_samples=0 means nx + nu: the model is needed
+    cfg = dataclasses.replace(
+        cfg,
+        solver=dataclasses.replace(cfg.solver, **solver_over),
+        sysid=dataclasses.replace(cfg.sysid, **sysid_over),
+    )
+    if solver != "base":  # sysid.n_samples=0 means nx + nu: the model is needed
         preset_system = resolve(cfg)[1]
-        over |= solver_overrides(solver, cfg.solver, preset_system.nx + preset_system.nu)
-    cfg = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, **over))
+        cfg = with_overrides(solver, cfg, preset_system.nx + preset_system.nu)
     _, system, task = resolve(cfg)
     params, sid = solver_params(cfg)
     U0 = initial_controls(jax.random.key(0), task.T, system.nu, cfg.solver.init, cfg.solver.init_scale)
@@ -197,7 +198,7 @@ def main() -> None:
     ap.add_argument(
         "--solver",
         default="base",
-        help="comma-separated solver fields over the preset's, e.g. sysid_design=gaussian,sysid_every=1",
+        help="comma-separated solver and sysid settings over the preset's, e.g. sysid.every=1",
     )
     a = ap.parse_args()
     from mjx_surrogate.runtime import configure_runtime

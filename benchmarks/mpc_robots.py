@@ -48,7 +48,7 @@ CONTROL_DT = {"walker (hold)": 0.025, "hopper (hold)": 0.008}
 def mpc_config(task: str, mode: str, args):
     """The robots benchmark's task ``task`` as an MPC study in ``mode``, or None."""
     from benchmarks.robots import task_config
-    from mjx_surrogate.runs.config import MPCConfig
+    from mjx_surrogate.runs.config import MPCConfig, MPCSysIdConfig
 
     cfg = task_config(task)
     if cfg is None:
@@ -57,7 +57,7 @@ def mpc_config(task: str, mode: str, args):
     if task in CONTROL_DT:
         cfg = dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, control_dt=CONTROL_DT[task]))
     if args.scheme is not None:
-        cfg = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, sysid=args.scheme))
+        cfg = dataclasses.replace(cfg, sysid=dataclasses.replace(cfg.sysid, scheme=args.scheme))
     return dataclasses.replace(
         cfg,
         task=dataclasses.replace(cfg.task, goals=goals),
@@ -78,7 +78,7 @@ def mpc_config(task: str, mode: str, args):
             plants=tuple(args.plants),
             n_episodes=args.episodes,
             max_iter=args.max_iter,
-            sysid_every=args.every,
+            sysid=MPCSysIdConfig(every=args.every),
             n_alphas=args.n_alphas,
             replan_hz=args.replan_hz,
             first_plan=args.first_plan,
@@ -106,9 +106,9 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=None, help="episode length (default: the task's T, or 50)")
     ap.add_argument("--episodes", type=int, default=2)
     ap.add_argument("--max-iter", type=int, default=5, help="mpc.max_iter: iLQR iterations per replan")
-    ap.add_argument("--every", type=int, default=1, help="mpc.sysid_every: identify every k-th step")
+    ap.add_argument("--every", type=int, default=1, help="mpc.sysid.every: identify every k-th step")
     ap.add_argument(
-        "--scheme", default=None, help="solver.sysid: the identification scheme (default: the solver's)"
+        "--scheme", default=None, help="sysid.scheme: the identification scheme (default: the solver's)"
     )
     ap.add_argument("--n-alphas", type=int, default=None, help="mpc.n_alphas (default: the solver's)")
     ap.add_argument("--replan-hz", type=float, default=None, help="mpc.replan_hz (default: every step)")

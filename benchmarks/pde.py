@@ -10,7 +10,7 @@ the solver's defaults) from zero controls:
 
 * ``exact``: iLQR with jax.jacfwd Jacobians through the JAX step (the oracle);
 * ``full``: D2C, central differences, the default max(20, 2 (nx + nu)) samples per step;
-* ``reduced``: RO-D2C (``solver.sysid = "reduced"``), the default min(nx, max(16, 4 nu))
+* ``reduced``: RO-D2C (``sysid.scheme = "reduced"``), the default min(nx, max(16, 4 nu))
   snapshots.
 
 ``--basis``: instead, the time of the snapshot basis at each grid size (n = 32 snapshots,

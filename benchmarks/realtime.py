@@ -43,7 +43,8 @@ def configs(args) -> list[tuple[str, object]]:
         m = cfg.mpc
         fields = {"max_iter": args.max_iter, "n_alphas": args.n_alphas, "horizon": args.horizon}
         fields = {k: v for k, v in fields.items() if v is not None}
-        mpc = dataclasses.replace(m, sysid=args.mpc_scheme or m.sysid, **fields)
+        scheme = args.mpc_scheme or m.sysid.scheme
+        mpc = dataclasses.replace(m, sysid=dataclasses.replace(m.sysid, scheme=scheme), **fields)
         out.append((args.preset, dataclasses.replace(cfg, mpc=mpc)))
     return out
 
@@ -125,8 +126,8 @@ def main() -> None:
     ap.add_argument("--max-iter", type=int, default=1)
     ap.add_argument("--every", type=int, default=1)
     ap.add_argument("--n-alphas", type=int, default=None)
-    ap.add_argument("--scheme", default=None, help="solver.sysid of the robots tasks")
-    ap.add_argument("--mpc-scheme", default=None, help="mpc.sysid of the preset")
+    ap.add_argument("--scheme", default=None, help="sysid.scheme of the robots tasks")
+    ap.add_argument("--mpc-scheme", default=None, help="mpc.sysid.scheme of the preset")
     ap.add_argument("--noise", type=float, nargs="*", default=[0.0, 0.01])
     ap.add_argument("--speed", type=float, default=1.0, help="the plant's clock: 1 is real time")
     args = ap.parse_args()

@@ -21,9 +21,9 @@ MJX with ``--backend mjx``, for a GPU):
     python benchmarks/robots.py [--tasks walker ur5e] [--significance 3] [--sigma 1e-6]
                                 [--backend mjx] [--out docs/robots.json]
 
-``--significance T`` sets ``solver.sysid_significance`` (the t-test; default: the model's,
+``--significance T`` sets ``sysid.significance`` (the t-test; default: the model's,
 3 with loose objects, else off, ``model_defaults.default_significance``);
-``--sigma S`` sets ``solver.sigma_x`` and ``sigma_u`` (default: the model's default).
+``--sigma S`` sets ``sysid.sigma_x`` and ``sigma_u`` (default: the model's default).
 ``--reference-starts N`` (default 0) also solves D2C and the oracle from N starts spread
 around D2C's (``runs.restart.spread_starts``, a quarter of each actuator's half range) and
 reports the best cost of all 2 N + 2 solves as the reference, with D2C's gap to it: on
@@ -217,6 +217,7 @@ def task_config(
         ExperimentConfig,
         PointGoal,
         SolverConfig,
+        SysIdConfig,
         SystemConfig,
         TaskConfig,
     )
@@ -233,7 +234,8 @@ def task_config(
     return Config(
         system=SystemConfig(name="mjcf", mjcf_path=path, backend=backend, **system),
         task=TaskConfig(goals=goals, **task),
-        solver=SolverConfig(sysid_significance=significance, sigma_x=sigma, sigma_u=sigma, **budget),
+        solver=SolverConfig(**budget),
+        sysid=SysIdConfig(significance=significance, sigma_x=sigma, sigma_u=sigma),
         experiment=ExperimentConfig(progress=False),
     )
 
@@ -393,10 +395,10 @@ def main() -> None:
         "--significance",
         type=float,
         default=None,
-        help="solver.sysid_significance (0: off; default: the model's, 3 with loose objects)",
+        help="sysid.significance (0: off; default: the model's, 3 with loose objects)",
     )
     ap.add_argument(
-        "--sigma", type=float, default=None, help="solver.sigma_x and sigma_u (default: the model's)"
+        "--sigma", type=float, default=None, help="sysid.sigma_x and sigma_u (default: the model's)"
     )
     ap.add_argument(
         "--backend", default="native", choices=("native", "mjx"), help="the black box: native MuJoCo or MJX"

@@ -8,12 +8,13 @@ independent). Wall time is printed too (compile apart); ``--time-to-target`` sol
 stopped at the iteration that first came within 0.1 % of the first variant's cost, and
 times that solve.
 
-A variant is ``base`` (the preset as it is) or comma-separated ``solver`` fields, e.g.
-``sysid_every=2`` or ``reuse_tol=0.2,reuse_max=4`` or
-``sysid=forward_difference,sysid_design=orthogonal,n_samples=0`` (0: nx + nu).
+A variant is ``base`` (the preset as it is) or comma-separated ``section.field=value``
+settings of the solver and sysid sections, e.g. ``sysid.every=2`` or
+``solver.reuse_tol=0.2,solver.reuse_max=4`` or
+``sysid.scheme=forward_difference,sysid.design=orthogonal,sysid.n_samples=0`` (0: nx + nu).
 
     python benchmarks/sample_efficiency.py [--systems cartpole fish swimmer6]
-        [--variants base sysid_every=2 ...] [--keys 1 2 3] [--figure PATH] [--x64]
+        [--variants base sysid.every=2 ...] [--keys 1 2 3] [--figure PATH] [--x64]
 """
 
 from __future__ import annotations
@@ -29,17 +30,22 @@ import dataclasses
 import numpy as np
 
 
-def solver_overrides(variant: str, solver, nx_nu: int) -> dict:
-    """``base`` or comma-separated ``solver`` fields (``n_samples=0``: nx + nu) -> a dict."""
+def with_overrides(variant: str, cfg, nx_nu: int):
+    """``cfg`` with variant ``base`` (none) or comma-separated ``section.field=value``
+    settings of sections solver and sysid (``sysid.n_samples=0``: nx + nu)."""
     if variant == "base":
-        return {}
-    out = {}
+        return cfg
     for item in variant.split(","):
-        name, value = item.split("=")
-        kind = type(getattr(solver, name)) if getattr(solver, name) is not None else int
+        dotted, value = item.split("=")
+        section, name = dotted.split(".")
+        if section not in ("solver", "sysid"):
+            raise SystemExit(f"{dotted}: a solver.<field> or sysid.<field> setting")
+        old = getattr(getattr(cfg, section), name)
+        kind = type(old) if old is not None else (float if name.startswith("sigma") else int)
         v = kind(value) if kind is not bool else value == "true"
-        out[name] = nx_nu if (name == "n_samples" and v == 0) else v
-    return out
+        v = nx_nu if (dotted == "sysid.n_samples" and v == 0) else v
+        cfg = dataclasses.replace(cfg, **{section: dataclasses.replace(getattr(cfg, section), **{name: v})})
+    return cfg
 
 
 def solve(name: str, variant: str, key: int = 1, max_iter: int | None = None, x64: bool = False) -> dict:
@@ -56,10 +62,9 @@ def solve(name: str, variant: str, key: int = 1, max_iter: int | None = None, x6
         cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(cfg.experiment, x64=True))
     jax.config.update("jax_enable_x64", cfg.experiment.x64)
     _, system, _ = resolve(cfg)
-    over = solver_overrides(variant, cfg.solver, system.nx + system.nu)
+    cfg = with_overrides(variant, cfg, system.nx + system.nu)
     if max_iter is not None:
-        over["max_iter"] = max_iter
-    cfg = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, **over))
+        cfg = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, max_iter=max_iter))
     _, system, task = resolve(cfg)
     params, sid = solver_params(cfg)
     U0 = initial_controls(jax.random.key(0), task.T, system.nu, cfg.solver.init, cfg.solver.init_scale)
@@ -98,7 +103,7 @@ def iteration_to(res: dict, target: float, rel: float) -> int | None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--systems", nargs="+", default=["cartpole", "fish", "swimmer6"])
-    ap.add_argument("--variants", nargs="+", default=["base", "sysid_every=2"])
+    ap.add_argument("--variants", nargs="+", default=["base", "sysid.every=2"])
     ap.add_argument("--keys", nargs="+", type=int, default=[1], help="identification keys (a row each)")
     ap.add_argument(
         "--time-to-target",

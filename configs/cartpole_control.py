@@ -12,7 +12,8 @@ from configs import derive
 CONFIG = derive(
     "cartpole_predict",
     task={"preset": "cartpole_upright"},
-    solver={"sysid": "central_difference", "init": "random", "init_scale": 0.1},
+    solver={"init": "random", "init_scale": 0.1},
+    sysid={"scheme": "central_difference"},
     experiment={"kind": "control"},
     data={"levels": (0.05, 0.25), "n_seeds": 5},
     # the MLP to its validation minimum (cartpole_predict's); the fixed-epoch one is left to

@@ -11,7 +11,7 @@ and 8 step sizes its closed loops cost 2412-2529 at 1.1-1.7x real time on 2 core
 import dataclasses
 
 from configs.pendulum_mpc import CONFIG as _PENDULUM
-from mjx_surrogate.runs.config import DataConfig, MPCConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import DataConfig, MPCConfig, MPCSysIdConfig, SystemConfig, TaskConfig
 
 CONFIG = dataclasses.replace(
     _PENDULUM,
@@ -24,7 +24,7 @@ CONFIG = dataclasses.replace(
         steps=40,
         max_iter=3,
         n_alphas=4,
-        sysid="forward_difference",
+        sysid=MPCSysIdConfig(scheme="forward_difference"),
         horizon_end="receding",  # every plan H ahead, as measured in docs/mpc.md
         process_noise=(0.0, 0.01),
         plants=("model", "mass=1.1"),

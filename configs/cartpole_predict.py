@@ -10,7 +10,8 @@ from configs import preset
 CONFIG = preset(
     system={"name": "cartpole"},
     task={"preset": "cartpole_swingup"},
-    solver={"n_samples": 25, "max_iter": 300, "rel_tol": 1e-6, "init": "zeros"},
+    solver={"max_iter": 300, "rel_tol": 1e-6, "init": "zeros"},
+    sysid={"n_samples": 25},
     experiment={"kind": "predict", "x64": True},
     data={"n_traj": 2000, "levels": (0.05, 0.10, 0.15, 0.25, 0.30, 0.60, 1.00), "n_seeds": 5},
     surrogate={

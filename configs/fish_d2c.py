@@ -6,23 +6,27 @@ second time step, interpolated between, and at every step once a step gains less
 differences to within 0.1 % of its cost, and a 2.3 % lower optimum).
 """
 
-from mjx_surrogate.runs.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import (
+    Config,
+    ExperimentConfig,
+    SolverConfig,
+    SysIdConfig,
+    SystemConfig,
+    TaskConfig,
+)
 
 CONFIG = Config(
     system=SystemConfig(name="fish", timestep=0.005, substeps=5),
     task=TaskConfig(preset="fish_d2c"),
     solver=SolverConfig(
-        sysid="forward_difference",
-        sysid_design="orthogonal",
-        n_samples=32,
-        sysid_every=2,
         sysid_refine_tol=1e-3,
         init="random",
         init_scale=0.1,
         max_iter=100,
         rel_tol=1e-5,
-        sigma_x=1e-7,
-        sigma_u=1e-7,
+    ),
+    sysid=SysIdConfig(
+        scheme="forward_difference", design="orthogonal", n_samples=32, every=2, sigma_x=1e-7, sigma_u=1e-7
     ),
     # The fish is strongly curved at the 1e-3 scale: central differences with sigma 1e-3
     # are 1-17 % off the exact Jacobians and the solve stalls. In float64, forward

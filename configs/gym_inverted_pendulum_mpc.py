@@ -14,7 +14,14 @@ real time on 2 cores, against 330 and 3.2-3.6x (docs/mpc.md)."""
 import importlib.util
 import os
 
-from mjx_surrogate.runs.config import Config, ExperimentConfig, MPCConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import (
+    Config,
+    ExperimentConfig,
+    MPCConfig,
+    MPCSysIdConfig,
+    SystemConfig,
+    TaskConfig,
+)
 
 
 def _asset(name: str) -> str:
@@ -49,7 +56,7 @@ CONFIG = Config(
         steps=100,
         max_iter=2,
         n_alphas=4,
-        sysid="forward_difference",
+        sysid=MPCSysIdConfig(scheme="forward_difference"),
         replan_hz=25.0,
         horizon_end="receding",  # every plan H ahead, as measured in docs/mpc.md
         process_noise=(0.0, 0.01, 0.03),

@@ -26,7 +26,7 @@ CONFIG = preset(
         "replan_hz": 50.0,
         "horizon_end": "receding",
         "max_iter": 1,
-        "sysid_every": 5,
+        "sysid.every": 5,
         "n_alphas": 4,
         "process_noise": (0.0,),
         "plants": ("model",),

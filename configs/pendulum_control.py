@@ -7,13 +7,12 @@ D2C and the oracle also from 5 more random starts, each judged against the other
 import dataclasses
 
 from configs.cartpole_control import CONFIG as _CARTPOLE  # the same study: data, surrogates
-from mjx_surrogate.runs.config import SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import SolverConfig, SysIdConfig, SystemConfig, TaskConfig
 
 CONFIG = dataclasses.replace(
     _CARTPOLE,
     system=SystemConfig(name="pendulum"),
     task=TaskConfig(preset="pendulum_d2c"),
-    solver=SolverConfig(
-        sysid="central_difference", n_samples=10, init="random", init_scale=0.1, max_iter=100, rel_tol=1e-6
-    ),
+    solver=SolverConfig(init="random", init_scale=0.1, max_iter=100, rel_tol=1e-6),
+    sysid=SysIdConfig(scheme="central_difference", n_samples=10),
 )

@@ -7,5 +7,6 @@ CONFIG = derive(
     "cartpole_swingup",
     system={"name": "pendulum"},
     task={"preset": "pendulum_swingup"},
-    solver={"n_samples": 10, "max_iter": 100},
+    solver={"max_iter": 100},
+    sysid={"n_samples": 10},
 )

@@ -15,7 +15,6 @@ CONFIG = dataclasses.replace(
     SWIMMER6,
     system=SystemConfig(name="swimmer15", timestep=0.01, substeps=1, backend="native"),
     task=TaskConfig(preset="swimmer_nose", T=800),
-    solver=dataclasses.replace(
-        SWIMMER6.solver, sysid_design="orthogonal", n_samples=48, max_iter=400, rel_tol=1e-5
-    ),
+    solver=dataclasses.replace(SWIMMER6.solver, max_iter=400, rel_tol=1e-5),
+    sysid=dataclasses.replace(SWIMMER6.sysid, design="orthogonal", n_samples=48),
 )

@@ -5,21 +5,25 @@ Up to 500 iterations (D2C 2.0 stopped at 250): from the benchmark's start, 1632.
 differences stall above the optimum (docs/performance.md).
 """
 
-from mjx_surrogate.runs.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import (
+    Config,
+    ExperimentConfig,
+    SolverConfig,
+    SysIdConfig,
+    SystemConfig,
+    TaskConfig,
+)
 
 CONFIG = Config(
     system=SystemConfig(name="swimmer6", timestep=0.01, substeps=1),
     task=TaskConfig(preset="swimmer6_d2c"),
     solver=SolverConfig(
-        sysid="central_difference",
-        n_samples=25,
         init="random",
         init_scale=0.1,
         max_iter=500,
         rel_tol=1e-7,
-        sigma_x=1e-5,
-        sigma_u=1e-5,
     ),
+    sysid=SysIdConfig(scheme="central_difference", n_samples=25, sigma_x=1e-5, sigma_u=1e-5),
     # The exact oracle needs MJX through 800 steps of a 6-link chain: impractical on 2 CPU
     # cores (docs/performance.md); turn it on with --experiment.exact_oracle True on a GPU.
     experiment=ExperimentConfig(kind="d2c", exact_oracle=False, x64=True),

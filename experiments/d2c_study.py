@@ -136,7 +136,7 @@ def _d2c_figures(record: Run, res: Resolved, m_d2c: dict, a_d2c: dict, sid_param
     record.figure(
         "cost_vs_simulations.png",
         lambda: plots.cost_vs_simulations(
-            {f"D2C ({sc.sysid}, n={sid_params.n_samples})": (curve, d2c_hist)},
+            {f"D2C ({sid_params.scheme}, n={sid_params.n_samples})": (curve, d2c_hist)},
             f"{system.name}: cost against black-box control steps",
         ),
     )

@@ -51,7 +51,7 @@ def pde_sections(L: list, folders: dict, fig: Callable, _section, _verdict, _f, 
     gap = m.get("d2c_vs_exact_relative_gap")
     ranks = (m.get("ltv_relative_error") or {}).get("basis_rank") or [0]
     measured = (
-        f"RO-D2C (`solver.sysid reduced`, {cfg.get('solver', {}).get('n_samples')} "
+        f"RO-D2C (`sysid.scheme reduced`, {cfg.get('sysid', {}).get('n_samples')} "
         f"snapshot rollouts) on `{cfg.get('system', {}).get('name')}`: "
         f"**{d.get('status', 'missing')}** after {d.get('iterations')} iterations, "
         f"cost {_f(d.get('cost'), 8)} against the jacfwd oracle's {_f(e.get('cost'), 8)} "

@@ -24,7 +24,7 @@ import typing
 
 from experiments.summary import summary_line, summary_screen
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.runs.config import Config, PointGoal, from_dict, to_dict
+from mjx_surrogate.runs.config import MOVED, Config, PointGoal, from_dict, to_dict, upgrade
 from mjx_surrogate.runs.validation import validate_static
 from mjx_surrogate.runtime import configure_runtime
 
@@ -48,7 +48,7 @@ def load_config(spec: str) -> Config:
                 data = json.load(f)
             except json.JSONDecodeError as exc:
                 raise ConfigError("CONFIG", f"{spec!r} is not valid JSON ({exc})") from None
-        return _replayed_model(from_dict(Config, data, complete=True), spec)
+        return _replayed_model(from_dict(Config, upgrade(data), complete=True), spec)
     if spec.endswith(".py"):
         if not os.path.isfile(spec):
             raise ConfigError("CONFIG", f"no such file {spec!r}")
@@ -372,6 +372,9 @@ def _unrecognized(joined: str, argv: list[str]) -> ConfigError:
     listed = listed.split("Perhaps you meant", 1)[0]
     tokens = [t.strip(" ,") for t in listed.split(",") if t.strip(" ,")]
     options = [t for t in tokens if t.startswith("--")]
+    if options and options[0][2:].replace("-", "_") in MOVED:
+        old = options[0][2:].replace("-", "_")
+        return ConfigError(options[0], f"moved to --{MOVED[old]} in version 0.5.0")
     if options:
         after = joined.split("Perhaps you meant", 1)[1] if "Perhaps you meant" in joined else ""
         similar = [f.replace("-", "_").replace("__", "--", 1) for f in re.findall(r"--[\w.-]+", after)]

@@ -26,9 +26,11 @@ from mjx_surrogate.runs.config import (
     ExperimentConfig,
     MLPConfig,
     MPCConfig,
+    MPCSysIdConfig,
     SindyConfig,
     SolverConfig,
     SurrogateConfig,
+    SysIdConfig,
     SystemConfig,
     TaskConfig,
 )
@@ -46,6 +48,7 @@ __version__ = "0.4.0"
 __all__ = [
     "AnalysisConfig",
     "MPCConfig",
+    "MPCSysIdConfig",
     "Config",
     "ConfigError",
     "Cost",
@@ -64,6 +67,7 @@ __all__ = [
     "StopReason",
     "SurrogateConfig",
     "SurrogateKind",
+    "SysIdConfig",
     "SysIdParams",
     "System",
     "SystemConfig",

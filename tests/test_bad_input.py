@@ -13,13 +13,13 @@ LONG = "x" * 300
 CASES = [
     (["smoke_d2c", "--solver.accept_ratio", "nan"], "solver.accept_ratio"),
     (["smoke_d2c", "--solver.accept_ratio", "1.5"], "solver.accept_ratio"),
-    (["smoke_predict", "--solver.n_samples", "2"], "solver.n_samples"),
-    (["smoke_d2c", "--solver.sysid", "rollout", "--solver.sysid_every", "2"], "solver.sysid_every"),
+    (["smoke_predict", "--sysid.n_samples", "2"], "sysid.n_samples"),
+    (["smoke_d2c", "--sysid.scheme", "rollout", "--sysid.every", "2"], "sysid.every"),
     (
-        ["smoke_d2c", "--solver.sysid", "rollout", "--solver.sysid_design", "orthogonal"],
-        "solver.sysid_design",
+        ["smoke_d2c", "--sysid.scheme", "rollout", "--sysid.design", "orthogonal"],
+        "sysid.design",
     ),  # noqa: E501
-    (["smoke_d2c", "--solver.sysid_design", "sobol"], "--solver.sysid_design"),
+    (["smoke_d2c", "--sysid.design", "sobol"], "--sysid.design"),
     (["smoke_d2c", "--solver.alpha_factor", "1"], "solver.alpha_factor"),
     (["smoke_d2c", "--solver.sysid_refine_tol", "-1"], "solver.sysid_refine_tol"),
     (["smoke_d2c", "--solver.reuse_tol", "nan"], "solver.reuse_tol"),
@@ -28,8 +28,8 @@ CASES = [
     (["smoke_d2c", "--solver.stationary_restarts", "-1"], "solver.stationary_restarts"),
     (["smoke_d2c", "--solver.sampling_search", "-1"], "solver.sampling_search"),
     (["smoke_d2c", "--solver.mu_raise_alpha", "-0.5"], "solver.mu_raise_alpha"),
-    (["smoke_d2c", "--solver.sysid_significance", "-1"], "solver.sysid_significance"),
-    (["smoke_d2c", "--solver.sysid_significance", "nan"], "solver.sysid_significance"),
+    (["smoke_d2c", "--sysid.significance", "-1"], "sysid.significance"),
+    (["smoke_d2c", "--sysid.significance", "nan"], "sysid.significance"),
     (["smoke_predict", "--surrogate.mlp.stop_rel_tol", "1.5"], "surrogate.mlp.stop_rel_tol"),
     (["smoke_predict", "--surrogate.mlp.stop_window", "-1"], "surrogate.mlp.stop_window"),
     (["smoke_predict", "--surrogate.mlp.patience", "-1"], "surrogate.mlp.patience"),
@@ -40,10 +40,10 @@ CASES = [
         "surrogate.mlp.batch_size",
     ),
     (["cartpole_horizon", "--data.n_traj", "3"], "data.n_traj"),
-    (["smoke_analysis", "--solver.n_samples", "2"], "solver.n_samples"),
+    (["smoke_analysis", "--sysid.n_samples", "2"], "sysid.n_samples"),
     (["smoke_d2c", "--task.x0", "1e13", "0"], "task.x0"),  # sigma_x is below the resolution at 1e13
     (["smoke_d2c", "--task.T", "1000000000"], "task.T"),
-    (["smoke_d2c", "--task.T", "200000", "--solver.n_samples", "400"], "task.T"),
+    (["smoke_d2c", "--task.T", "200000", "--sysid.n_samples", "400"], "task.T"),
     (["smoke_d2c", "--task.T", "10.5"], "--task.T"),
     (["smoke_d2c", "--experiment.seed", str(2**64)], "experiment.seed"),
     (["smoke_d2c", "--experiment.seed", "-1"], "experiment.seed"),
@@ -68,15 +68,15 @@ CASES = [
     (["smoke_mpc", "--mpc.samples", "1"], "mpc.samples"),
     (["smoke_mpc", "--mpc.refit_weight", "nan"], "mpc.refit_weight"),
     (["smoke_mpc", "--mpc.refit_updates", "-1"], "mpc.refit_updates"),
-    (["smoke_mpc", "--mpc.n_samples", "2"], "mpc.n_samples"),  # the pendulum's nx + nu = 3
+    (["smoke_mpc", "--mpc.sysid.n_samples", "2"], "mpc.sysid.n_samples"),  # the pendulum's nx + nu = 3
     (["smoke_mpc", "--mpc.sampling_knots", "-1"], "mpc.sampling_knots"),
     (
         ["smoke_mpc", "--mpc.controllers", "d2c", "--mpc.steps", "9", "--mpc.horizon_end", "task"],
         "mpc.horizon_end",
     ),
     (["smoke_mpc", "--mpc.horizon_end", "shrink"], "--mpc.horizon_end"),
-    (["smoke_mpc", "--mpc.sysid_every", "0"], "mpc.sysid_every"),
-    (["smoke_mpc", "--solver.sysid", "rollout", "--mpc.sysid_every", "2"], "mpc.sysid_every"),
+    (["smoke_mpc", "--mpc.sysid.every", "0"], "mpc.sysid.every"),
+    (["smoke_mpc", "--sysid.scheme", "rollout", "--mpc.sysid.every", "2"], "mpc.sysid.every"),
     (["smoke_mpc", "--mpc.n_alphas", "0"], "mpc.n_alphas"),
     (["smoke_mpc", "--mpc.replan_hz", "3"], "mpc.replan_hz"),  # 3.33 control steps of 0.1 s
     (["smoke_mpc", "--mpc.replan_hz", "2.5"], "mpc.replan_hz"),  # 4 steps do not divide 6
@@ -238,9 +238,9 @@ MESSAGES = [
     (["smoke_d2c", "--task.x0", "0", "1e12", "--experiment.x64"], "task.x0", ["1e+12", "1e+08"], ["x64"]),
     (["smoke_d2c", "--task.x0", "0", "1e9"], "task.x0", ["1e+09", "diverged"], []),
     (
-        ["smoke_d2c", "--task.x0", "0", "1e7", "--solver.sigma_x", "1e-9", "--experiment.x64"],
+        ["smoke_d2c", "--task.x0", "0", "1e7", "--sysid.sigma_x", "1e-9", "--experiment.x64"],
         "task.x0",
-        ["float64", "solver.sigma_x"],
+        ["float64", "sysid.sigma_x"],
         ["x64"],
     ),
     (["smoke_d2c", "--experiment.x64", "True"], "--experiment.x64", ["'True'", "no_x64"], []),
@@ -252,7 +252,7 @@ MESSAGES = [
     ),
     (["smoke_d2c", "--task.T", "2.5"], "--task.T", ["'2.5'", "integer"], ["Got errors"]),
     (["smoke_d2c", "--solver.max_iter", "abc"], "--solver.max_iter", ["'abc'", "integer"], []),
-    (["smoke_d2c", "--solver.sysid_design", "sobol"], "--solver.sysid_design", ["'sobol'", "orthogonal"], []),
+    (["smoke_d2c", "--sysid.design", "sobol"], "--sysid.design", ["'sobol'", "orthogonal"], []),
     (["smoke_predict", "--data.levels", "0"], "data.levels", ["> 0", "got 0"], []),
     (["smoke_d2c", "--data.levels", "0.1", "-1"], "data.levels", ["got -1"], []),
     # a grid whose dense nx x nx arrays do not fit: refused before anything is compiled
@@ -274,7 +274,7 @@ MESSAGES = [
     # the D2C solve fits, the exact oracle's full-order one does not: refused where asked for
     # (the default is then off, with the reason in the run)
     (
-        ["allen_cahn_d2c", "--system.name", "allen_cahn2d256", "--solver.sysid", "reduced"]
+        ["allen_cahn_d2c", "--system.name", "allen_cahn2d256", "--sysid.scheme", "reduced"]
         + ["--experiment.exact_oracle", "True"],
         "experiment.exact_oracle",
         ["full-order", "nx = 65536", "GiB", "valid here: false"],

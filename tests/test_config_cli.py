@@ -16,7 +16,7 @@ from helpers import assert_png
 from experiments import run as cli
 from experiments.summary import time_line
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.runs.config import Config, SolverConfig, from_dict, to_dict
+from mjx_surrogate.runs.config import Config, MPCConfig, SolverConfig, from_dict, to_dict
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -34,13 +34,13 @@ BAD = [
     (["smoke_rollout", "--task.T", "abc"], "--task.T"),
     (["smoke_rollout", "--no.such.field", "1"], "--no.such.field"),
     (["smoke_rollout", "--system.backend", "gpu"], "--system.backend"),
-    (["smoke_rollout", "--solver.sigma_x", "-1"], "solver.sigma_x"),
-    (["default", "--solver.n_samples", "2"], "solver.n_samples"),
+    (["smoke_rollout", "--sysid.sigma_x", "-1"], "sysid.sigma_x"),
+    (["default", "--sysid.n_samples", "2"], "sysid.n_samples"),
     (["smoke_rollout", "--system.name", "mjcf"], "system.mjcf_path"),
     (["smoke_predict", "--surrogate.sindy.libraries", "poly3_banana"], "surrogate.sindy.libraries[0]"),
     (["smoke_predict", "--surrogate.sindy.trig_coords", "9"], "surrogate.sindy.trig_coords"),
     (["smoke_predict", "--surrogate.kinds", "sindy", "gpr"], "surrogate.kinds[1]"),
-    (["smoke_d2c", "--solver.sysid", "bogus"], "solver.sysid"),
+    (["smoke_d2c", "--sysid.scheme", "bogus"], "sysid.scheme"),
     (["smoke_predict", "--data.levels", "0.1", "nan"], "data.levels"),
     (["smoke_predict", "--data.test_fraction", "1.5"], "data.test_fraction"),
     (["smoke_predict", "--surrogate.mlp.batch_size", "100000"], "surrogate.mlp.batch_size"),
@@ -54,10 +54,10 @@ BAD = [
     (["smoke_rollout", "--task.goals", "site:tip:0,1"], "task.goals"),
     (["smoke_rollout", "--task.goals", "site:tip:0,0,x"], "task.goals"),
     (["smoke_rollout", "--task.goals", "site:nosuchsite:0,0,1"], "task.goals[0].name"),
-    (["smoke_mpc", "--mpc.sysid", "bogus"], "mpc.sysid"),
+    (["smoke_mpc", "--mpc.sysid.scheme", "bogus"], "mpc.sysid.scheme"),
     (["smoke_mpc", "--mpc.realtime_speed", "0"], "mpc.realtime_speed"),
     (["smoke_mpc", "--mpc.realtime", "--mpc.controllers", "tvlqr"], "mpc.realtime"),
-    (["smoke_mpc", "--mpc.sysid", "rollout", "--mpc.sysid_every", "2"], "mpc.sysid_every"),
+    (["smoke_mpc", "--mpc.sysid.scheme", "rollout", "--mpc.sysid.every", "2"], "mpc.sysid.every"),
     (["smoke_rollout", "--task.goals", "site:tip:0,0,1:velocity=1,2"], "task.goals"),
     (["smoke_rollout", "--task.goals", "site:tip:0,0,1:orbit=0.1,x"], "task.goals"),
     (["smoke_rollout", "--task.goals", "site:tip:0,0,1:orbit=0.1,0"], "task.goals[0].orbit_period"),
@@ -154,7 +154,7 @@ def test_help_lists_presets_and_fields(capsys):
         cli.main(["--help"])
     assert e.value.code == 0
     text = capsys.readouterr().out
-    for needle in ("default", "smoke_rollout", "--task.T", "--system.backend", "--solver.sysid"):
+    for needle in ("default", "smoke_rollout", "--task.T", "--system.backend", "--sysid.scheme"):
         assert needle in text
 
 
@@ -174,9 +174,9 @@ def test_config_built_in_python_has_its_choices_checked():
     from mjx_surrogate.runs.resolution import resolve
 
     cfg = cli.load_config("smoke_d2c")
-    bad = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, sysid="bogus"))
+    bad = dataclasses.replace(cfg, sysid=dataclasses.replace(cfg.sysid, scheme="bogus"))
     with pytest.raises(
-        ConfigError, match="^solver.sysid: unknown identification scheme 'bogus'; valid: .*forward_difference"
+        ConfigError, match="^sysid.scheme: unknown identification scheme 'bogus'; valid: .*forward_difference"
     ):
         resolve(bad)
     bad = dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, backend="gpu"))
@@ -271,6 +271,76 @@ def test_every_ilqr_parameter_is_a_solver_field_with_its_default_and_reaches_it(
         assert params.model_strategy_settings is None  # the strategy declares none
     finally:
         mst.MODEL_STRATEGIES.pop("every_iteration_only")
+
+
+def test_every_identification_parameter_is_a_sysid_field_and_reaches_it():
+    """One definition: each SysIdParams field (but the scheme's own settings) is a field of
+    section sysid of the same name, and each field of mpc.sysid one of them; a changed value
+    reaches the solver's SysIdParams, and mpc.sysid's reach the replans' (no rename table)."""
+    from mjx_surrogate.identification.sysid import SysIdParams
+    from mjx_surrogate.runs.config import MPCSysIdConfig, SysIdConfig
+    from mjx_surrogate.runs.resolution import mpc_params, solver_params
+
+    names = [f.name for f in dataclasses.fields(SysIdParams) if f.name != "settings"]
+    assert sorted(names) == sorted(f.name for f in dataclasses.fields(SysIdConfig))
+    assert {f.name for f in dataclasses.fields(MPCSysIdConfig)} <= set(names)
+    changed = dict(
+        scheme="forward_difference",
+        n_samples=7,
+        sigma_x=0.125,
+        sigma_u=0.25,
+        every=3,
+        design="orthogonal",
+        noise_floor=2.0,
+        perturb_x0=False,
+        hold_limits=True,
+        significance=1.5,
+        rank_tol=0.375,
+    )
+    assert set(changed) == set(names)
+    _, sid = solver_params(Config(sysid=SysIdConfig(**changed)))
+    assert {n: getattr(sid, n) for n in names} == changed
+    own = dict(scheme="rollout", n_samples=9, design="gaussian", every=1)
+    cfg = Config(sysid=SysIdConfig(**changed), mpc=MPCConfig(sysid=MPCSysIdConfig(**own)))
+    _, replans = mpc_params(cfg)
+    assert {n: getattr(replans, n) for n in names} == {**changed, **own, "significance": 1.5}
+
+
+def test_a_run_folder_of_the_earlier_schema_replays_and_old_flags_say_where_they_went(tmp_path, capsys):
+    """A config.json written before 0.5.0 (identification settings in solver and mpc, a
+    scheme's settings under solver.<scheme>) loads as the same config; a moved flag is
+    refused with one line naming its new place, exit status 2."""
+    from mjx_surrogate.runs.config import MOVED, SysIdConfig, upgrade
+
+    cfg = cli.load_config("cartpole_mpc")
+    cfg = dataclasses.replace(
+        cfg,
+        sysid=SysIdConfig(scheme="coordinate", n_samples=5, every=2, design="orthogonal", significance=2.0),
+        extensions={**cfg.extensions, "sysid.coordinate": {"step": 0.5}},
+    )
+    new = json.loads(json.dumps(to_dict(cfg)))
+    old = json.loads(json.dumps(new))
+    sysid, mpc_sysid = old.pop("sysid"), old["mpc"].pop("sysid")
+    for before, after in MOVED.items():
+        section, field = before.split(".")
+        *where, name = after.split(".")
+        old[section][field] = (sysid if where == ["sysid"] else mpc_sysid)[name]
+    old["extensions"]["solver.coordinate"] = old["extensions"].pop("sysid.coordinate")
+    assert (
+        "sysid" not in old
+        and old["solver"]["sysid_every"] == 2
+        and old["mpc"]["sysid"] == "forward_difference"
+    )
+    assert upgrade(old) == new
+    assert upgrade(new) == new
+    with pytest.raises(ConfigError, match="^solver.sysid_every: moved to sysid.every in version 0.5.0"):
+        from_dict(Config, {"solver": {"sysid_every": 2}})
+    path = tmp_path / "config.json"
+    path.write_text(json.dumps(old))
+    assert cli.load_config(str(path)) == cfg  # as a replay loads it
+    for flag, where in (("--solver.sysid_design", "--sysid.design"), ("--mpc.sysid", "--mpc.sysid.scheme")):
+        assert cli.main(["smoke_mpc", flag, "orthogonal"]) == 2
+        assert capsys.readouterr().err.strip() == f"error: {flag}: moved to {where} in version 0.5.0"
 
 
 def test_the_summary_accounts_for_the_wall_time():

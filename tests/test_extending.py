@@ -58,10 +58,10 @@ def doc(tmp_path_factory):
 
 def test_the_page_registers_each_kind_of_extension(doc):
     declared = ms.runs.extension_settings.declared()
-    assert {"solver.coordinate", "solver.periodic", "surrogate.affine", "experiment.random_controls"} <= set(
+    assert {"sysid.coordinate", "solver.periodic", "surrogate.affine", "experiment.random_controls"} <= set(
         declared
     )
-    assert declared["solver.coordinate"] == doc.CoordinateSettings(step=1e-4)
+    assert declared["sysid.coordinate"] == doc.CoordinateSettings(step=1e-4)
     assert "tilted_pendulum" in registry._SYSTEMS and "tilted_up" in registry._TASKS
     assert "gym:<id> (a gymnasium environment)" in registry.system_names()
 
@@ -71,8 +71,8 @@ def test_a_registered_scheme_drives_d2c_to_the_exact_optimum(doc):
     cfg = ms.Config(
         system=ms.SystemConfig(name="pendulum", backend="native"),
         task=ms.TaskConfig(preset="pendulum_d2c", T=20),
-        solver=ms.SolverConfig(sysid="coordinate", n_samples=3),
-        extensions={"solver.coordinate": doc.CoordinateSettings(step=1e-4)},
+        sysid=ms.SysIdConfig(scheme="coordinate", n_samples=3),
+        extensions={"sysid.coordinate": doc.CoordinateSettings(step=1e-4)},
     )
     cfg, system, task = ms.resolve(cfg)
     params, sid = ms.solver_params(cfg)
@@ -91,9 +91,9 @@ def test_a_registered_scheme_and_surrogate_run_from_the_cli(tmp_path):
             "smoke_predict",
             "--out",
             str(tmp_path),
-            "--solver.sysid",
+            "--sysid.scheme",
             "coordinate",
-            "--solver.coordinate.step",
+            "--sysid.coordinate.step",
             "1e-4",
             "--surrogate.kinds",
             "sindy",
@@ -107,7 +107,7 @@ def test_a_registered_scheme_and_surrogate_run_from_the_cli(tmp_path):
     assert code == 0 and metrics["status"] == "converged"
     with open(f"{path}/config.json") as f:
         extensions = json.load(f)["extensions"]
-    assert extensions == {"solver.coordinate": {"step": 1e-4}, "surrogate.affine": {"ridge": 0.001}}
+    assert extensions == {"sysid.coordinate": {"step": 1e-4}, "surrogate.affine": {"ridge": 0.001}}
     for level in ("0.1", "0.6"):
         models = metrics["results"][level]
         assert list(models)[:4] == ["SINDy cubic_trig", "SINDy quartic", "affine", "LTV"]
@@ -122,18 +122,18 @@ def test_unregistered_names_are_rejected_before_any_compile(tmp_path, capsys):
 
 
 def test_a_scheme_without_a_t_test_refuses_a_significance(tmp_path, capsys):
-    """``sysid_significance`` > 0 needs a scheme that applies it (``t_test``)."""
-    argv = ["smoke_d2c", "--out", str(tmp_path), "--solver.sysid", "coordinate"]
-    assert cli.main(argv + ["--solver.sysid_significance", "3"]) == 2
+    """``sysid.significance`` > 0 needs a scheme that applies it (``t_test``)."""
+    argv = ["smoke_d2c", "--out", str(tmp_path), "--sysid.scheme", "coordinate"]
+    assert cli.main(argv + ["--sysid.significance", "3"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: solver.sysid_significance: needs a scheme with a t-test (central_diff")
+    assert err.startswith("error: sysid.significance: needs a scheme with a t-test (central_diff")
 
 
 def test_a_scheme_setting_reaches_its_linearize_from_the_command_line(doc):
-    """``--solver.coordinate.step`` lands in the config and in the scheme's parameters;
+    """``--sysid.coordinate.step`` lands in the config and in the scheme's parameters;
     the config's other extensions stay."""
-    cfg, _ = cli.parse_args(["smoke_d2c", "--solver.sysid", "coordinate", "--solver.coordinate.step", "0.25"])
-    assert cfg.extensions == {"solver.coordinate": doc.CoordinateSettings(step=0.25)}
+    cfg, _ = cli.parse_args(["smoke_d2c", "--sysid.scheme", "coordinate", "--sysid.coordinate.step", "0.25"])
+    assert cfg.extensions == {"sysid.coordinate": doc.CoordinateSettings(step=0.25)}
     assert ms.solver_params(cfg)[1].settings == doc.CoordinateSettings(step=0.25)
     assert ms.solver_params(dataclasses.replace(cfg, extensions={}))[1].settings == doc.CoordinateSettings()
 
@@ -141,10 +141,10 @@ def test_a_scheme_setting_reaches_its_linearize_from_the_command_line(doc):
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["--solver.coordinate.step", "-1"], "error: solver.coordinate.step: must be > 0, got -1.0"),
-        (["--solver.coordinate.step", "abc"], "error: --solver.coordinate.step: expects a number, got 'abc'"),
-        (["--solver.coordinate.stride", "2"], "error: --solver.coordinate.stride: unknown field"),
-        (["--solver.coordinate.step", "nan"], "error: solver.coordinate.step: must be a finite number"),
+        (["--sysid.coordinate.step", "-1"], "error: sysid.coordinate.step: must be > 0, got -1.0"),
+        (["--sysid.coordinate.step", "abc"], "error: --sysid.coordinate.step: expects a number, got 'abc'"),
+        (["--sysid.coordinate.stride", "2"], "error: --sysid.coordinate.stride: unknown field"),
+        (["--sysid.coordinate.step", "nan"], "error: sysid.coordinate.step: must be a finite number"),
         (
             ["--surrogate.affine.ridge", "1"],
             "error: surrogate.affine: settings of 'affine', which this config",
@@ -165,7 +165,7 @@ def test_a_scheme_setting_reaches_its_linearize_from_the_command_line(doc):
     ],
 )
 def test_bad_extension_settings_exit_2_naming_the_field(tmp_path, capsys, args, message):
-    argv = ["smoke_d2c", "--out", str(tmp_path), "--solver.sysid", "coordinate"]
+    argv = ["smoke_d2c", "--out", str(tmp_path), "--sysid.scheme", "coordinate"]
     assert cli.main(argv + args) == 2
     assert capsys.readouterr().err.startswith(message)
 
@@ -294,18 +294,18 @@ def test_a_gymnasium_environment_the_kind_refuses_exits_2_naming_the_field(
             {"solver.nope": {}},
             "extensions.solver.nope: no registered extension declares settings here; valid: ",
         ),
-        ({"solver.coordinate": {"stride": 2}}, "solver.coordinate.stride: unknown field; valid: step"),
-        ({"solver.coordinate": {"step": "big"}}, "solver.coordinate.step: expected a number, got 'big'"),
+        ({"sysid.coordinate": {"stride": 2}}, "sysid.coordinate.stride: unknown field; valid: step"),
+        ({"sysid.coordinate": {"step": "big"}}, "sysid.coordinate.step: expected a number, got 'big'"),
         (
             "affine settings",
-            "solver.coordinate: expected CoordinateSettings or a mapping",
+            "sysid.coordinate: expected CoordinateSettings or a mapping",
         ),
     ],
 )
 def test_a_python_config_s_extension_settings_are_checked(doc, extensions, message):
     if extensions == "affine settings":  # another extension's settings class
-        extensions = {"solver.coordinate": doc.AffineSettings()}
-    cfg = ms.Config(solver=ms.SolverConfig(sysid="coordinate"), extensions=extensions)
+        extensions = {"sysid.coordinate": doc.AffineSettings()}
+    cfg = ms.Config(sysid=ms.SysIdConfig(scheme="coordinate"), extensions=extensions)
     with pytest.raises(ms.ConfigError) as e:
         ms.resolve(cfg)
     assert str(e.value).startswith(message)
@@ -315,7 +315,7 @@ def test_help_lists_the_settings_of_registered_extensions(doc, capsys):
     with pytest.raises(SystemExit):
         cli.parse_args(["smoke_d2c", "--help"])
     out = " ".join(capsys.readouterr().out.split())
-    assert "--solver.coordinate.{step}" in out and "--experiment.random_controls.{n,scale}" in out
+    assert "--sysid.coordinate.{step}" in out and "--experiment.random_controls.{n,scale}" in out
 
 
 @pytest.mark.slow  # over 5 s: the fast tier's budget

@@ -18,7 +18,7 @@ from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.identification import sysid_reduced
 from mjx_surrogate.identification.sysid import SysIdParams
 from mjx_surrogate.runs import memory
-from mjx_surrogate.runs.config import Config, SolverConfig, SystemConfig
+from mjx_surrogate.runs.config import Config, SysIdConfig, SystemConfig
 from mjx_surrogate.systems import allen_cahn
 from mjx_surrogate.tasks import at_step, make_task, task_cost
 
@@ -139,14 +139,14 @@ def test_the_memory_check_names_the_longest_horizon_that_fits(monkeypatch):
     monkeypatch.setattr(memory, "machine_memory", lambda: 2**28)
     s = allen_cahn.make_system(64, dims=2)
     task = make_task(**allen_cahn.grow_fields(s.nx, s.nu, T=50), u_min=s.u_min, u_max=s.u_max)
-    cfg = Config(system=SystemConfig(name="allen_cahn2d64"), solver=SolverConfig(sysid="reduced"))
+    cfg = Config(system=SystemConfig(name="allen_cahn2d64"), sysid=SysIdConfig(scheme="reduced"))
     with pytest.raises(ConfigError) as e:
         memory.check_solve_memory(cfg, s, task, 32, oracle=False)
     assert e.value.field == "task.T"
     t_max = int(str(e.value).split("T <= ")[1].split()[0])
     fits = lambda T: memory.solve_bytes(task, s.nx, s.nu, T, False, 32) <= 2**28  # noqa: E731
     assert fits(t_max) and not fits(t_max + 1)
-    full = dataclasses.replace(cfg, solver=SolverConfig())
+    full = dataclasses.replace(cfg, sysid=SysIdConfig())
     with pytest.raises(ConfigError) as e:
         memory.check_solve_memory(full, s, task, s.nx + s.nu, oracle=False)
     assert e.value.field == "system.name" and "T = 1" in str(e.value)

@@ -10,7 +10,14 @@ import numpy as np
 import pytest
 
 from mjx_surrogate.runs import model_defaults, pipeline
-from mjx_surrogate.runs.config import Config, ExperimentConfig, SolverConfig, SystemConfig, TaskConfig
+from mjx_surrogate.runs.config import (
+    Config,
+    ExperimentConfig,
+    SolverConfig,
+    SysIdConfig,
+    SystemConfig,
+    TaskConfig,
+)
 from mjx_surrogate.runs.resolution import resolve
 
 ARM = """
@@ -182,7 +189,7 @@ def test_a_saturated_actuator_identifies_as_exactly_zero_with_the_noise_floor(tm
     open(path, "w").write(ARM.format(actuators=SERVOS.replace('forcerange="-50 50"', 'forcerange="-1 1"')))
     res = resolve(_hold_cfg(path))
     cfg, system, task = res
-    assert cfg.solver.sysid_noise_floor == 10.0
+    assert cfg.sysid.noise_floor == 10.0
     _, sid = solver_params(cfg)
     T = 5
     U = jnp.tile(jnp.asarray([0.4, 2.5]), (T, 1))  # the elbow's target 3.2 rad away: force-limited
@@ -246,14 +253,14 @@ def test_dry_friction_sets_the_perturbation_above_its_break_away(tmp_path):
         assert response(0.5) == pytest.approx(response(0.9), rel=1e-6)
         assert response(2.0) > 4 * response(0.9) > 0
 
-    def sigmas(friction, **solver):
+    def sigmas(friction, **sysid):
         path.write_text(SLIDER.format(friction=friction))
         cfg = Config(
             system=SystemConfig(name="mjcf", mjcf_path=str(path), backend="native"),
             task=TaskConfig(preset="hold"),
-            solver=SolverConfig(**solver),
+            sysid=SysIdConfig(**sysid),
         )
-        s = resolve(cfg).config.solver
+        s = resolve(cfg).config.sysid
         return s.sigma_x, s.sigma_u
 
     assert sigmas(0.005) == (1e-5, 1e-5)  # 10 f / kp
@@ -292,23 +299,23 @@ DOOR = (
 def test_loose_bodies_are_the_trees_no_actuator_moves_and_get_the_t_test(tmp_path, objects, loose):
     """A tree whose every joint no actuator acts on (a ball, a door) is loose; the arm,
     driven through a tendon only, is not. A user's model with loose objects gets
-    sysid_significance 3 where the scheme has the t-test; without them, 0; a given value
+    sysid.significance 3 where the scheme has the t-test; without them, 0; a given value
     is kept."""
     path = tmp_path / "arm.xml"
     path.write_text(LOOSE.format(objects=objects))
     assert model_defaults.loose_bodies(mujoco.MjModel.from_xml_path(str(path))) == loose
 
-    def significance(**solver) -> float:
+    def significance(**sysid) -> float:
         cfg = Config(
             system=SystemConfig(name="mjcf", mjcf_path=str(path), backend="native"),
             task=TaskConfig(preset="hold"),
-            solver=SolverConfig(**solver),
+            sysid=SysIdConfig(**sysid),
         )
-        return resolve(cfg).config.solver.sysid_significance
+        return resolve(cfg).config.sysid.significance
 
     assert significance() == (3.0 if loose else 0.0)
-    assert significance(sysid_significance=0.0) == 0.0
-    assert significance(sysid_significance=1.5) == 1.5
+    assert significance(significance=0.0) == 0.0
+    assert significance(significance=1.5) == 1.5
 
 
 def test_resolve_warns_where_a_float64_config_meets_float32_jax(tmp_path):
@@ -336,7 +343,7 @@ def test_d2c_mpc_keeps_the_t_test_only_where_its_scheme_has_one(tmp_path):
     """The default t-test of a model with a loose ball reaches D2C-MPC's replans with the
     solver's scheme and with a rollout scheme; the reduced scheme, which has no test,
     gets 0."""
-    from mjx_surrogate.runs.config import MPCConfig
+    from mjx_surrogate.runs.config import MPCConfig, MPCSysIdConfig
     from mjx_surrogate.runs.resolution import mpc_params
 
     path = tmp_path / "arm.xml"
@@ -344,12 +351,12 @@ def test_d2c_mpc_keeps_the_t_test_only_where_its_scheme_has_one(tmp_path):
     system = SystemConfig(name="mjcf", mjcf_path=str(path), backend="native")
 
     def significance(**mpc) -> float:
-        mpc = MPCConfig(controllers=("d2c",), **mpc)
+        mpc = MPCConfig(controllers=("d2c",), sysid=MPCSysIdConfig(**mpc))
         cfg = Config(
             system=system, task=TaskConfig(preset="hold"), experiment=ExperimentConfig(kind="mpc"), mpc=mpc
         )
         return mpc_params(resolve(cfg).config)[1].significance
 
     assert significance() == 3.0
-    assert significance(sysid="rollout") == 3.0
-    assert significance(sysid="reduced", n_samples=8) == 0.0
+    assert significance(scheme="rollout") == 3.0
+    assert significance(scheme="reduced", n_samples=8) == 0.0

@@ -289,11 +289,12 @@ def test_the_gymnasium_preset_finds_the_installed_model_or_says_how_to_get_it(mo
 
 def test_d2c_mpc_identifies_with_the_fewest_samples_unless_told():
     """D2C-MPC's replans: nx + nu orthogonal samples by default (the offline solve keeps the
-    solver's), mpc.n_samples and mpc.sysid_design when given; a rollout scheme keeps the
+    solver's), mpc.sysid.n_samples and mpc.sysid.design when given; a rollout scheme keeps the
     solver's samples and design."""
     import dataclasses
 
     from configs.smoke_mpc import CONFIG
+    from mjx_surrogate.runs.config import MPCSysIdConfig
     from mjx_surrogate.runs.resolution import mpc_params, resolve, solver_params
 
     cfg = resolve(CONFIG).config
@@ -302,17 +303,19 @@ def test_d2c_mpc_identifies_with_the_fewest_samples_unless_told():
     assert (sysid.n_samples, sysid.design, params.max_iter) == (3, "orthogonal", CONFIG.mpc.max_iter)
     assert (offline.n_samples, offline.design) == (20, "gaussian")
     given = dataclasses.replace(
-        CONFIG, mpc=dataclasses.replace(CONFIG.mpc, n_samples=6, sysid_design="gaussian")
+        CONFIG, mpc=dataclasses.replace(CONFIG.mpc, sysid=MPCSysIdConfig(n_samples=6, design="gaussian"))
     )
     assert mpc_params(resolve(given).config)[1].n_samples == 6
     assert mpc_params(resolve(given).config)[1].design == "gaussian"
-    assert sysid.scheme == offline.scheme == "central_difference"  # mpc.sysid: the solver's
-    forward = dataclasses.replace(CONFIG, mpc=dataclasses.replace(CONFIG.mpc, sysid="forward_difference"))
+    assert sysid.scheme == offline.scheme == "central_difference"  # mpc.sysid.scheme: the solver's
+    forward = dataclasses.replace(
+        CONFIG, mpc=dataclasses.replace(CONFIG.mpc, sysid=MPCSysIdConfig(scheme="forward_difference"))
+    )
     resolved = resolve(forward).config
-    assert resolved.mpc.sysid == "forward_difference"
+    assert resolved.mpc.sysid.scheme == "forward_difference"
     assert solver_params(resolved)[1].scheme == "central_difference"
     assert mpc_params(resolved)[1].scheme == "forward_difference"
-    rollout = dataclasses.replace(CONFIG, solver=dataclasses.replace(CONFIG.solver, sysid="rollout"))
+    rollout = dataclasses.replace(CONFIG, sysid=dataclasses.replace(CONFIG.sysid, scheme="rollout"))
     assert (
         mpc_params(resolve(rollout).config)[1].n_samples,
         mpc_params(resolve(rollout).config)[1].design,

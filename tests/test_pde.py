@@ -170,11 +170,11 @@ def test_ro_d2c_reaches_full_d2c_on_burgers_with_fewer_simulations():
 @pytest.mark.parametrize(
     "argv,needle",
     [
-        (["--solver.sysid", "reduced", "--solver.n_samples", "40"], "solver.n_samples: the reduced scheme"),
-        (["--solver.sysid_rank_tol", "1e-3"], "solver.sysid_rank_tol: only a reduced scheme"),
+        (["--sysid.scheme", "reduced", "--sysid.n_samples", "40"], "sysid.n_samples: the reduced scheme"),
+        (["--sysid.rank_tol", "1e-3"], "sysid.rank_tol: only a reduced scheme"),
         (
-            ["--solver.sysid", "reduced", "--solver.sysid_rank_tol", "1.5"],
-            "solver.sysid_rank_tol: must be in [0, 1)",
+            ["--sysid.scheme", "reduced", "--sysid.rank_tol", "1.5"],
+            "sysid.rank_tol: must be in [0, 1)",
         ),
         (["--system.name", "burgers3"], "system.name: burgers needs at least 8 cells"),
     ],

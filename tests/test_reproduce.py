@@ -238,8 +238,8 @@ def assert_each_kinds_outputs(out: str, meters: dict) -> None:
     # basis's rank per t, every black-box step counted
     folder, m = _metrics(out, "burgers_ro_d2c")
     cfg = json.load(open(os.path.join(folder, "config.json")))
-    T, n = cfg["task"]["T"], cfg["solver"]["n_samples"]
-    assert cfg["solver"]["sysid"] == "reduced" and cfg["system"]["name"] == "burgers32"
+    T, n = cfg["task"]["T"], cfg["sysid"]["n_samples"]
+    assert cfg["sysid"]["scheme"] == "reduced" and cfg["system"]["name"] == "burgers32"
     assert m["d2c"]["status"] == "converged" and abs(m["d2c_vs_exact_relative_gap"]) < 1e-3
     ranks = m["ltv_relative_error"]["basis_rank"]
     assert len(ranks) == T + 1 and ranks[0] == 0 and 8 <= max(ranks) <= n

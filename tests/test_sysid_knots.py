@@ -1,4 +1,4 @@
-"""Identification at every k-th step, interpolated between (``solver.sysid_every``)."""
+"""Identification at every k-th step, interpolated between (``sysid.every``)."""
 
 from types import SimpleNamespace
 from typing import Callable, NamedTuple
@@ -55,13 +55,13 @@ def test_knotted_central_differences_recover_jacobians_linear_in_t():
 
 def test_a_rollout_scheme_cannot_skip_steps():
     from mjx_surrogate.errors import ConfigError
-    from mjx_surrogate.runs.config import Config, SolverConfig
+    from mjx_surrogate.runs.config import Config, SysIdConfig
     from mjx_surrogate.runs.validation import validate_static
 
-    with pytest.raises(ConfigError, match="solver.sysid_every"):
-        validate_static(Config(solver=SolverConfig(sysid="rollout", sysid_every=2)))
-    with pytest.raises(ConfigError, match="solver.sysid_every"):
-        validate_static(Config(solver=SolverConfig(sysid_every=0)))
+    with pytest.raises(ConfigError, match="sysid.every"):
+        validate_static(Config(sysid=SysIdConfig(scheme="rollout", every=2)))
+    with pytest.raises(ConfigError, match="sysid.every"):
+        validate_static(Config(sysid=SysIdConfig(every=0)))
 
 
 class BlackBox(NamedTuple):  # hashable: solve_d2c takes the system as a static argument

@@ -355,9 +355,9 @@ def hold_config(model: str) -> Config | None:
 
 def _check_hold_defaults(res) -> None:
     s, rc = res.system, res.config
-    assert rc.solver.init == "hold" and rc.solver.n_samples == max(20, 2 * (s.nx + s.nu))
-    assert rc.solver.sysid_perturb_x0 is False and rc.solver.sysid_noise_floor == 10.0
-    assert rc.solver.sysid_hold_limits is True
+    assert rc.solver.init == "hold" and rc.sysid.n_samples == max(20, 2 * (s.nx + s.nu))
+    assert rc.sysid.perturb_x0 is False and rc.sysid.noise_floor == 10.0
+    assert rc.sysid.hold_limits is True
     assert res.task.T > 0 and np.all(np.isfinite(np.asarray(res.task.x0)))
 
 
@@ -483,7 +483,7 @@ def test_the_readme_user_model_command_runs_the_dm_control_humanoid(tmp_path):
     assert d2c["controls_within_limits"] and d2c["goal"]["reached"]
     assert d2c["cost"] < 0.2 * float(arrays["d2c_cost_history"][0])  # it fell 52 -> 3.5 when written
     config = json.load(open(os.path.join(folder, "config.json")))
-    assert config["solver"]["n_samples"] == max(20, 2 * (nx + nu)) and config["experiment"]["x64"]
+    assert config["sysid"]["n_samples"] == max(20, 2 * (nx + nu)) and config["experiment"]["x64"]
     assert config["solver"]["init"] == "hold" and config["task"]["T"] == 50
     # the reported cost is that of the stored controls replayed with mujoco.rollout
     replay = resolve(from_dict(Config, config))

@@ -340,7 +340,7 @@ class IdentificationScheme(NamedTuple):
       (A [T, n, n], B [T, n, nu], V [T+1, nx, n]) (:mod:`mjx_surrogate.identification.sysid_reduced`), and
       n_samples is that largest rank, not a sample count >= nx + nu.
     settings: the scheme's own settings' defaults (a frozen dataclass instance, set as
-      ``--solver.<name>.<field>``); ``make_linearize`` finds the run's values in
+      ``--sysid.<name>.<field>``); ``make_linearize`` finds the run's values in
       ``params.settings`` (:mod:`mjx_surrogate.runs.extension_settings`).
     """
 
@@ -357,11 +357,11 @@ SCHEMES: dict[str, IdentificationScheme] = {}
 
 
 def register_scheme(name: str, scheme: IdentificationScheme) -> None:
-    """Add ``scheme`` under ``name`` (then valid as ``solver.sysid``)."""
+    """Add ``scheme`` under ``name`` (then valid as ``sysid.scheme``)."""
     SCHEMES[name] = scheme
 
 
-def get_scheme(name: str, field: str = "solver.sysid") -> IdentificationScheme:
+def get_scheme(name: str, field: str = "sysid.scheme") -> IdentificationScheme:
     return registered(SCHEMES, name, field, "identification scheme")
 
 

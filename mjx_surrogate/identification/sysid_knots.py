@@ -1,4 +1,4 @@
-"""Identification at every k-th time step, linear interpolation between (``solver.sysid_every``).
+"""Identification at every k-th time step, linear interpolation between (``sysid.every``).
 
 A one-step scheme identifies (A_t, B_t) at each t from its own samples. Along a smooth
 nominal the Jacobians change slowly in t, so they can be identified only at the knots

@@ -16,7 +16,7 @@ included: on the dm_control manipulator, its free-falling objects (which no cont
 move) identified with control gains up to 3e4, against exactly 0 by central differences
 along each coordinate, and the value function carried them into the arm's gains; D2C
 stalled at 2.5x the oracle's cost. With the test it reaches the oracle's cost in the
-oracle's 11 iterations. ``solver.sysid_significance`` is 3 by default on a user's model
+oracle's 11 iterations. ``sysid.significance`` is 3 by default on a user's model
 with loose objects, trees no actuator moves (``model_defaults.default_significance``), and
 off elsewhere: where a task is made of contacts (gymnasium's hopper and ant moving
 forward) the rows fitted across contact events carry an averaged slope the solve needs,

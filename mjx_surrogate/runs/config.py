@@ -1,4 +1,4 @@
-"""Frozen dataclass configs: system, task, solver and experiment sections.
+"""Frozen dataclass configs: system, task, solver, sysid and experiment sections.
 
 A config is plain data. ``resolve`` (in :mod:`mjx_surrogate.runs.resolution`) turns it into a
 system, a task and a fully resolved config; every check there raises
@@ -137,21 +137,10 @@ class TaskConfig:
 class SolverConfig:
     """iLQR and data-driven (D2C) iLQR settings.
 
-    sysid: a registered identification scheme: "central_difference" (D2C 2.0 one-step
-    scheme), "forward_difference" (one-sided, half the simulator calls, first-order
-    accurate), "rollout" (the paper's open-loop perturbed rollouts), "closed_loop"
-    (perturbed rollouts under the current feedback gains), "reduced" (RO-D2C for
-    black boxes with many states, e.g. PDEs: a snapshot basis of n_samples rollouts and
-    central differences in it, ``mjx_surrogate.identification.sysid_reduced``), or one registered with
-    ``mjx_surrogate.identification.sysid.register_scheme``.
-    sysid_rank_tol: with sysid="reduced", the fraction of the snapshots' energy the basis
-    may leave out (its rank is at most n_samples).
-    sysid_every: with a one-step scheme, identify only every k-th time step (and the
-    last) and interpolate linearly between (``mjx_surrogate.identification.sysid_knots``).
-    sysid_design: a one-step scheme's perturbations: "gaussian" (D2C 2.0: i.i.d.
-    N(0, sigma^2)) or "orthogonal" (blocks of nx + nu orthogonal rows: with n_samples =
-    nx + nu the fewest samples, perfectly conditioned).
-    sysid_refine_tol: with sysid_every > 1, identify at every step from the first accepted
+    Every field but the search's (init ... receding_pass) is an ``ILQRParams`` field of
+    the same name; how the local models are identified is the ``sysid`` section.
+
+    sysid_refine_tol: with sysid.every > 1, identify at every step from the first accepted
     step that gains at most this fraction of the cost, or where the solver would have
     stopped (0: only there); minima are declared on every-step models only.
     mu_raise_alpha: a step accepted only at a size below this raises mu (up to mu_max)
@@ -176,23 +165,11 @@ class SolverConfig:
     accept_ratio: float = _ILQR.accept_ratio  # accept a step when actual / promised decrease > this
     alpha_factor: float = _ILQR.alpha_factor  # step sizes alpha_factor ** (0 .. n_alphas - 1)
     mu_raise_alpha: float = _ILQR.mu_raise_alpha  # accepted step sizes below this raise mu
-    sysid: str = "central_difference"  # a registered scheme (mjx_surrogate.identification.sysid.SCHEMES)
-    sysid_every: int = 1  # one-step schemes: identify every k-th step, interpolate between
-    sysid_design: Literal["gaussian", "orthogonal"] = "gaussian"  # one-step perturbations
-    sysid_refine_tol: float = _ILQR.sysid_refine_tol  # sysid_every > 1: every step once a step gains <= this
+    sysid_refine_tol: float = _ILQR.sysid_refine_tol  # sysid.every > 1: every step once a step gains <= this
     reuse_tol: float = _ILQR.reuse_tol  # carry the model over when |ratio - 1| <= this
     reuse_max: int = _ILQR.reuse_max  # ... at most this many iterations in a row
     # when the model is identified: a registered strategy (control.model_strategies)
     model_strategy: str = _ILQR.model_strategy
-    n_samples: Optional[int] = None  # None: max(20, 2 (nx + nu)); reduced: min(nx, max(16, 4 nu))
-    sigma_x: Optional[float] = None  # None: model_defaults.default_sigma
-    sigma_u: Optional[float] = None
-    sysid_noise_floor: Optional[float] = None  # zero entries below c eps |x| / sigma (None: model_defaults)
-    sysid_perturb_x0: Optional[bool] = None  # one-step schemes perturb the given start (None: model_defaults)
-    sysid_hold_limits: Optional[bool] = None  # one-step schemes hold joints at a limit (None: model_defaults)
-    # zero identified coefficients with |t| <= this (0: off; None: model_defaults.default_significance)
-    sysid_significance: Optional[float] = None
-    sysid_rank_tol: float = _SYSID.rank_tol  # reduced scheme: energy the snapshot basis leaves out
     init: Optional[Literal["zeros", "random", "u_ref", "hold"]] = None  # None: model_defaults.default_init
     init_scale: float = 0.1
     n_starts: int = 1
@@ -206,6 +183,54 @@ class SolverConfig:
     # then, with H > 0, a receding-horizon pass: D2C-MPC over H steps on the model from the
     # kept solve, D2C again from its closed loop, the cheaper kept (runs.receding_pass); 0: off
     receding_pass: int = 0
+
+
+@dataclasses.dataclass(frozen=True)
+class SysIdConfig:
+    """How the local LTV models are identified: every field is the ``SysIdParams`` field of
+    the same name (None: resolved from the model, ``mjx_surrogate.runs.model_defaults``).
+
+    scheme: a registered identification scheme: "central_difference" (D2C 2.0's one-step
+      scheme), "forward_difference" (one-sided, half the simulator calls, first-order
+      accurate), "rollout" (the paper's open-loop perturbed rollouts), "closed_loop"
+      (perturbed rollouts under the current feedback gains), "reduced" (RO-D2C for black
+      boxes with many states, e.g. PDEs: a snapshot basis of n_samples rollouts and central
+      differences in it, ``mjx_surrogate.identification.sysid_reduced``), or one registered
+      with ``mjx_surrogate.identification.sysid.register_scheme`` (its own settings:
+      ``--sysid.<scheme>.<field>``).
+    every: with a one-step scheme, identify only every k-th time step (and the last) and
+      interpolate linearly between (``mjx_surrogate.identification.sysid_knots``).
+    design: a one-step scheme's perturbations: "gaussian" (D2C 2.0: i.i.d. N(0, sigma^2))
+      or "orthogonal" (blocks of nx + nu orthogonal rows: with n_samples = nx + nu the
+      fewest samples, perfectly conditioned).
+    rank_tol: with a reduced scheme, the fraction of the snapshots' energy the basis may
+      leave out (its rank is at most n_samples).
+    """
+
+    scheme: str = _SYSID.scheme  # a registered scheme (mjx_surrogate.identification.sysid.SCHEMES)
+    n_samples: Optional[int] = None  # None: max(20, 2 (nx + nu)); reduced: min(nx, max(16, 4 nu))
+    sigma_x: Optional[float] = None  # perturbation std of the states (None: model_defaults.default_sigma)
+    sigma_u: Optional[float] = None  # ... of the controls
+    every: int = _SYSID.every  # one-step schemes: identify every k-th step, interpolate between
+    design: Literal["gaussian", "orthogonal"] = "gaussian"  # one-step perturbations
+    noise_floor: Optional[float] = None  # zero entries below c eps |x| / sigma (None: model_defaults)
+    perturb_x0: Optional[bool] = None  # one-step schemes perturb the given start (None: model_defaults)
+    hold_limits: Optional[bool] = None  # one-step schemes hold joints at a limit (None: model_defaults)
+    # zero identified coefficients with |t| <= this (0: off; None: model_defaults.default_significance)
+    significance: Optional[float] = None
+    rank_tol: float = _SYSID.rank_tol  # reduced scheme: energy the snapshot basis leaves out
+
+
+@dataclasses.dataclass(frozen=True)
+class MPCSysIdConfig:
+    """D2C-MPC's identification at every replan, where it differs from the ``sysid``
+    section's (whose perturbation sizes, noise floor and t-test it keeps); the fields are
+    ``SysIdParams`` fields of the same name."""
+
+    scheme: Optional[str] = None  # None: sysid.scheme
+    n_samples: Optional[int] = None  # None: nx + nu with a one-step scheme, else sysid.n_samples
+    design: Literal["gaussian", "orthogonal"] = "orthogonal"  # with nx + nu samples: a diagonal Gram
+    every: int = 1  # identify every k-th step of the horizon, interpolate between
 
 
 @dataclasses.dataclass(frozen=True)
@@ -285,7 +310,7 @@ class SurrogateConfig:
       "pod_sindy").
     increment: models predict x_{t+1} - x_t instead of x_{t+1}.
     reduced_ltv_tol: the prediction study also fits the local LTV model in the data's own
-      snapshot basis per t (energy rule as solver.sysid_rank_tol), "LTV reduced": for black
+      snapshot basis per t (energy rule as sysid.rank_tol), "LTV reduced": for black
       boxes with many states, whose data around the optimum span few directions per t
       (docs/pde.md); None: not fitted.
     One nested section per built-in kind.
@@ -385,15 +410,16 @@ class MPCConfig:
     first_plan: every planner's first warm start: "optimum" (the offline D2C optimum's
       first H controls), "zeros", or "reference" (the task's u_ref at every step: for a
       hold task the controls that hold its start).
-    sysid, n_samples, sysid_design: D2C-MPC's identification at every replan (the
-      solver's perturbation sizes otherwise): its scheme (None: solver.sysid;
-      "forward_difference" simulates nx + nu + 1 steps per stage where the solver's
-      central differences simulate 2 (nx + nu), as MuJoCo MPC's finite differences do),
-      samples per identification (None: nx + nu with a
-      one-step scheme, the fewest that determine [A_t B_t]; else solver.n_samples) in
-      design sysid_design ("orthogonal": with nx + nu samples the Gram matrix is exactly
-      diagonal, paper Section 3; "gaussian": D2C 2.0's). The offline optimum keeps the
-      solver's settings.
+    sysid: D2C-MPC's identification at every replan (``MPCSysIdConfig``; the sysid
+      section's perturbation sizes otherwise): its scheme (None: sysid.scheme;
+      "forward_difference" simulates nx + nu + 1 steps per stage where central differences
+      simulate 2 (nx + nu), as MuJoCo MPC's finite differences do), samples per
+      identification (None: nx + nu with a one-step scheme, the fewest that determine
+      [A_t B_t]; else sysid.n_samples) in its design ("orthogonal": with nx + nu samples
+      the Gram matrix is exactly diagonal, paper Section 3; "gaussian": D2C 2.0's), and
+      ``every``: identify at every k-th step of the horizon and its last one, linearly
+      interpolated between (MuJoCo MPC's derivative skip; one-step schemes; the replans
+      never hand over to every-step models). The offline optimum keeps the sysid section.
     realtime: every replanning planner's episodes of every condition (D2C-MPC, the oracle's
       MPC, MPC on each surrogate, the sampling planners, the hybrid; not TVLQR tracking or the
       online refits) run again, one by one, in the wall-clock loop
@@ -401,10 +427,7 @@ class MPCConfig:
       thread of its own, each plan applied by its time stamp), with the batch's keys: a row
       "<planner> in real time" each (how late its plans were applied, the planner's pace).
       realtime_speed: that loop's clock (1: real time; 0.5: the plant at half speed).
-    sysid_every: D2C-MPC identifies at every k-th step of the horizon and its last one,
-      linearly interpolated between (MuJoCo MPC's derivative skip; one-step schemes; the
-      replans never hand over to every-step models). n_alphas: line-search step sizes per
-      replan iteration (None: solver.n_alphas).
+    n_alphas: line-search step sizes per replan iteration (None: solver.n_alphas).
     """
 
     controllers: Tuple[str, ...] = (
@@ -426,12 +449,9 @@ class MPCConfig:
     refit_weight: float = 0.0  # > 0: surrogates refitted online, an episode's transition weighing this
     refit_updates: int = 20  # MLP refit: optimiser steps before every replan (0: no MLP refit)
     first_plan: Literal["optimum", "zeros", "reference"] = "optimum"  # every planner's first warm start
-    sysid: Optional[str] = None  # D2C-MPC's identification scheme per replan (None: solver.sysid)
     realtime: bool = False  # the replanning planners' episodes also in the wall-clock loop, rows of their own
     realtime_speed: float = 1.0  # that loop's clock: 1 is real time, < 1 slower
-    n_samples: Optional[int] = None  # D2C-MPC's samples per identification (None: nx + nu)
-    sysid_design: Literal["gaussian", "orthogonal"] = "orthogonal"  # D2C-MPC's perturbations
-    sysid_every: int = 1  # D2C-MPC: identify every k-th step of the horizon, interpolate between
+    sysid: MPCSysIdConfig = MPCSysIdConfig()  # D2C-MPC's identification per replan
     n_alphas: Optional[int] = None  # line-search step sizes per replan iteration (None: the solver's)
 
 
@@ -503,6 +523,7 @@ class Config:
     system: SystemConfig = SystemConfig()
     task: TaskConfig = TaskConfig()
     solver: SolverConfig = SolverConfig()
+    sysid: SysIdConfig = SysIdConfig()
     experiment: ExperimentConfig = ExperimentConfig()
     data: DataConfig = DataConfig()
     surrogate: SurrogateConfig = SurrogateConfig()
@@ -511,8 +532,50 @@ class Config:
     parallel: ParallelConfig = ParallelConfig()
     # the settings of registered extensions, "<section>.<name>" -> values
     # (mjx_surrogate.runs.extension_settings); the command line sets them as
-    # --solver.<scheme>.<field>, --surrogate.<kind>.<field>, --experiment.<kind>.<field>
+    # --sysid.<scheme>.<field>, --solver.<strategy>.<field>, --surrogate.<kind>.<field>,
+    # --experiment.<kind>.<field>, --mpc.<planner>.<field>
     extensions: Annotated[Dict[str, Any], tyro.conf.Suppress] = dataclasses.field(default_factory=dict)
+
+
+# Fields that 0.5.0 moved into the sysid sections (old dotted name -> new): a run folder
+# written before keeps replaying (:func:`upgrade`), and an old flag is told where it went.
+MOVED = {
+    **{f"solver.{old}": f"sysid.{new}" for old, new in (("sysid", "scheme"), ("n_samples", "n_samples"))},
+    **{f"solver.{f}": f"sysid.{f}" for f in ("sigma_x", "sigma_u")},
+    **{
+        f"solver.sysid_{f}": f"sysid.{f}"
+        for f in ("every", "design", "noise_floor", "significance", "rank_tol", "perturb_x0", "hold_limits")
+    },
+    "mpc.sysid": "mpc.sysid.scheme",
+    **{
+        f"mpc.{old}": f"mpc.sysid.{new}"
+        for old, new in (("n_samples", "n_samples"), ("sysid_design", "design"))
+    },
+    "mpc.sysid_every": "mpc.sysid.every",
+}
+
+
+def upgrade(data: dict) -> dict:
+    """A config dict of an earlier schema (a run's config.json before 0.5.0) with its
+    moved fields (:data:`MOVED`) and its scheme's settings (``solver.<scheme>`` ->
+    ``sysid.<scheme>``) where they are now; a current one is returned as it is."""
+    solver, mpc = data.get("solver"), data.get("mpc")
+    if "sysid" in data or not isinstance(solver, dict) or not isinstance(mpc, dict):
+        return data
+    out = {k: dict(v) if isinstance(v, dict) else v for k, v in data.items()}
+    moved = {"sysid": {}, "mpc.sysid": {}}
+    for old, new in MOVED.items():
+        section, field = old.split(".")
+        if field in out[section]:
+            target, name = new.rsplit(".", 1)
+            moved[target][name] = out[section].pop(field)
+    out["sysid"], out["mpc"]["sysid"] = moved["sysid"], moved["mpc.sysid"]
+    scheme = solver.get("sysid")
+    if isinstance(out.get("extensions"), dict) and f"solver.{scheme}" in out["extensions"]:
+        ext = dict(out["extensions"])
+        ext[f"sysid.{scheme}"] = ext.pop(f"solver.{scheme}")
+        out["extensions"] = ext
+    return out
 
 
 def to_dict(cfg: Any) -> dict:
@@ -576,6 +639,8 @@ def from_dict(cls: type, data: Any, prefix: str = "", complete: bool = False) ->
     for key, value in data.items():
         field = f"{prefix}.{key}" if prefix else key
         if key not in names:
+            if field in MOVED:
+                raise ConfigError(field, f"moved to {MOVED[field]} in version 0.5.0")
             raise ConfigError(field, f"unknown field; valid: {', '.join(names)}")
         hint = hints[key]
         if complete and dataclasses.is_dataclass(hint):

@@ -18,7 +18,7 @@ from mjx_surrogate.errors import ConfigError, registered
 from mjx_surrogate.surrogates.registry import get_surrogate, library_specs
 
 # what resolve() checks for a kind before any compile
-IDENTIFICATION = "identification"  # solver.n_samples against nx + nu, the memory of a batch
+IDENTIFICATION = "identification"  # sysid.n_samples against nx + nu, the memory of a batch
 SURROGATES = "surrogates"  # section surrogate and the data split
 LTV_BASELINE = "ltv_baseline"  # enough training trajectories for the per-step LTV fit
 NEEDS = (IDENTIFICATION, SURROGATES, LTV_BASELINE)

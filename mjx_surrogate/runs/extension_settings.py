@@ -3,10 +3,10 @@
 An identification scheme, a model strategy, a surrogate kind, an experiment kind or a
 planner may declare ``settings``:
 a frozen dataclass instance holding its defaults. A config keeps the values given in
-``Config.extensions`` under ``"<section>.<name>"``: ``solver.<scheme>``,
+``Config.extensions`` under ``"<section>.<name>"``: ``sysid.<scheme>``, ``solver.<strategy>``,
 ``surrogate.<kind>``, ``experiment.<kind>`` or ``mpc.<planner>``, each a dataclass instance or a mapping of
 some of its fields (as a run's ``config.json`` writes it). The command line sets a field
-as ``--solver.<scheme>.<field> VALUE``. Before any compile every field is checked against
+as ``--sysid.<scheme>.<field> VALUE``. Before any compile every field is checked against
 its declared type, numbers must be finite, and the settings' own ``check()`` (if any)
 raises ConfigError(field name, message) for values it refuses.
 """
@@ -31,7 +31,7 @@ def declared() -> dict[str, Any]:
     that declares settings."""
     out = {}
     registries = (
-        ("solver", SCHEMES),
+        ("sysid", SCHEMES),
         ("solver", MODEL_STRATEGIES),
         ("surrogate", SURROGATES),
         ("experiment", EXPERIMENTS),
@@ -97,7 +97,8 @@ def check_extensions(config: Any) -> None:
         if section == "mpc":
             continue
         chosen = {
-            "solver": (config.solver.sysid, config.solver.model_strategy),
+            "sysid": (config.sysid.scheme, config.mpc.sysid.scheme),
+            "solver": (config.solver.model_strategy,),
             "surrogate": config.surrogate.kinds,
             "experiment": (config.experiment.kind,),
             "mpc": config.mpc.controllers,

@@ -5,7 +5,7 @@ reduced-order scheme's arrays that grow as T nx (a grid of many cells).
 Dense nx x nx float64 arrays: the task's Q and Q_f where they are matrices (a diagonal is
 held as its diagonal, :func:`mjx_surrogate.tasks.quadratic`); for a full-order model, the
 cost's Hessians l_xx [T+1, nx, nx] and the model's A [T, nx, nx]. A reduced model
-(``solver.sysid reduced``) builds none of the last two
+(``sysid.scheme reduced``) builds none of the last two
 (:func:`mjx_surrogate.control.local_model.projected_cost_derivatives`); the exact oracle is a
 full-order solve, and where its arrays would not fit it is off by default.
 """
@@ -47,7 +47,7 @@ def check_identification_batch(cfg: Config, nx: int, nu: int, T: int, n_samples:
             "task.T",
             f"T={T} needs about {bytes_ / GIB:.0f} GiB for one identification batch "
             f"({width} simulations per step); at most {limit / GIB:.0f} GiB: shorten the horizon "
-            "or lower solver.n_samples",
+            "or lower sysid.n_samples",
         )
 
 
@@ -91,7 +91,7 @@ def check_solve_memory(cfg: Config, system, task: Task, n_samples: int, oracle: 
     even T = 1 does not fit, on ``task.T`` (with the longest horizon that does) where the
     task's does not, and on ``experiment.exact_oracle`` where only the oracle does not."""
     nx, nu, T, have = system.nx, system.nu, task.T, machine_memory()
-    full = not get_scheme(cfg.solver.sysid).reduced
+    full = not get_scheme(cfg.sysid.scheme).reduced
     need = lambda T, full: solve_bytes(task, nx, nu, T, full, n_samples)  # noqa: E731
     if need(T, full) <= have:
         if oracle and need(T, True) > have:

@@ -34,7 +34,7 @@ FUNCTION_SYSTEMS = ("lorenz", "f8", "python")  # black boxes given as functions
 
 
 def default_n_samples(nx: int, nu: int, reduced: bool = False) -> int:
-    """Identification samples per time step when solver.n_samples is unset; for a reduced
+    """Identification samples per time step when sysid.n_samples is unset; for a reduced
     scheme the snapshot rollouts (the basis's largest rank), min(nx, max(16, 4 nu))."""
     if reduced:
         return min(nx, max(16, 4 * nu))
@@ -57,7 +57,7 @@ def default_sigma(registered: bool) -> float:
 
 
 def default_noise_floor(system_name: str) -> float:
-    """solver.sysid_noise_floor when unset: 10 for a user's model (identified entries below
+    """sysid.noise_floor when unset: 10 for a user's model (identified entries below
     10 eps |x| / sigma are zero: ``sysid.below_resolution``), 0 (off) for registered ones,
     whose paper settings stay as published."""
     return 10.0 if system_name in USER_SYSTEMS else 0.0
@@ -85,13 +85,13 @@ def loose_bodies(m: mujoco.MjModel) -> list[str]:
 
 
 def default_significance(system_name: str, m: mujoco.MjModel | None) -> float:
-    """solver.sysid_significance when unset: LOOSE_OBJECT_SIGNIFICANCE (3) for a user's
+    """sysid.significance when unset: LOOSE_OBJECT_SIGNIFICANCE (3) for a user's
     MuJoCo model with loose objects (:func:`loose_bodies`), else 0 (off).
 
     A loose object that bounces during a step leaves a large residual in its rows, which
     least squares spreads over every regressor (the dm_control manipulator's ball and peg
     came out with control coefficients up to 3e4); the t-test zeroes what the data cannot
-    tell from zero (``sysid_significance``). A model without loose objects keeps it off:
+    tell from zero (``sysid.significance``). A model without loose objects keeps it off:
     on locomotion the rows fitted across contact events carry the averaged slope the solve
     needs (docs/method.md)."""
     if system_name not in USER_SYSTEMS or m is None or not loose_bodies(m):
@@ -100,14 +100,14 @@ def default_significance(system_name: str, m: mujoco.MjModel | None) -> float:
 
 
 def default_perturb_x0(system_name: str) -> bool:
-    """solver.sysid_perturb_x0 when unset: False for a user's model (x_0 is given, so the
+    """sysid.perturb_x0 when unset: False for a user's model (x_0 is given, so the
     one-step schemes identify B_0 alone: ``sysid._one_step_perturbations``), True for
     registered ones (D2C 2.0's design, as published)."""
     return system_name not in USER_SYSTEMS
 
 
 def default_hold_limits(system_name: str) -> bool:
-    """solver.sysid_hold_limits when unset: True for a user's model (the one-step schemes
+    """sysid.hold_limits when unset: True for a user's model (the one-step schemes
     leave a joint that rests on its limit unperturbed: ``sysid.hold_at_limits``), False for
     registered ones (D2C 2.0's design, as published)."""
     return system_name in USER_SYSTEMS

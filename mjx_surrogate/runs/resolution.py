@@ -145,14 +145,14 @@ def check_magnitude(field: str, x, dtype, sigma_x: float) -> None:
     eps = float(np.finfo(dtype).eps)
     if mag * eps > 0.1 * sigma_x:
         fix = (
-            "use smaller coordinates or a larger solver.sigma_x"
+            "use smaller coordinates or a larger sysid.sigma_x"
             if eps < 1e-10
-            else "use smaller coordinates, a larger solver.sigma_x or experiment.x64"
+            else "use smaller coordinates, a larger sysid.sigma_x or experiment.x64"
         )
         raise ConfigError(
             field,
             f"|x| up to {mag:g} leaves a resolution of {mag * eps:.2g} in {np.dtype(dtype).name}, more "
-            f"than a tenth of the identification perturbations (solver.sigma_x {sigma_x:g}); {fix}",
+            f"than a tenth of the identification perturbations (sysid.sigma_x {sigma_x:g}); {fix}",
         )
 
 
@@ -205,9 +205,10 @@ def check_function_step(system: FunctionSystem, task: Task) -> None:
 
 
 def solver_params(cfg: Config, record_trajectories: bool = False):
-    """SolverConfig -> (ILQRParams, SysIdParams). Every ILQRParams field is a SolverConfig
-    field of the same name but ``record_trajectories`` and the model strategy's settings
-    (from the config's extension settings, where the strategy declares any)."""
+    """(ILQRParams, SysIdParams) of sections solver and sysid: every field of each is the
+    section's field of the same name, but ``record_trajectories`` and the extensions' own
+    settings (the model strategy's and the scheme's, where they declare any). A field the
+    sysid section leaves unset (None; resolve() sets them all) keeps SysIdParams' default."""
     s = cfg.solver
     own = ("record_trajectories", "model_strategy_settings")
     strategy = get_model_strategy(s.model_strategy)
@@ -218,24 +219,10 @@ def solver_params(cfg: Config, record_trajectories: bool = False):
         ),
         **{f.name: getattr(s, f.name) for f in dataclasses.fields(ILQRParams) if f.name not in own},
     )
-    n = s.n_samples or SysIdParams().n_samples  # resolve() sets it from nx + nu
-    sx = SysIdParams().sigma_x if s.sigma_x is None else s.sigma_x  # resolve() sets both
-    su = SysIdParams().sigma_u if s.sigma_u is None else s.sigma_u
-    sysid = SysIdParams(
-        sigma_x=sx,
-        sigma_u=su,
-        scheme=s.sysid,
-        n_samples=n,
-        every=s.sysid_every,
-        design=s.sysid_design,
-        noise_floor=s.sysid_noise_floor or 0.0,
-        significance=s.sysid_significance or 0.0,
-        rank_tol=s.sysid_rank_tol,
-        perturb_x0=True if s.sysid_perturb_x0 is None else s.sysid_perturb_x0,
-        hold_limits=bool(s.sysid_hold_limits),
-        settings=settings_of(cfg, "solver", s.sysid) if get_scheme(s.sysid).settings is not None else None,
-    )
-    return ilqr, sysid
+    given = {k: v for k, v in dataclasses.asdict(cfg.sysid).items() if v is not None}
+    scheme = get_scheme(cfg.sysid.scheme)
+    settings = settings_of(cfg, "sysid", cfg.sysid.scheme) if scheme.settings is not None else None
+    return ilqr, SysIdParams(**given, settings=settings)
 
 
 def mpc_params(cfg: Config):
@@ -246,13 +233,11 @@ def mpc_params(cfg: Config):
     params, sysid = solver_params(cfg)
     m = cfg.mpc
     params = params.replace(max_iter=m.max_iter, n_alphas=m.n_alphas or params.n_alphas)
-    scheme = m.sysid or sysid.scheme
+    sysid = sysid.replace(**{k: v for k, v in dataclasses.asdict(m.sysid).items() if v is not None})
+    scheme = get_scheme(sysid.scheme)
     return params, sysid.replace(
-        scheme=scheme,
-        n_samples=m.n_samples,
-        design=m.sysid_design,
-        every=m.sysid_every,
-        significance=sysid.significance if get_scheme(scheme).t_test else 0.0,
+        significance=sysid.significance if scheme.t_test else 0.0,
+        settings=settings_of(cfg, "sysid", sysid.scheme) if scheme.settings is not None else None,
     )
 
 
@@ -272,7 +257,7 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
             stacklevel=2,
         )
     sigma = default_sigma(cfg.system.name not in USER_SYSTEMS)
-    sigma_x = sigma if cfg.solver.sigma_x is None else cfg.solver.sigma_x
+    sigma_x = sigma if cfg.sysid.sigma_x is None else cfg.sysid.sigma_x
     for field in ("x0", "x_goal"):  # as given, before anything is built or compiled
         if getattr(cfg.task, field) is not None:
             check_magnitude(f"task.{field}", getattr(cfg.task, field), jnp.result_type(float), sigma_x)
@@ -284,15 +269,15 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     oracle = cfg.experiment.exact_oracle
     if oracle is None:  # on for the registered systems whose full-order solve fits here
         oracle = cfg.system.name != "mjcf" and memory.oracle_fits(task, system.nx, system.nu)
-    reduced = get_scheme(cfg.solver.sysid).reduced
-    n = cfg.solver.n_samples or default_n_samples(system.nx, system.nu, reduced)
+    reduced = get_scheme(cfg.sysid.scheme).reduced
+    n = cfg.sysid.n_samples or default_n_samples(system.nx, system.nu, reduced)
     memory.check_solve_memory(cfg, system, task, n, oracle)  # the dense arrays first: the grid
     n_samples = _check_samples(cfg, system, int(tc.T), IDENTIFICATION in needs)
-    unset = cfg.solver.sigma_x is None or cfg.solver.sigma_u is None
+    unset = cfg.sysid.sigma_x is None or cfg.sysid.sigma_u is None
     if cfg.system.name == "mjcf" and unset:  # a user's model: above its dry friction's break-away
         sigma = friction_sigma(sigma, system.mj_model, np.asarray(task.x0, float), task.u_min, task.u_max)
-        sigma_x = sigma if cfg.solver.sigma_x is None else cfg.solver.sigma_x
-    sigma_u = sigma if cfg.solver.sigma_u is None else cfg.solver.sigma_u
+        sigma_x = sigma if cfg.sysid.sigma_x is None else cfg.sysid.sigma_x
+    sigma_u = sigma if cfg.sysid.sigma_u is None else cfg.sysid.sigma_u
     check_start(system, task, sigma_x)
     if SURROGATES in needs:
         _check_surrogates(dataclasses.replace(cfg, task=tc), system, LTV_BASELINE in needs)
@@ -321,45 +306,46 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
         raise ConfigError(
             "solver.init", "'hold' needs a MuJoCo model's actuators; valid: zeros, random, u_ref"
         )
-    floor, perturb_x0 = cfg.solver.sysid_noise_floor, cfg.solver.sysid_perturb_x0
-    floor = default_noise_floor(cfg.system.name) if floor is None else floor
-    perturb_x0 = default_perturb_x0(cfg.system.name) if perturb_x0 is None else perturb_x0
-    hold_limits = cfg.solver.sysid_hold_limits
-    hold_limits = default_hold_limits(cfg.system.name) if hold_limits is None else hold_limits
-    significance = cfg.solver.sysid_significance
+    s = cfg.sysid
+    floor = default_noise_floor(cfg.system.name) if s.noise_floor is None else s.noise_floor
+    perturb_x0 = default_perturb_x0(cfg.system.name) if s.perturb_x0 is None else s.perturb_x0
+    hold_limits = default_hold_limits(cfg.system.name) if s.hold_limits is None else s.hold_limits
+    significance = s.significance
     if significance is None:  # the t-test where the model has loose objects and the scheme has it
-        tested = get_scheme(cfg.solver.sysid).t_test
+        tested = get_scheme(s.scheme).t_test
         significance = default_significance(cfg.system.name, system.mj_model) if tested else 0.0
-    solver = dataclasses.replace(
-        cfg.solver,
+    sysid = dataclasses.replace(
+        s,
         n_samples=n_samples,
         sigma_x=sigma_x,
         sigma_u=sigma_u,
-        init=init,
-        sysid_noise_floor=floor,
-        sysid_perturb_x0=perturb_x0,
-        sysid_hold_limits=hold_limits,
-        sysid_significance=significance,
+        noise_floor=floor,
+        perturb_x0=perturb_x0,
+        hold_limits=hold_limits,
+        significance=significance,
     )
-    resolved = dataclasses.replace(cfg, system=sc, task=tc, experiment=ex, solver=solver, mpc=mpc)
+    solver = dataclasses.replace(cfg.solver, init=init)
+    resolved = dataclasses.replace(
+        cfg, system=sc, task=tc, experiment=ex, solver=solver, sysid=sysid, mpc=mpc
+    )
     return Resolved(resolved, system, task)
 
 
 def _check_samples(cfg: Config, system: System, T: int, identifies: bool) -> int:
     """The identification's samples (the config's or the default), checked against what its
     scheme needs where the experiment identifies."""
-    reduced = get_scheme(cfg.solver.sysid).reduced
-    n_samples = cfg.solver.n_samples or default_n_samples(system.nx, system.nu, reduced)
+    reduced = get_scheme(cfg.sysid.scheme).reduced
+    n_samples = cfg.sysid.n_samples or default_n_samples(system.nx, system.nu, reduced)
     if identifies:
         if reduced and not 1 <= n_samples <= system.nx:
             raise ConfigError(
-                "solver.n_samples",
+                "sysid.n_samples",
                 f"the reduced scheme's snapshots (its largest rank) must be between 1 and nx = {system.nx}, "
                 f"got {n_samples}",
             )
         if not reduced and n_samples < system.nx + system.nu:
             raise ConfigError(
-                "solver.n_samples",
+                "sysid.n_samples",
                 f"must be >= nx + nu = {system.nx + system.nu} "
                 f"for the LTV least squares to be determined, got {n_samples}",
             )
@@ -371,23 +357,24 @@ def _resolve_mpc(cfg: Config, system: System, T: int, solver_samples: int):
     """Section mpc with its defaults filled (horizon and steps: the task's T; D2C-MPC's
     samples: nx + nu with a one-step scheme, else the solver's), checked against the
     system and the task."""
-    m, m_min = cfg.mpc, system.nx + system.nu
-    m = dataclasses.replace(m, sysid=m.sysid or cfg.solver.sysid)
-    scheme = get_scheme(m.sysid)
+    m, m_min, ms = cfg.mpc, system.nx + system.nu, cfg.mpc.sysid
+    name = ms.scheme or cfg.sysid.scheme
+    scheme = get_scheme(name, "mpc.sysid.scheme")
     if scheme.one_step:
-        n, design = m.n_samples or m_min, m.sysid_design
-    else:  # perturbed rollouts or a reduced basis: the solver's design
-        n, design = m.n_samples or solver_samples, cfg.solver.sysid_design
+        n, design = ms.n_samples or m_min, ms.design
+    else:  # perturbed rollouts or a reduced basis: the sysid section's design
+        n, design = ms.n_samples or solver_samples, cfg.sysid.design
     if scheme.reduced and not 1 <= n <= system.nx:
         raise ConfigError(
-            "mpc.n_samples", f"the reduced scheme's rank: between 1 and nx = {system.nx}, got {n}"
+            "mpc.sysid.n_samples", f"the reduced scheme's rank: between 1 and nx = {system.nx}, got {n}"
         )
     if not scheme.reduced and n < m_min:
         raise ConfigError(
-            "mpc.n_samples",
+            "mpc.sysid.n_samples",
             f"must be >= nx + nu = {m_min} for the LTV least squares to be determined, got {n}",
         )
-    m = dataclasses.replace(m, horizon=m.horizon or T, steps=m.steps or T, n_samples=n, sysid_design=design)
+    ms = dataclasses.replace(ms, scheme=name, n_samples=n, design=design)
+    m = dataclasses.replace(m, horizon=m.horizon or T, steps=m.steps or T, sysid=ms)
     if m.sampling_knots > m.horizon:
         raise ConfigError(
             "mpc.sampling_knots",

@@ -23,6 +23,7 @@ from mjx_surrogate.runs.config import (
     ParallelConfig,
     SolverConfig,
     SurrogateConfig,
+    SysIdConfig,
     SystemConfig,
     TaskConfig,
     check_finite,
@@ -79,10 +80,12 @@ def _check_mpc(m: MPCConfig) -> None:
         get_planner(c, f"mpc.controllers[{i}]")
     if len(set(m.controllers)) < len(m.controllers):
         raise ConfigError("mpc.controllers", "names a controller twice")
-    for field in ("horizon", "steps", "max_iter", "n_episodes", "sysid_every", "n_alphas"):
+    for field in ("horizon", "steps", "max_iter", "n_episodes", "n_alphas"):
         v = getattr(m, field)
         if v is not None and v < 1:
             raise ConfigError(f"mpc.{field}", f"must be >= 1, got {v}")
+    if m.sysid.every < 1:
+        raise ConfigError("mpc.sysid.every", f"must be >= 1, got {m.sysid.every}")
     if m.samples is not None and m.samples < 2:
         raise ConfigError(
             "mpc.samples", f"must be >= 2 (the warm start and one sample), or unset, got {m.samples}"
@@ -117,12 +120,12 @@ def _check_mpc(m: MPCConfig) -> None:
         raise ConfigError(
             "mpc.sampling_knots", f"must be >= 0 (0: every step its own draw), got {m.sampling_knots}"
         )
-    if m.n_samples is not None and m.n_samples < 1:
-        raise ConfigError("mpc.n_samples", f"must be >= 1 (None: nx + nu), got {m.n_samples}")
+    if m.sysid.n_samples is not None and m.sysid.n_samples < 1:
+        raise ConfigError("mpc.sysid.n_samples", f"must be >= 1 (None: nx + nu), got {m.sysid.n_samples}")
     if m.first_plan not in ("optimum", "zeros", "reference"):
         raise ConfigError("mpc.first_plan", f"one of optimum, zeros, reference, got {m.first_plan!r}")
-    if m.sysid_design not in ("gaussian", "orthogonal"):
-        raise ConfigError("mpc.sysid_design", f"one of gaussian, orthogonal, got {m.sysid_design!r}")
+    if m.sysid.design not in ("gaussian", "orthogonal"):
+        raise ConfigError("mpc.sysid.design", f"one of gaussian, orthogonal, got {m.sysid.design!r}")
     if not (math.isfinite(m.realtime_speed) and m.realtime_speed > 0):
         raise ConfigError(
             "mpc.realtime_speed", f"the real-time loop's clock, > 0 (1: real time), got {m.realtime_speed}"
@@ -144,6 +147,7 @@ def validate_static(cfg: Config) -> None:
     _check_parallel(cfg.parallel)
     _check_mpc(cfg.mpc)
     _check_solver(cfg.solver)
+    _check_sysid(cfg.sysid)
     _check_system(cfg.system)
     _check_function_system(cfg.system)
     _check_task(cfg.task)
@@ -190,8 +194,6 @@ def _check_solver(s: SolverConfig) -> None:
     for field, v in (("accept_ratio", s.accept_ratio), ("alpha_factor", s.alpha_factor)):
         if not (math.isfinite(v) and 0 < v < 1):
             raise ConfigError(f"solver.{field}", f"must be in (0, 1), got {v}")
-    if s.n_samples is not None and s.n_samples < 1:
-        raise ConfigError("solver.n_samples", f"must be >= 1 (or unset), got {s.n_samples}")
     _at_least(
         0,
         {
@@ -205,8 +207,6 @@ def _check_solver(s: SolverConfig) -> None:
         1, {"solver.max_iter": s.max_iter, "solver.n_alphas": s.n_alphas, "solver.n_starts": s.n_starts}
     )
     positive = {
-        "solver.sigma_x": _SYSID.sigma_x if s.sigma_x is None else s.sigma_x,
-        "solver.sigma_u": _SYSID.sigma_u if s.sigma_u is None else s.sigma_u,
         "solver.mu_max": s.mu_max,
         "solver.mu_factor": s.mu_factor - 1.0,
     }
@@ -223,11 +223,28 @@ def _check_solver(s: SolverConfig) -> None:
             "solver.mu_init": s.mu_init,
             "solver.mu_min": s.mu_min,
             "solver.mu_raise_alpha": s.mu_raise_alpha,
-            "solver.sysid_noise_floor": 0.0 if s.sysid_noise_floor is None else s.sysid_noise_floor,
-            "solver.sysid_significance": s.sysid_significance or 0.0,
-            "solver.sysid_rank_tol": s.sysid_rank_tol,
         }
     )
+
+
+def _check_sysid(s: SysIdConfig) -> None:
+    if s.n_samples is not None and s.n_samples < 1:
+        raise ConfigError("sysid.n_samples", f"must be >= 1 (or unset), got {s.n_samples}")
+    if s.every < 1:
+        raise ConfigError("sysid.every", f"must be >= 1, got {s.every}")
+    for field in ("sigma_x", "sigma_u"):
+        v = getattr(s, field)
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise ConfigError(f"sysid.{field}", f"must be a finite positive number (or unset), got {v}")
+    _nonnegative(
+        {
+            "sysid.noise_floor": 0.0 if s.noise_floor is None else s.noise_floor,
+            "sysid.significance": s.significance or 0.0,
+            "sysid.rank_tol": s.rank_tol,
+        }
+    )
+    if s.rank_tol >= 1:
+        raise ConfigError("sysid.rank_tol", f"must be in [0, 1), got {s.rank_tol}")
 
 
 def _check_system(sy: SystemConfig) -> None:
@@ -354,15 +371,14 @@ def _check_registered(cfg: Config) -> None:
     experiment kind) and the extensions' own settings."""
     get_experiment(cfg.experiment.kind)
 
-    scheme = get_scheme(cfg.solver.sysid, "solver.sysid")
+    s = cfg.sysid
+    scheme = get_scheme(s.scheme, "sysid.scheme")
     get_model_strategy(cfg.solver.model_strategy, "solver.model_strategy")
-    if cfg.solver.sysid_every < 1:
-        raise ConfigError("solver.sysid_every", f"must be >= 1, got {cfg.solver.sysid_every}")
-    mpc_name = cfg.mpc.sysid or cfg.solver.sysid
-    mpc_scheme = get_scheme(mpc_name, "mpc.sysid")
+    mpc_name = cfg.mpc.sysid.scheme or s.scheme
+    mpc_scheme = get_scheme(mpc_name, "mpc.sysid.scheme")
     for field, every, used, name in (
-        ("solver.sysid_every", cfg.solver.sysid_every, scheme, cfg.solver.sysid),
-        ("mpc.sysid_every", cfg.mpc.sysid_every, mpc_scheme, mpc_name),
+        ("sysid.every", s.every, scheme, s.scheme),
+        ("mpc.sysid.every", cfg.mpc.sysid.every, mpc_scheme, mpc_name),
     ):
         if every > 1 and not used.one_step:
             one_step = ", ".join(n for n, s in SCHEMES.items() if s.one_step)
@@ -370,25 +386,19 @@ def _check_registered(cfg: Config) -> None:
                 field,
                 f"> 1 needs a one-step scheme ({one_step}); {name!r} identifies from rollouts",
             )
-    if (cfg.solver.sysid_significance or 0.0) > 0 and not scheme.t_test:
-        tested = ", ".join(n for n, s in SCHEMES.items() if s.t_test)
+    if (s.significance or 0.0) > 0 and not scheme.t_test:
+        tested = ", ".join(n for n, sc in SCHEMES.items() if sc.t_test)
         raise ConfigError(
-            "solver.sysid_significance",
-            f"needs a scheme with a t-test ({tested}); {cfg.solver.sysid!r} has none: give 0",
+            "sysid.significance", f"needs a scheme with a t-test ({tested}); {s.scheme!r} has none: give 0"
         )
-    if cfg.solver.sysid_rank_tol >= 1:
-        raise ConfigError("solver.sysid_rank_tol", f"must be in [0, 1), got {cfg.solver.sysid_rank_tol}")
-    if cfg.solver.sysid_rank_tol != _SYSID.rank_tol and not scheme.reduced:
-        reduced = ", ".join(n for n, s in SCHEMES.items() if s.reduced)
+    if s.rank_tol != _SYSID.rank_tol and not scheme.reduced:
+        reduced = ", ".join(n for n, sc in SCHEMES.items() if sc.reduced)
         raise ConfigError(
-            "solver.sysid_rank_tol",
-            f"only a reduced scheme ({reduced}) has a basis; {cfg.solver.sysid!r} has none",
+            "sysid.rank_tol", f"only a reduced scheme ({reduced}) has a basis; {s.scheme!r} has none"
         )
-    if cfg.solver.sysid_design != "gaussian" and not scheme.one_step:
+    if s.design != "gaussian" and not scheme.one_step:
         raise ConfigError(
-            "solver.sysid_design",
-            f"{cfg.solver.sysid_design!r} needs a one-step scheme; "
-            f"{cfg.solver.sysid!r} draws its own perturbations",
+            "sysid.design", f"{s.design!r} needs a one-step scheme; {s.scheme!r} draws its own perturbations"
         )
     if not cfg.surrogate.kinds:
         raise ConfigError("surrogate.kinds", "give one or more surrogate kinds")
