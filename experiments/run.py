@@ -25,6 +25,7 @@ import typing
 from experiments.summary import summary_line, summary_screen
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.runs.config import MOVED, Config, PointGoal, from_dict, to_dict, upgrade
+from mjx_surrogate.runs.extension_settings import declared, with_declared, without_declared
 from mjx_surrogate.runs.validation import validate_static
 from mjx_surrogate.runtime import configure_runtime
 
@@ -91,15 +92,15 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
 
     argv, out = _take_out(list(argv))
     argv, goals = _take_goals(argv)
-    argv, extension_args = _take_extension_args(argv)
     spec = DEFAULT_PRESET
     if argv and not argv[0].startswith("-"):
         spec = argv.pop(0)
-    base = load_config(spec)
-    description = f"{__doc__ or ''}\nPresets: {', '.join(preset_names())}{GOALS_HELP}{_extensions_help()}"
+    base = with_declared(load_config(spec))  # the extensions' settings as fields of their sections
+    given = {key for key in declared() if any(a.startswith(f"--{key}.") for a in argv)}
+    description = f"{__doc__ or ''}\nPresets: {', '.join(preset_names())}{GOALS_HELP}"
     if any(a in ("-h", "--help") for a in argv):
         tyro.cli(
-            Config,
+            type(base),
             default=base,
             args=argv,
             description=description,
@@ -109,7 +110,7 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
     try:
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(err):
             cfg = tyro.cli(
-                Config,
+                type(base),
                 default=base,
                 args=argv,
                 description=description,
@@ -117,69 +118,12 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
             )
     except SystemExit:
         raise _one_line_tyro_error(err.getvalue(), argv) from None
+    cfg = without_declared(cfg, Config, given)
     if out is not None:
         cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(cfg.experiment, out_dir=out))
     if goals is not None:
         cfg = dataclasses.replace(cfg, task=dataclasses.replace(cfg.task, goals=goals))
-    if extension_args:
-        cfg = dataclasses.replace(cfg, extensions=_parsed_extensions(cfg, extension_args))
     return cfg, run_name(spec)
-
-
-def _extensions_help() -> str:
-    """The registered extensions' settings, for --help (docs/extending.md)."""
-    from mjx_surrogate.runs.extension_settings import declared
-
-    found = declared()
-    if not found:
-        return ""
-    listed = "; ".join(
-        f"--{key}.{{{','.join(f.name for f in dataclasses.fields(d))}}}" for key, d in found.items()
-    )
-    return f"\n\nSettings of registered extensions (docs/extending.md): {listed}"
-
-
-def _take_extension_args(argv: list[str]) -> tuple[list[str], dict[str, list[str]]]:
-    """Remove the settings of registered extensions (``--solver.<scheme>.<field> V ...``,
-    likewise ``surrogate.<kind>``, ``experiment.<kind>``) from argv: key -> their tokens,
-    the field names without the key."""
-    from mjx_surrogate.runs.extension_settings import declared
-
-    keys = sorted(declared(), key=len, reverse=True)
-    rest, taken, i = [], {}, 0
-    while i < len(argv):
-        a = argv[i]
-        key = next((k for k in keys if a.startswith(f"--{k}.")), None)
-        if key is None:
-            rest.append(a)
-            i += 1
-            continue
-        taken.setdefault(key, []).append("--" + a[len(key) + 3 :])
-        i += 1
-        while "=" not in a and i < len(argv) and not argv[i].startswith("--"):
-            taken[key].append(argv[i])
-            i += 1
-    return rest, taken
-
-
-def _parsed_extensions(cfg: Config, extension_args: dict[str, list[str]]) -> dict:
-    """``cfg.extensions`` with the command line's settings over the config's own."""
-    import tyro
-
-    from mjx_surrogate.runs.extension_settings import declared, settings_from
-
-    out = dict(cfg.extensions)
-    for key, args in extension_args.items():
-        defaults = declared()[key]
-        current = settings_from(defaults, out.get(key, defaults), key)
-        err = io.StringIO()
-        try:
-            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(err):
-                out[key] = tyro.cli(type(defaults), default=current, args=args, prog=key)
-        except SystemExit:
-            e = _one_line_tyro_error(err.getvalue(), args)
-            raise ConfigError(f"--{key}.{e.field.lstrip('-')}", str(e).removeprefix(f"{e.field}: ")) from None
-    return out
 
 
 def run_name(spec: str) -> str:

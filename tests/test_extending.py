@@ -315,7 +315,34 @@ def test_help_lists_the_settings_of_registered_extensions(doc, capsys):
     with pytest.raises(SystemExit):
         cli.parse_args(["smoke_d2c", "--help"])
     out = " ".join(capsys.readouterr().out.split())
-    assert "--sysid.coordinate.{step}" in out and "--experiment.random_controls.{n,scale}" in out
+    for flag in (
+        "--sysid.coordinate.step FLOAT",
+        "--experiment.random-controls.n INT",
+        "controls.scale FLOAT",
+    ):
+        assert flag in out  # the settings' own fields, parsed as built-in ones are
+
+
+def test_the_generated_command_line_type_gives_back_the_config(doc):
+    """The parser's Config type, generated from the declarations, holds every preset as it
+    is: with no extension flag the parsed config equals the preset, extensions included
+    (hydrax_pendulum_mpc has planners' settings as mappings); a flag replaces only its own
+    extension's settings."""
+    from mjx_surrogate.runs.extension_settings import declared, with_declared, without_declared
+
+    for name in ("smoke_d2c", "hydrax_pendulum_mpc", "cartpole_control"):
+        preset = cli.load_config(name)
+        generated = with_declared(preset)
+        assert type(generated) is not ms.Config and isinstance(generated, ms.Config)
+        assert without_declared(generated, ms.Config, set()) == preset
+        assert cli.parse_args([name])[0] == preset
+    preset = cli.load_config("hydrax_pendulum_mpc")
+    cfg, _ = cli.parse_args(["hydrax_pendulum_mpc", "--mpc.mppi.temperature", "0.5"])
+    own = {**preset.extensions["mpc.mppi"], "temperature": 0.5}
+    assert cfg.extensions["mpc.mppi"] == dataclasses.replace(declared()["mpc.mppi"], **own)
+    assert {k: v for k, v in cfg.extensions.items() if k != "mpc.mppi"} == {
+        k: v for k, v in preset.extensions.items() if k != "mpc.mppi"
+    }
 
 
 @pytest.mark.slow  # over 5 s: the fast tier's budget

@@ -526,7 +526,7 @@ def test_gymnasium_robotics_models_step_natively_and_hands_with_friction_get_lar
             system=SystemConfig(name="mjcf", mjcf_path=os.path.join(d, name), backend="native"),
             task=TaskConfig(preset="hold"),
         )
-        s = resolve(cfg).config.solver
+        s = resolve(cfg).config.sysid
         return s.sigma_x, s.sigma_u
 
     assert sigma("adroit_hand/adroit_door.xml") == (2e-5, 2e-5)

@@ -6,15 +6,18 @@ a frozen dataclass instance holding its defaults. A config keeps the values give
 ``Config.extensions`` under ``"<section>.<name>"``: ``sysid.<scheme>``, ``solver.<strategy>``,
 ``surrogate.<kind>``, ``experiment.<kind>`` or ``mpc.<planner>``, each a dataclass instance or a mapping of
 some of its fields (as a run's ``config.json`` writes it). The command line sets a field
-as ``--sysid.<scheme>.<field> VALUE``. Before any compile every field is checked against
-its declared type, numbers must be finite, and the settings' own ``check()`` (if any)
-raises ConfigError(field name, message) for values it refuses.
+as ``--sysid.<scheme>.<field> VALUE``: it parses a Config type generated from these
+declarations (:func:`with_declared`), one field per extension in its section. Before any
+compile every field is checked against its declared type, numbers must be finite, and the
+settings' own ``check()`` (if any) raises ConfigError(field name, message) for values it
+refuses.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import typing
 from typing import Any
 
 from mjx_surrogate.control.model_strategies import MODEL_STRATEGIES
@@ -107,3 +110,55 @@ def check_extensions(config: Any) -> None:
             raise ConfigError(
                 key, f"settings of {name!r}, which this config does not use ({section}: {', '.join(chosen)})"
             )
+
+
+def with_declared(config: Any) -> Any:
+    """``config`` as an instance of a Config type generated from the declarations: each
+    section that registered extensions declare settings in gains a field per extension
+    (``sysid.<scheme>``, ``solver.<strategy>``, ``surrogate.<kind>``, ``experiment.<kind>``,
+    ``mpc.<planner>``) holding its settings (the config's, over the defaults), so that a
+    command-line parser reads ``--sysid.<scheme>.<field>`` as it reads every built-in field.
+    :func:`without_declared` takes them back out."""
+    extra: dict[str, list] = {}
+    for key, defaults in declared().items():
+        section, _, name = key.partition(".")
+        current = settings_from(defaults, config.extensions.get(key, defaults), key)
+        field = dataclasses.field(default_factory=lambda v=current: v)
+        extra.setdefault(section, []).append((name, type(defaults), field))
+    sections, types_ = {}, []
+    for section, fields in extra.items():
+        base = getattr(config, section)
+        cls = dataclasses.make_dataclass(type(base).__name__, fields, bases=(type(base),), frozen=True)
+        cls.__module__ = type(base).__module__
+        sections[section] = cls(**_values(base), **{n: f.default_factory() for n, _, f in fields})
+        types_.append((section, cls, dataclasses.field(default_factory=lambda v=sections[section]: v)))
+    if not types_:
+        return config
+    cls = dataclasses.make_dataclass(type(config).__name__, types_, bases=(type(config),), frozen=True)
+    cls.__module__ = type(config).__module__
+    return cls(**{**_values(config), **sections})
+
+
+def without_declared(parsed: Any, config_type: type, given: set[str]) -> Any:
+    """The ``config_type`` instance of a :func:`with_declared` config; the extension
+    settings that ``given`` names (those set on the command line) replace the config's
+    in ``extensions``, the others stay as the config had them."""
+    extensions = dict(parsed.extensions)
+    sections = {}
+    for f in dataclasses.fields(config_type):
+        value = getattr(parsed, f.name)
+        base_type = typing.get_type_hints(config_type)[f.name]
+        if f.name == "extensions" or type(value) is base_type:
+            continue
+        sections[f.name] = base_type(**_values(value, base_type))
+        own = _values(value, base_type)
+        for g in dataclasses.fields(value):
+            key = f"{f.name}.{g.name}"
+            if g.name not in own and key in given:
+                extensions[key] = getattr(value, g.name)
+    return config_type(**{**_values(parsed, config_type), **sections, "extensions": extensions})
+
+
+def _values(obj: Any, cls: type | None = None) -> dict:
+    """The fields of ``cls`` (default: obj's type) of ``obj``, unconverted."""
+    return {f.name: getattr(obj, f.name) for f in dataclasses.fields(cls or type(obj))}
