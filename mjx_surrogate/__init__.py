@@ -43,7 +43,7 @@ from mjx_surrogate.surrogates import FitContext, Fitted, SurrogateKind, fit_all,
 from mjx_surrogate.systems import System, from_mjcf, make_system, register_system
 from mjx_surrogate.tasks import Task, make_task
 
-__version__ = "0.4.0"
+__version__ = "0.5.0"
 
 __all__ = [
     "AnalysisConfig",
