@@ -266,11 +266,13 @@ def _variance(s: _Study) -> tuple[dict, dict]:
             meter.advance(f"SINDy {name} {100 * level:g}%: {a.n_datasets} data sets")
             key = jax.random.fold_in(s.keys["var"], j)
             sets = _datasets(system, s.task, s.X_star, s.U_star, key, cfg, level)
-            thetas = [sindy.design(s.specs[name], tr.x, tr.u) for tr, _ in sets]
-            ys = [tr.x_next - tr.x if cfg.surrogate.increment else tr.x_next for tr, _ in sets]
-            pooled = sindy.lstsq(
-                *on_one_device(jnp.concatenate(thetas), jnp.concatenate(ys)), cfg.surrogate.sindy.method
+            # every data set gathered where the pooled fit solves (rows spread over CPU devices
+            # and a coefficient on one device do not meet in one program)
+            thetas = list(on_one_device(*(sindy.design(s.specs[name], tr.x, tr.u) for tr, _ in sets)))
+            ys = list(
+                on_one_device(*(tr.x_next - tr.x if cfg.surrogate.increment else tr.x_next for tr, _ in sets))
             )
+            pooled = sindy.lstsq(jnp.concatenate(thetas), jnp.concatenate(ys), cfg.surrogate.sindy.method)
             D = np.asarray(spectra.error_projections(thetas, ys, pooled))  # [S, P, nx]
             rhs = np.asarray(jnp.stack([sindy.projections(th, y) for th, y in zip(thetas, ys)]))
             var[f"SINDy {name} {100 * level:g}%"] = {
