@@ -143,11 +143,10 @@ def without_declared(parsed: Any, config_type: type, given: set[str]) -> Any:
     """The ``config_type`` instance of a :func:`with_declared` config; the extension
     settings that ``given`` names (those set on the command line) replace the config's
     in ``extensions``, the others stay as the config had them."""
-    extensions = dict(parsed.extensions)
-    sections = {}
+    extensions, sections = dict(parsed.extensions), {}
+    hints = typing.get_type_hints(config_type)
     for f in dataclasses.fields(config_type):
-        value = getattr(parsed, f.name)
-        base_type = typing.get_type_hints(config_type)[f.name]
+        value, base_type = getattr(parsed, f.name), hints[f.name]
         if f.name == "extensions" or type(value) is base_type:
             continue
         sections[f.name] = base_type(**_values(value, base_type))
