@@ -254,6 +254,18 @@ def _gram_figure(record: Run, s: _Study, a_gram: dict) -> None:
     record.figure("gram_spectra.png", lambda: plots.spectra(spectra_plot, "Gram matrix spectra"))
 
 
+def pooled_projections(thetas: list, ys: list, method: str) -> tuple[np.ndarray, np.ndarray]:
+    """Each data set's error projections against the fit on all of them pooled, D [S, P, nx],
+    and its normal equations' right-hand side [S, P, nx], from designs Theta_s [R_s, P] and
+    targets Y_s [R_s, nx]. The data sets are gathered on one device first, where the pooled
+    fit solves: rows spread over CPU devices and a coefficient on one do not meet in one
+    program."""
+    thetas, ys = list(on_one_device(*thetas)), list(on_one_device(*ys))
+    pooled = sindy.lstsq(jnp.concatenate(thetas), jnp.concatenate(ys), method)
+    D = np.asarray(spectra.error_projections(thetas, ys, pooled))
+    return D, np.asarray(jnp.stack([sindy.projections(th, y) for th, y in zip(thetas, ys)]))
+
+
 def _variance(s: _Study) -> tuple[dict, dict]:
     """3. Variance of the error projections across data sets (SINDy), and the MLP's descent
     directions across data sets."""
@@ -266,15 +278,9 @@ def _variance(s: _Study) -> tuple[dict, dict]:
             meter.advance(f"SINDy {name} {100 * level:g}%: {a.n_datasets} data sets")
             key = jax.random.fold_in(s.keys["var"], j)
             sets = _datasets(system, s.task, s.X_star, s.U_star, key, cfg, level)
-            # every data set gathered where the pooled fit solves (rows spread over CPU devices
-            # and a coefficient on one device do not meet in one program)
-            thetas = list(on_one_device(*(sindy.design(s.specs[name], tr.x, tr.u) for tr, _ in sets)))
-            ys = list(
-                on_one_device(*(tr.x_next - tr.x if cfg.surrogate.increment else tr.x_next for tr, _ in sets))
-            )
-            pooled = sindy.lstsq(jnp.concatenate(thetas), jnp.concatenate(ys), cfg.surrogate.sindy.method)
-            D = np.asarray(spectra.error_projections(thetas, ys, pooled))  # [S, P, nx]
-            rhs = np.asarray(jnp.stack([sindy.projections(th, y) for th, y in zip(thetas, ys)]))
+            thetas = [sindy.design(s.specs[name], tr.x, tr.u) for tr, _ in sets]
+            ys = [tr.x_next - tr.x if cfg.surrogate.increment else tr.x_next for tr, _ in sets]
+            D, rhs = pooled_projections(thetas, ys, cfg.surrogate.sindy.method)
             var[f"SINDy {name} {100 * level:g}%"] = {
                 "projection_std_mean": float(D.std(0).mean()),
                 "relative_to_rhs": float(D.std(0).mean() / np.abs(rhs.mean(0)).mean()),

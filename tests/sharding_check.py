@@ -280,7 +280,20 @@ def sindy_workload(mesh) -> dict:
     ctx = registry.FitContext(config, types.SimpleNamespace(nx=nx, nu=nu, angle_pairs=()))
     ref = registry.get_surrogate("sindy").fit(ctx, train, train, None)["SINDy poly2"].model.coef
     got = registry.get_surrogate("sindy").fit(ctx, spread, spread, None)["SINDy poly2"].model.coef
-    return {"coef": _diff(got, ref), "coef_devices": len(got.sharding.device_set)}
+    # the analysis study's variance stage: two data sets' projections against their pooled fit
+    from experiments.analysis_study import pooled_projections
+    from mjx_surrogate.surrogates import sindy
+    from mjx_surrogate.surrogates.library import parse
+
+    spec, ys = parse("poly2", ()), [train.x_next - train.x, 2.0 * (train.x_next - train.x)]
+    D_ref, _ = pooled_projections([sindy.design(spec, train.x, train.u)] * 2, ys, "svd")
+    spread_ys = [jax.device_put(y, rows) for y in ys]
+    D_got, _ = pooled_projections([sindy.design(spec, spread.x, spread.u)] * 2, spread_ys, "svd")
+    return {
+        "coef": _diff(got, ref),
+        "coef_devices": len(got.sharding.device_set),
+        "projections": _diff(D_got, D_ref),
+    }
 
 
 if __name__ == "__main__":

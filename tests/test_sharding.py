@@ -138,6 +138,7 @@ def test_two_processes_with_two_devices_each_give_the_one_device_results(tmp_pat
     # A SINDy fit on rows spread over 2 devices is solved on one (docs/performance.md), to round-off.
     sindy_fit = p1["results"]["sindy/local"]
     assert sindy_fit["coef_devices"] == 1 and sindy_fit["coef"] <= 1e-12, sindy_fit
+    assert sindy_fit["projections"] <= 1e-12, sindy_fit  # the analysis study's, rows spread
     for p in (p0, p1):
         _check_workload(p["results"]["native/global"], everything)
         assert p["results"]["native/global"]["mesh_devices"] == 2  # one per process
