@@ -540,17 +540,20 @@ class Config:
 # Fields that 0.5.0 moved into the sysid sections (old dotted name -> new): a run folder
 # written before keeps replaying (:func:`upgrade`), and an old flag is told where it went.
 MOVED = {
-    **{f"solver.{old}": f"sysid.{new}" for old, new in (("sysid", "scheme"), ("n_samples", "n_samples"))},
-    **{f"solver.{f}": f"sysid.{f}" for f in ("sigma_x", "sigma_u")},
-    **{
-        f"solver.sysid_{f}": f"sysid.{f}"
-        for f in ("every", "design", "noise_floor", "significance", "rank_tol", "perturb_x0", "hold_limits")
-    },
+    "solver.sysid": "sysid.scheme",
+    "solver.n_samples": "sysid.n_samples",
+    "solver.sigma_x": "sysid.sigma_x",
+    "solver.sigma_u": "sysid.sigma_u",
+    "solver.sysid_every": "sysid.every",
+    "solver.sysid_design": "sysid.design",
+    "solver.sysid_noise_floor": "sysid.noise_floor",
+    "solver.sysid_significance": "sysid.significance",
+    "solver.sysid_rank_tol": "sysid.rank_tol",
+    "solver.sysid_perturb_x0": "sysid.perturb_x0",
+    "solver.sysid_hold_limits": "sysid.hold_limits",
     "mpc.sysid": "mpc.sysid.scheme",
-    **{
-        f"mpc.{old}": f"mpc.sysid.{new}"
-        for old, new in (("n_samples", "n_samples"), ("sysid_design", "design"))
-    },
+    "mpc.n_samples": "mpc.sysid.n_samples",
+    "mpc.sysid_design": "mpc.sysid.design",
     "mpc.sysid_every": "mpc.sysid.every",
 }
 

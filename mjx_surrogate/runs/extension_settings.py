@@ -149,8 +149,8 @@ def without_declared(parsed: Any, config_type: type, given: set[str]) -> Any:
         value, base_type = getattr(parsed, f.name), hints[f.name]
         if f.name == "extensions" or type(value) is base_type:
             continue
-        sections[f.name] = base_type(**_values(value, base_type))
         own = _values(value, base_type)
+        sections[f.name] = base_type(**own)
         for g in dataclasses.fields(value):
             key = f"{f.name}.{g.name}"
             if g.name not in own and key in given:
