@@ -112,7 +112,9 @@ def _d2c_stage(res: Resolved, sid_params) -> tuple[dict, dict]:
     with progress.meter(title, sc.max_iter, ex.progress) as pm:
         sol = pipeline.solve_config(res, pm)
     timed, U0, costs, result = sol.timed, sol.U0, sol.costs, sol.timed.out
-    extra = {} if costs is None else {"multistart_costs": np.asarray(costs).tolist()}
+    extra = {}
+    if costs is not None:  # every start's own end, before any search past a stall
+        extra = {"multistart_costs": np.asarray(costs).tolist(), "multistart_statuses": list(sol.statuses)}
     m, X_bb = pipeline.summary(
         result, system, task, cfg.task.goal_tolerance, _names("d2c"), sol.restart, sol.search, sol.receding
     )

@@ -138,7 +138,9 @@ RULES: dict[str, Rule] = {
     "swimmer15": Rule(
         "this project's",
         "D2C converges on the 15-link swimmer",
-        "its status is converged: the relative cost change fell below `rel_tol`",
+        "the solve from every one of the run's random starts (`solver.n_starts`; each start's own "
+        "end, before any search past a stall) is converged: the relative cost change fell below "
+        "`rel_tol` (or another minimum test held), not stalled, not at its iteration budget",
     ),
     "horizon": Rule(
         "Pfrommer et al.",

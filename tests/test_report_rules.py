@@ -320,3 +320,22 @@ def test_rows_whose_ilqr_made_no_step_are_named_as_the_start_replayed():
     assert _no_step_text([planned, diverged_later]) == ""
     text = _no_step_text([planned, stuck, stuck, diverged_later])
     assert text.startswith(" In 2 of 4 rows (MLP) iLQR made no step"), text
+
+
+def test_the_swimmer_rule_needs_every_start_converged():
+    """Held only where each start's own solve converged; one stalled start (or a stalled
+    single start) turns it, and the text names every start's end."""
+    from experiments.report_control import _starts_text, swimmer15_verdict
+
+    def f(v, digits):
+        return f"{v:.{digits}g}"
+
+    five = {"status": "converged", "multistart_statuses": ["converged"] * 5, "multistart_costs": [3.0] * 5}
+    assert swimmer15_verdict(five) is True
+    one_stalled = {**five, "multistart_statuses": ["converged"] * 4 + ["stalled"]}
+    assert swimmer15_verdict(one_stalled) is False
+    assert swimmer15_verdict({"status": "stalled"}) is False
+    assert swimmer15_verdict({"status": "converged"}) is True
+    assert swimmer15_verdict({}) is None
+    text = _starts_text({**one_stalled, "multistart_costs": [2.0, 3.0, 4.0, 5.0, float("inf")]}, f)
+    assert "4 converged, 1 stalled" in text and "costs 2-5" in text, text

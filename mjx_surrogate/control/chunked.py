@@ -34,7 +34,7 @@ import numpy as np
 from mjx_surrogate import progress as progress_lib
 from mjx_surrogate import sharding
 from mjx_surrogate.control import d2c
-from mjx_surrogate.control.d2c import best_of, check_oracle, problem
+from mjx_surrogate.control.d2c import best_of, check_oracle, over_starts, problem
 from mjx_surrogate.control.ilqr import (
     ILQRParams,
     SolveState,
@@ -72,7 +72,8 @@ def start(
     single = system.on_one_device()
 
     def starts(U0s, keys, task, params, sysid):
-        return jax.vmap(lambda u, k: _init_one(single, task, u, k, params, sysid, method))(U0s, keys)
+        init = lambda u, k: _init_one(single, task, u, k, params, sysid, method)  # noqa: E731
+        return over_starts(single, init, U0s, keys)
 
     state = sharding.map_batch(starts, system.mesh, U0, keys, rest=(task, params, sysid))
     return state, _summary(state)
@@ -107,7 +108,7 @@ def advance(
 
     def steps(states, task, until, stop, params, sysid):
         prob = problem(single, task, sysid, method)
-        return jax.vmap(lambda s: ilqr_advance(prob, s, params, until, stop))(states)
+        return over_starts(single, lambda s: ilqr_advance(prob, s, params, until, stop), states)
 
     new = sharding.map_batch(steps, system.mesh, state, rest=(task, until, stop, params, sysid))
     return new, _summary(new)

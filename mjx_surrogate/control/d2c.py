@@ -147,6 +147,7 @@ class MultiStart(NamedTuple):
     best_index: jax.Array
     iterations: jax.Array  # [S] every start's iteration count (its black-box effort)
     stop_reasons: jax.Array  # [S] every start's StopReason
+    identified: jax.Array  # [S, max_iter] every start's identifications (ILQRResult.identified)
 
 
 def best_of(results: ILQRResult) -> MultiStart:
@@ -154,7 +155,27 @@ def best_of(results: ILQRResult) -> MultiStart:
     costs = jnp.where(jnp.isfinite(results.cost), results.cost, jnp.inf)
     i = jnp.argmin(costs)
     best = jax.tree.map(lambda a: a[i], results)
-    return MultiStart(best, results.cost, i, results.iterations, results.stop_reason)
+    return MultiStart(best, results.cost, i, results.iterations, results.stop_reason, results.identified)
+
+
+HOST_BACKENDS = ("native", "host")  # black boxes stepped on the host, in threads of their own
+
+
+def in_lockstep(system) -> bool:
+    """Whether several starts on ``system`` run in lockstep (vmapped), or, for a black box
+    stepped on the host (``HOST_BACKENDS``), one after another: there a vmap adds no
+    parallelism (the host call already spreads each batch of simulations over its threads)
+    and turns each iteration's conditionals (identify or not) into both branches for every
+    start, every start simulating until the last one stops."""
+    return getattr(system, "backend", None) not in HOST_BACKENDS
+
+
+def over_starts(system, fn, *starts):
+    """fn over the leading (start) axis of ``starts``: ``vmap`` or ``lax.map``
+    (:func:`in_lockstep`)."""
+    if in_lockstep(system):
+        return jax.vmap(fn)(*starts)
+    return jax.lax.map(lambda a: fn(*a), starts)
 
 
 @system_jit(static_argnames=("system", "method"))
@@ -168,7 +189,8 @@ def solve_multistart(
     method: str = "d2c",
     progress: ProgressMeter = NO_PROGRESS,
 ) -> MultiStart:
-    """vmap of the solve over S initial control sequences U0s [S, T, nu]; keeps the best.
+    """The solve from each of S initial control sequences U0s [S, T, nu] (:func:`over_starts`);
+    keeps the best.
     With ``system.mesh`` the starts are spread over its devices (each start's own
     identification and line search stay on its device)."""
     keys = jax.random.split(key, U0s.shape[0])
@@ -176,7 +198,7 @@ def solve_multistart(
 
     def solves(U0s, keys, task, params, sysid, progress):
         one = lambda U0, k: _solve(single, task, U0, k, params, sysid, method, progress)  # noqa: E731
-        return jax.vmap(one)(U0s, keys)
+        return over_starts(single, one, U0s, keys)
 
     results = sharding.map_batch(solves, system.mesh, U0s, keys, rest=(task, params, sysid, progress))
     return best_of(results)

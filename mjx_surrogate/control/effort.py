@@ -34,14 +34,27 @@ def simulation_curve(
     return T + np.concatenate([[0], np.cumsum(n_alphas * T + per)])
 
 
-def multistart_steps(iterations: np.ndarray, T: int, n_alphas: int, per_id, fine: bool) -> int:
+def multistart_steps(
+    iterations: np.ndarray,
+    identified: np.ndarray,
+    T: int,
+    n_alphas: int,
+    per_id,
+    fine: bool,
+    lockstep: bool,
+) -> int:
     """Black-box control steps of a multi-start solve, all its starts together
-    (``MultiStart.iterations`` [S]; ``per_id``: the pair of :func:`steps_per_identification`;
-    ``fine``: a coarse-then-fine scheme). The starts run in lockstep (``vmap``): each
-    simulates every iteration until the last start stops, and under ``vmap`` the
-    strategies' ``lax.cond`` runs both branches, so every iteration identifies (both models
-    with a coarse-then-fine scheme). Checked against a host black box's own call count
-    for the every-step scheme (``tests/test_pipeline.py``)."""
+    (``MultiStart.iterations`` [S] and ``.identified`` [S, max_iter]; ``per_id``: the pair
+    of :func:`steps_per_identification`; ``fine``: a coarse-then-fine scheme). One start
+    after another (``lockstep`` False, :func:`mjx_surrogate.control.d2c.in_lockstep`): each
+    its own :func:`simulation_curve`. In lockstep (``vmap``) each start simulates every
+    iteration until the last start stops, and the strategies' ``lax.cond`` runs both
+    branches, so every iteration identifies (both models with a coarse-then-fine scheme).
+    The first is checked against a host black box's own call count
+    (``tests/test_pipeline.py``)."""
+    if not lockstep:
+        pairs = zip(identified, iterations)
+        return int(sum(simulation_curve(ident, it, T, n_alphas, *per_id)[-1] for ident, it in pairs))
     S, it = len(iterations), int(np.max(iterations))
     per_iteration = n_alphas * T + per_id[0] + (per_id[1] if fine else 0)
     return int(S * (T + it * per_iteration))

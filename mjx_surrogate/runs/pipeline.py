@@ -96,6 +96,7 @@ class ConfigSolve(NamedTuple):
     restart: dict | None = None  # what the restart of a stationary solve did (mjx_surrogate.runs.restart)
     search: dict | None = None  # what the sampling search did (mjx_surrogate.runs.sampling_search)
     receding: dict | None = None  # what the receding-horizon pass did (mjx_surrogate.runs.receding_pass)
+    statuses: tuple[str, ...] | None = None  # [n_starts] every start's own verdict, or None for one start
 
 
 def solve_config(res, progress: ProgressMeter = NO_PROGRESS) -> ConfigSolve:
@@ -133,16 +134,17 @@ def solve_from(
     (several starts were already the user's spread); then, with ``receding`` = H > 0, the
     receding-horizon pass over H steps (:mod:`~mjx_surrogate.runs.receding_pass`)."""
     timed = chunked.solve(system, task, U0, key, params, sysid, "d2c", progress)
-    costs = None
+    costs = statuses = None
     if U0.ndim == 3:
         out = timed.out
         costs, timed, U0 = out.costs, timed._replace(out=out.best), U0[int(out.best_index)]
+        statuses = tuple(StopReason(int(r)).verdict for r in np.asarray(out.stop_reasons))
         restarts = 0
     timed, U0, info, search = past_a_stall(
         system, task, timed, U0, key, params, sysid, rounds, restarts, goal_tolerance, progress
     )
     timed, U0, passed = receding_pass(system, task, timed, U0, key, params, sysid, receding, progress)
-    return ConfigSolve(timed, U0, costs, info, search, passed)
+    return ConfigSolve(timed, U0, costs, info, search, passed, statuses)
 
 
 def past_a_stall(
@@ -438,7 +440,8 @@ def d2c_optimum(
     """Solve by D2C from U0 [T, nu], or from each of U0 [n, T, nu] keeping the cheapest
     (:func:`solve_from`: the sampling search and ``restarts`` spread starts past a
     stationary or stalled end), and summarise on the black box (``names``: :func:`summary`;
-    with several starts ``multistart_costs``, every start's final cost); driven from the host
+    with several starts ``multistart_costs`` and ``multistart_statuses``, every start's own
+    final cost and verdict, before any search past a stall); driven from the host
     (:mod:`mjx_surrogate.control.chunked`: cacheable programs). ``Optimum.U0``: the kept
     solve's start."""
     solved = solve_from(
@@ -449,6 +452,7 @@ def d2c_optimum(
     )
     if solved.costs is not None:
         metrics["multistart_costs"] = np.asarray(solved.costs).tolist()
+        metrics["multistart_statuses"] = list(solved.statuses)
     return Optimum(solved.timed.out, X, metrics, solved.U0)
 
 

@@ -17,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate.control import chunked
+from mjx_surrogate.control.d2c import in_lockstep
 from mjx_surrogate.control.effort import multistart_steps, steps_per_identification
 from mjx_surrogate.control.ilqr import ILQRParams, StopReason
 from mjx_surrogate.identification import sysid as sid
@@ -67,7 +68,13 @@ def restart_stationary(
         "costs": [float(c) for c in np.asarray(ms.costs)],
         "statuses": statuses,
         "simulated_steps": multistart_steps(
-            np.asarray(ms.iterations), task.T, params.n_alphas, per_id, sid.fine_params(sysid) is not None
+            np.asarray(ms.iterations),
+            np.asarray(ms.identified),
+            task.T,
+            params.n_alphas,
+            per_id,
+            sid.fine_params(sysid) is not None,
+            in_lockstep(system),
         ),
         "kept": f"restart {i}" if better else "the first solve (no restart cost less)",
     }
