@@ -24,7 +24,8 @@ import typing
 
 from experiments.summary import summary_line, summary_screen
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.runs.config import MOVED, Config, PointGoal, from_dict, to_dict, upgrade
+from mjx_surrogate.runs.config import MOVED, Config, from_dict, to_dict, upgrade
+from mjx_surrogate.runs.config.goal import GOALS_HELP
 from mjx_surrogate.runs.extension_settings import declared, with_declared, without_declared
 from mjx_surrogate.runs.validation import validate_static
 from mjx_surrogate.runtime import configure_runtime
@@ -91,13 +92,12 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
     import tyro
 
     argv, out = _take_out(list(argv))
-    argv, goals = _take_goals(argv)
     spec = DEFAULT_PRESET
     if argv and not argv[0].startswith("-"):
         spec = argv.pop(0)
     base = with_declared(load_config(spec))  # the extensions' settings as fields of their sections
     given = {key for key in declared() if any(a.startswith(f"--{key}.") for a in argv)}
-    description = f"{__doc__ or ''}\nPresets: {', '.join(preset_names())}{GOALS_HELP}"
+    description = f"{__doc__ or ''}\nPresets: {', '.join(preset_names())}\n\n{GOALS_HELP}"
     if any(a in ("-h", "--help") for a in argv):
         tyro.cli(
             type(base),
@@ -108,7 +108,7 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
         )
     err = io.StringIO()
     try:
-        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(err):
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(err), _unwrapped():
             cfg = tyro.cli(
                 type(base),
                 default=base,
@@ -121,8 +121,6 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
     cfg = without_declared(cfg, Config, given)
     if out is not None:
         cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(cfg.experiment, out_dir=out))
-    if goals is not None:
-        cfg = dataclasses.replace(cfg, task=dataclasses.replace(cfg.task, goals=goals))
     return cfg, run_name(spec)
 
 
@@ -158,83 +156,6 @@ def _take_out(argv: list[str]) -> tuple[list[str], str | None]:
     if outs and not outs[0]:
         raise ConfigError("--out", "needs a directory")
     return rest, (outs[0] if outs else None)
-
-
-GOALS_HELP = (
-    "\n\n--task.goals KIND:NAME:X,Y,Z[:WEIGHT[:FINAL_WEIGHT]] ...: point goals on sites or "
-    "bodies (KIND site or body; WEIGHT on the running cost, default 0; FINAL_WEIGHT on the "
-    "terminal cost, default 1), e.g. --task.goals site:tip:0.1,0.1,0.01:0:1000; a moving "
-    "target adds :velocity=VX,VY,VZ (m/s) and/or :orbit=RADIUS,PERIOD[,PLANE] (a circle through "
-    "the target, PLANE xy, xz or yz)"
-)
-
-
-def parse_goal(text: str) -> PointGoal:
-    """``KIND:NAME:X,Y,Z[:WEIGHT[:FINAL_WEIGHT]][:velocity=VX,VY,VZ][:orbit=R,P[,PLANE]]``
-    -> PointGoal (ConfigError if malformed)."""
-    parts = text.split(":")
-    motion = {}
-    while parts and parts[-1].startswith(("velocity=", "orbit=")):
-        motion.update(_goal_motion(text, parts.pop()))
-    form = "KIND:NAME:X,Y,Z[:WEIGHT[:FINAL_WEIGHT]] with KIND site or body"
-    at = [i for i, part in enumerate(parts) if "," in part]  # the target; NAME may hold ':'
-    j = at[-1] if at else -1
-    if j < 2 or len(parts) - j > 3 or parts[0] not in ("site", "body"):
-        raise ConfigError("task.goals", f"{text!r} is not {form}")
-    name = ":".join(parts[1:j])
-    if not name:
-        raise ConfigError("task.goals", f"{text!r} is not {form}")
-    try:
-        target = tuple(float(v) for v in parts[j].split(","))
-        weights = [float(v) for v in parts[j + 1 :]]
-    except ValueError:
-        raise ConfigError(
-            "task.goals", f"{text!r}: the target and weights must be numbers ({form})"
-        ) from None
-    if len(target) != 3:
-        raise ConfigError("task.goals", f"{text!r}: the target needs 3 numbers X,Y,Z, got {len(target)}")
-    weight, final_weight = (weights + [0.0, 1.0][len(weights) :])[:2]
-    return PointGoal(
-        name=name, target=target, weight=weight, final_weight=final_weight, kind=parts[0], **motion
-    )
-
-
-def _goal_motion(text: str, part: str) -> dict:
-    """``velocity=VX,VY,VZ`` or ``orbit=R,P[,PLANE]`` -> PointGoal fields."""
-    key, value = part.split("=", 1)
-    values = value.split(",")
-    form = "velocity=VX,VY,VZ" if key == "velocity" else "orbit=RADIUS,PERIOD[,PLANE]"
-    n = 3 if key == "velocity" else 2
-    try:
-        numbers = tuple(float(v) for v in values[:n])
-    except ValueError:
-        raise ConfigError("task.goals", f"{text!r}: {key} must be numbers ({form})") from None
-    if len(numbers) != n or len(values) > (3 if key == "orbit" else n):
-        raise ConfigError("task.goals", f"{text!r}: {part!r} is not {form}")
-    if key == "velocity":
-        return {"velocity": numbers}
-    plane = values[2] if len(values) == 3 else "xy"
-    return {"orbit_radius": numbers[0], "orbit_period": numbers[1], "orbit_plane": plane}
-
-
-def _take_goals(argv: list[str]) -> tuple[list[str], tuple[PointGoal, ...] | None]:
-    """Remove ``--task.goals G ...`` (the tokens up to the next option) from argv."""
-    rest, goals, i = [], None, 0
-    while i < len(argv):
-        a = argv[i]
-        if a in ("--task.goals", "--task-goals") or a.startswith(("--task.goals=", "--task-goals=")):
-            if goals is not None:
-                raise ConfigError("task.goals", "given twice; list every goal after one --task.goals")
-            tokens = [a.split("=", 1)[1]] if "=" in a else []
-            i += 1
-            while i < len(argv) and not argv[i].startswith("--"):
-                tokens.append(argv[i])
-                i += 1
-            goals = tuple(parse_goal(t) for t in tokens)
-            continue
-        rest.append(a)
-        i += 1
-    return rest, goals
 
 
 def check_out_dir(path: str) -> None:
@@ -283,6 +204,21 @@ def _values_after(argv: list[str], field: str) -> list[str]:
     return []
 
 
+@contextlib.contextmanager
+def _unwrapped():
+    """tyro's messages rendered on one line each (a wide terminal), so that a value quoted
+    in them keeps its commas and spaces as given."""
+    before = os.environ.get("COLUMNS")
+    os.environ["COLUMNS"] = "10000"
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop("COLUMNS", None)
+        else:
+            os.environ["COLUMNS"] = before
+
+
 def _one_line_tyro_error(text: str, argv: list[str] | None = None) -> ConfigError:
     """Condense tyro's boxed message to one line naming the field and the bad value."""
     argv = argv or []
@@ -291,6 +227,10 @@ def _one_line_tyro_error(text: str, argv: list[str] | None = None) -> ConfigErro
     joined = re.sub(r"\s+", " ", " ".join(lines))
     if "Unrecognized options" in joined:
         return _unrecognized(joined, argv)
+    # a field's own parser refused the value with a ConfigError (e.g. PointGoal.from_text)
+    own = re.search(r"Error parsing --[\w.-]+: ([a-z_]+(?:\.[\w\[\]]+)+): (.*?) Argument helptext", joined)
+    if own:
+        return ConfigError(own.group(1), own.group(2))
     fields = re.findall(r"--[\w.-]*\w", joined)  # tyro writes snake_case fields with hyphens
     if not fields:
         return ConfigError("overrides", joined[:300])

@@ -3,6 +3,7 @@ naming the field, before any compile, and nothing written."""
 
 import json
 import os
+import re
 
 import pytest
 
@@ -313,3 +314,30 @@ def test_bad_input_is_refused_before_any_compile(argv, capsys, tmp_path):
     code, err = _run(argv, capsys, tmp_path)
     assert code == 2 and len(err) == 1, err
     assert compiles == []
+
+
+def test_every_section_checks_its_own_fields_and_validation_runs_each_check(monkeypatch):
+    """Validation sits beside each declaration: every section of Config (and the nested
+    ones: point goals, SINDy, MLP, D2C-MPC's identification) has its own ``check``, and
+    validate_static runs each one; a section whose check refuses stops it with its line."""
+    import dataclasses
+
+    from mjx_surrogate.errors import ConfigError
+    from mjx_surrogate.runs.config import Config, PointGoal, TaskConfig
+    from mjx_surrogate.runs.validation import validate_static
+
+    cfg = Config(task=TaskConfig(goals=(PointGoal(name="tip", target=(0.0, 0.0, 1.0)),)))
+    validate_static(cfg)
+    nested = [(cfg.task.goals[0], "task.goals[0]"), (cfg.surrogate.sindy, "surrogate.sindy")]
+    nested += [(cfg.surrogate.mlp, "surrogate.mlp"), (cfg.mpc.sysid, "mpc.sysid")]
+    sections = [(getattr(cfg, f.name), f.name) for f in dataclasses.fields(Config) if f.name != "extensions"]
+    for section, name in sections + nested:
+        kind = type(section)
+
+        def refuse(self, *args, _name=name):
+            raise ConfigError(_name, "refused by its own check")
+
+        monkeypatch.setattr(kind, "check", refuse)
+        with pytest.raises(ConfigError, match=f"^{re.escape(name)}: refused by its own check$"):
+            validate_static(cfg)
+        monkeypatch.undo()

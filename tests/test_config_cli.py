@@ -371,3 +371,33 @@ def test_a_derived_preset_changes_only_what_it_states():
     for bad in ({"solver": {"max_iters": 7}}, {"surrogate": {"mlp.epoch": 3}}, {"solvers": {"max_iter": 7}}):
         with pytest.raises(KeyError, match="has no field"):
             configs.derive("cartpole_predict", **bad)
+
+
+def test_a_goal_reads_back_from_its_own_text_and_a_configs_goals_survive_other_flags(tmp_path):
+    """tyro reads --task.goals through the goal's own text form (config.goal.GOALS_ARG): each
+    goal's text reads back as the goal, and a config file's goals stay as they were when
+    other flags are given (tyro renders them as their default)."""
+    from mjx_surrogate.runs.config import PointGoal
+
+    goals = (
+        PointGoal(name="tip", target=(0.1, -0.2, 1 / 3), weight=0.5, final_weight=1000.0),
+        PointGoal(name="robot0:S_fftip", target=(1.0, 2.0, 3.0), kind="body"),
+        PointGoal(
+            name="hand",
+            target=(0.0, 0.0, 1.0),
+            velocity=(0.1, 0.0, -0.2),
+            orbit_radius=0.05,
+            orbit_plane="yz",
+        ),
+    )
+    for g in goals:
+        assert PointGoal.from_text(g.to_text()) == g, g.to_text()
+    path = tmp_path / "with_goals.py"
+    path.write_text(
+        "from mjx_surrogate.runs.config import Config, PointGoal, TaskConfig\n"
+        f"CONFIG = Config(task=TaskConfig(goals={goals!r}))\n"
+    )
+    cfg, _ = cli.parse_args([str(path), "--task.T", "7"])
+    assert cfg.task.goals == goals and cfg.task.T == 7
+    cfg, _ = cli.parse_args([str(path), "--task.goals", "site:tip:1,2,3"])
+    assert cfg.task.goals == (PointGoal(name="tip", target=(1.0, 2.0, 3.0)),)  # replaces them all
