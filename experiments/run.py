@@ -91,7 +91,7 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
     """Returns the config with overrides applied and the preset's name."""
     import tyro
 
-    argv, out = _take_out(list(argv))
+    argv = list(argv)
     spec = DEFAULT_PRESET
     if argv and not argv[0].startswith("-"):
         spec = argv.pop(0)
@@ -119,8 +119,6 @@ def parse_args(argv: list[str]) -> tuple[Config, str]:
     except SystemExit:
         raise _one_line_tyro_error(err.getvalue(), argv) from None
     cfg = without_declared(cfg, Config, given)
-    if out is not None:
-        cfg = dataclasses.replace(cfg, experiment=dataclasses.replace(cfg.experiment, out_dir=out))
     return cfg, run_name(spec)
 
 
@@ -133,29 +131,6 @@ def run_name(spec: str) -> str:
     folder = os.path.basename(os.path.dirname(os.path.abspath(spec)))
     folder = re.sub(r"^\d{8}-\d{6}_", "", folder)
     return f"{folder or stem}_replay"
-
-
-def _take_out(argv: list[str]) -> tuple[list[str], str | None]:
-    """Remove ``--out DIR`` / ``--out=DIR`` (given at most once) from argv."""
-    rest, outs, i = [], [], 0
-    while i < len(argv):
-        a = argv[i]
-        if a == "--out":
-            if i + 1 >= len(argv) or argv[i + 1].startswith("--"):
-                raise ConfigError("--out", "needs a directory")
-            outs.append(argv[i + 1])
-            i += 2
-            continue
-        if a.startswith("--out="):
-            outs.append(a.split("=", 1)[1])
-        else:
-            rest.append(a)
-        i += 1
-    if len(outs) > 1:
-        raise ConfigError("--out", f"given {len(outs)} times ({', '.join(outs)}); give one directory")
-    if outs and not outs[0]:
-        raise ConfigError("--out", "needs a directory")
-    return rest, (outs[0] if outs else None)
 
 
 def check_out_dir(path: str) -> None:

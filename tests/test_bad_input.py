@@ -61,7 +61,6 @@ CASES = [
     (["smoke_d2c", "--task.x0_keyframe", "home"], "task.x0_keyframe"),
     (["smoke_d2c", "--task.goal_tolerance", "0"], "task.goal_tolerance"),
     (["smoke_d2c", "--out"], "--out"),
-    (["smoke_d2c", "--out", "a", "--out", "b"], "--out"),
     (["smoke_d2c", "--experment.seed", "1"], "--experment.seed"),
     (["smoke_mpc", "--mpc.controllers", "d2c", "ilqg"], "mpc.controllers[1]"),
     (["smoke_mpc", "--mpc.steps", "9"], "mpc.steps"),  # tvlqr tracks the T = 8 optimum

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from typing import Literal, Optional, Tuple
+from typing import Annotated, Literal, Optional, Tuple
+
+import tyro
 
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.runs.config.checks import at_least, check_finite, nonnegative
@@ -43,7 +45,7 @@ class ExperimentConfig:
 
     kind: str = "d2c"  # a registered kind (mjx_surrogate.runs.experiment_kinds.EXPERIMENTS)
     seed: int = 0
-    out_dir: str = "runs"
+    out_dir: Annotated[str, tyro.conf.arg(aliases=("--out",))] = "runs"  # also --out DIR
     name: Optional[str] = None
     x64: bool = False
     n_rollouts: int = 256
