@@ -45,7 +45,7 @@ class ExperimentConfig:
 
     kind: str = "d2c"  # a registered kind (mjx_surrogate.runs.experiment_kinds.EXPERIMENTS)
     seed: int = 0
-    out_dir: Annotated[str, tyro.conf.arg(aliases=("--out",))] = "runs"  # also --out DIR
+    out_dir: Annotated[str, tyro.conf.arg(aliases=("--out",))] = "runs"  # where run folders are made
     name: Optional[str] = None
     x64: bool = False
     n_rollouts: int = 256
