@@ -210,3 +210,32 @@ def test_mjx_programs_hold_no_lapack_call(systems, name):
     # the check sees a LAPACK call where there is one
     chol = jax.jit(jax.vmap(jnp.linalg.cholesky)).lower(jnp.eye(3)[None].repeat(2, 0)).as_text()
     assert re.findall(r"custom_call @(lapack_[a-z]+_ffi)", chol)
+
+
+ARM = (
+    "<mujoco><worldbody><body><joint name='j' type='hinge'/><geom size='0.1'/></body></worldbody>"
+    "<actuator><motor joint='j'/></actuator></mujoco>"
+)
+
+
+def test_a_system_is_kept_by_its_content_not_by_its_file(tmp_path):
+    """Building the same model again gives the same System, so every program jitted on it
+    is reused (a System is a static argument of jax.jit, hashed by identity): from the same
+    file, from a copy elsewhere; an edited file, or other settings, give a new one."""
+    path = tmp_path / "arm.xml"
+    path.write_text(ARM)
+    first = from_mjcf(str(path), backend="native")
+    assert from_mjcf(str(path), backend="native") is first
+    (tmp_path / "copy").mkdir()
+    (tmp_path / "copy" / "arm.xml").write_text(ARM)
+    assert from_mjcf(str(tmp_path / "copy" / "arm.xml"), backend="native") is first
+    assert from_mjcf(str(path), backend="native", substeps=2) is not first
+    path.write_text(ARM.replace("size='0.1'", "size='0.2'"))
+    edited = from_mjcf(str(path), backend="native")
+    assert edited is not first and float(edited.mj_model.geom_size[0, 0]) == 0.2
+    rollout = jax.jit(lambda s, x0, U: s.rollout(x0, U), static_argnums=0)
+    x0, U = jnp.zeros((1, 2)), jnp.ones((1, 3, 1))
+    rollout(first, x0, U)
+    size = rollout._cache_size()
+    rollout(from_mjcf(str(tmp_path / "copy" / "arm.xml"), backend="native"), x0, U)
+    assert rollout._cache_size() == size  # no new program for the same content

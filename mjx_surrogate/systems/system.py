@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import collections
 import dataclasses
+import hashlib
 import os
 from typing import Callable
 
@@ -267,6 +269,35 @@ def build_system(
         raise ConfigError("system.substeps", f"must be a positive integer, got {substeps!r}")
     model, exact_xml = compile_mjcf(xml, field, timestep, path)
     threads = native_threads or os.cpu_count() or 1
+    x64 = bool(jax.config.jax_enable_x64)
+    key = (name, model_digest(model), exact_xml, substeps, backend, threads, x64, mesh)
+    if key in _BUILT:  # the same model as built before: its System, and every program jitted on it
+        _BUILT.move_to_end(key)
+        return _BUILT[key]
+    system = _build(name, model, exact_xml, substeps, backend, threads, mesh)
+    _BUILT[key] = system
+    while len(_BUILT) > _KEEP:
+        _BUILT.popitem(last=False)
+    return system
+
+
+# Systems by content: (name, model digest, MJCF, substeps, backend, threads, x64, mesh) -> System,
+# the _KEEP most recently asked for. A System hashes by identity (a static argument of
+# jax.jit), so building the same model again would compile every program again.
+_BUILT: "collections.OrderedDict[tuple, System]" = collections.OrderedDict()
+_KEEP = 32
+
+
+def model_digest(model: mujoco.MjModel) -> str:
+    """sha256 of the compiled model (``mj_saveModel``): equal for equal models, whatever
+    file, includes or assets they were compiled from."""
+    buf = np.zeros(mujoco.mj_sizeModel(model), np.uint8)
+    mujoco.mj_saveModel(model, None, buf)
+    return hashlib.sha256(buf.tobytes()).hexdigest()
+
+
+def _build(name, model, exact_xml, substeps, backend, threads, mesh) -> System:
+    """The :class:`System` of a compiled model on ``backend``."""
     if backend == "mjx":
         physics = backend_mjx.make_mjx_physics(model, substeps)
         plain = physics.step
