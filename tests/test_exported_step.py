@@ -108,7 +108,8 @@ def test_a_native_systems_oracle_loads_its_programs_without_building_the_mjx_mod
     xml, plain, reference = _pendulum_reference()
     monkeypatch.setattr(exported_step, "cache_folder", lambda: str(tmp_path))
 
-    def fresh():  # not the registry's cached System: a later run's
+    def fresh():  # not a System kept from before: a later run's, in a new process
+        system.forget_systems()
         return system.build_system("pendulum", xml, 2, "native")
 
     first = fresh()
@@ -138,6 +139,7 @@ def test_the_batch_jacobians_export_only_the_batchs_program(tmp_path, monkeypatc
 
     xml, _, reference = _pendulum_reference()  # the plain step of the same model and substeps
     monkeypatch.setattr(exported_step, "cache_folder", lambda: str(tmp_path))
+    system.forget_systems()  # a System built afresh, its programs not yet exported
     s = system.build_system("pendulum", xml, 2, "native")
     x, u = _inputs(s, 5)
     A, B = jax.jit(s.mjx_jacobians_batch)(x, u)

@@ -288,6 +288,11 @@ _BUILT: "collections.OrderedDict[tuple, System]" = collections.OrderedDict()
 _KEEP = 32
 
 
+def forget_systems() -> None:
+    """Empty the cache of systems by content, as a new process starts with none."""
+    _BUILT.clear()
+
+
 def model_digest(model: mujoco.MjModel) -> str:
     """sha256 of the compiled model (``mj_saveModel``): equal for equal models, whatever
     file, includes or assets they were compiled from."""
