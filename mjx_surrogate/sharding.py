@@ -122,6 +122,16 @@ def map_batch(fn: Callable, mesh: Mesh | None, *batched: Any, rest: tuple = ()) 
     return jax.tree.map(lambda a: a[:B], mapped)
 
 
+def over_leading_axis(fn: Callable, *xs: Any, lockstep: bool) -> Any:
+    """fn over the leading axis of every leaf of ``xs``: side by side (``vmap``), or, with
+    ``lockstep`` false, one after another (``lax.map``), where each item runs its own loops
+    to their own ends instead of a batched ``while_loop`` running every item until the last
+    one stops, and ``lax.cond`` keeps one branch."""
+    if lockstep:
+        return jax.vmap(fn)(*xs)
+    return jax.lax.map(lambda a: fn(*a), xs)
+
+
 def sum_over_batch(fn: Callable, mesh: Mesh | None, batched: Any, rest: tuple = ()) -> Any:
     """sum_i fn(batched_i, weights_i, *rest) where ``fn(chunk, weights, *rest)`` returns
     weighted sums over its chunk of the batch (leading axis); each device sums its chunk

@@ -173,9 +173,7 @@ def in_lockstep(system) -> bool:
 def over_starts(system, fn, *starts):
     """fn over the leading (start) axis of ``starts``: ``vmap`` or ``lax.map``
     (:func:`in_lockstep`)."""
-    if in_lockstep(system):
-        return jax.vmap(fn)(*starts)
-    return jax.lax.map(lambda a: fn(*a), starts)
+    return sharding.over_leading_axis(fn, *starts, lockstep=in_lockstep(system))
 
 
 @system_jit(static_argnames=("system", "method"))

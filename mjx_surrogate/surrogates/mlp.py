@@ -251,9 +251,7 @@ def _over_seeds(fn, *args):
     own epoch, where a vmapped ``while_loop`` computes every seed's masked epochs until the
     last one stops and batching networks this small gains nothing (5 seeds on the cartpole
     control study's data: 103.9 s against 174.9 s, ``benchmarks/mlp_seeds.py``)."""
-    if jax.default_backend() == "cpu":
-        return jax.lax.map(lambda a: fn(*a), args)
-    return jax.vmap(fn)(*args)
+    return sharding.over_leading_axis(fn, *args, lockstep=jax.default_backend() != "cpu")
 
 
 @jax.jit
