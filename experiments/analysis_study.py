@@ -26,7 +26,7 @@ from mjx_surrogate.runs.results import Run
 from mjx_surrogate.sharding import on_one_device
 from mjx_surrogate.surrogates import mlp, sindy
 from mjx_surrogate.surrogates.registry import library_specs, mlp_spec
-from mjx_surrogate.systems import System
+from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.tasks import Task
 
 
@@ -74,7 +74,7 @@ class _Study(NamedTuple):
     [T+1, nx], U_star [T, nu], the libraries, the MLP's spec, a key per stage."""
 
     cfg: Config
-    system: System
+    system: BlackBox
     task: Task
     X_star: jax.Array
     U_star: jax.Array

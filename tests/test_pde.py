@@ -187,7 +187,7 @@ def test_bad_reduced_settings_are_one_line_before_any_compile(argv, needle, tmp_
 
 
 SHARDED = """
-import dataclasses, json, sys
+import json, sys
 import jax
 jax.config.update("jax_num_cpu_devices", 2)
 from mjx_surrogate.runtime import configure_runtime
@@ -198,9 +198,10 @@ from mjx_surrogate.control import d2c
 from mjx_surrogate.control.ilqr import ILQRParams
 from mjx_surrogate.identification.sysid import SysIdParams
 from mjx_surrogate.systems import burgers
+from mjx_surrogate.systems.function import on_mesh
 from mjx_surrogate.tasks import make_task
 one = burgers.make_system(32)
-two = dataclasses.replace(one, mesh=sharding.device_mesh(2))
+two = on_mesh(one, sharding.device_mesh(2))
 task = make_task(**burgers.damp_fields(32, T=10))
 p = SysIdParams(scheme="reduced", n_samples=15)  # 15 rollouts and 23 one-step samples: padded
 U0, params = jnp.zeros((10, 8)), ILQRParams(max_iter=4)

@@ -16,7 +16,7 @@ import numpy as np
 from mjx_surrogate.identification import step_models
 from mjx_surrogate.identification.data import Dataset, finite_trajectories, u_max
 from mjx_surrogate.sharding import vmap_in_chunks
-from mjx_surrogate.systems import System
+from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.systems.system_jit import system_jit
 from mjx_surrogate.tasks import Task, trajectory_cost
 from mjx_surrogate.trajectory import feedback_rollout
@@ -35,7 +35,7 @@ class Replay(NamedTuple):
 
 
 @system_jit(static_argnames=("system",))
-def replay(system: System, task: Task, X: jax.Array, U: jax.Array, K: jax.Array) -> Replay:
+def replay(system: BlackBox, task: Task, X: jax.Array, U: jax.Array, K: jax.Array) -> Replay:
     """Execute the nominal X [T+1, nx], U [T, nu] with gains K [T, nu, nx] on the black box,
     open and closed loop, controls clipped to the task's limits. The open loop applies U
     alone: a nominal X that is not finite (a surrogate on which iLQR diverged) leaves it
@@ -50,7 +50,7 @@ def replay(system: System, task: Task, X: jax.Array, U: jax.Array, K: jax.Array)
 
 @system_jit(static_argnames=("system", "n_trials"))
 def evaluate_feedback(
-    system: System,
+    system: BlackBox,
     task: Task,
     X: jax.Array,
     U: jax.Array,
@@ -135,7 +135,7 @@ def _clearly_helps(levels, closed: np.ndarray, opened: np.ndarray, alpha: float 
 
 
 def backed_off_feedback(
-    system: System,
+    system: BlackBox,
     task: Task,
     X: jax.Array,
     U: jax.Array,

@@ -44,7 +44,7 @@ from mjx_surrogate.control.ilqr import (
     ilqr_result,
 )
 from mjx_surrogate.identification import sysid as sid
-from mjx_surrogate.systems import System
+from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.tasks import Task
 from mjx_surrogate.timing import Timed, compile_then_run
 
@@ -55,7 +55,7 @@ def _init_one(system, task, U0, key, params, sysid, method) -> SolveState:
 
 @functools.partial(jax.jit, static_argnames=("system", "method"))
 def start(
-    system: System,
+    system: BlackBox,
     task: Task,
     U0: jax.Array,
     key: jax.Array,
@@ -90,7 +90,7 @@ def _summary(state: SolveState) -> jax.Array:
 
 @functools.partial(jax.jit, static_argnames=("system", "method"), donate_argnames=("state",))
 def advance(
-    system: System,
+    system: BlackBox,
     task: Task,
     state: SolveState,
     until: jax.Array,
@@ -122,7 +122,7 @@ def _result(state: SolveState):
 
 
 def solve(
-    system: System,
+    system: BlackBox,
     task: Task,
     U0: jax.Array,
     key: jax.Array,
@@ -179,7 +179,7 @@ def _one_program(system, task, U0, key, params, sysid, method, progress) -> Time
 
 
 def solve_exact(
-    system: System,
+    system: BlackBox,
     task: Task,
     U0: jax.Array,
     params: ILQRParams = ILQRParams(),

@@ -32,7 +32,7 @@ from mjx_surrogate.control.ilqr import closed_loop as ilqr_closed_loop
 from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.identification import sysid_reduced  # noqa: F401  (registers the "reduced" scheme)
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
-from mjx_surrogate.systems import System
+from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.systems.system_jit import system_jit
 from mjx_surrogate.tasks import Task, task_cost
 
@@ -40,7 +40,7 @@ ORACLES = ("jacfwd", "finite_difference")
 METHODS = ("d2c", *ORACLES)  # problem()'s: D2C and the two oracles, by the oracles' own names
 
 
-def exact_linearize(system: System, jacobians: str = "jacfwd") -> sid.LinearizeFn:
+def exact_linearize(system: BlackBox, jacobians: str = "jacfwd") -> sid.LinearizeFn:
     """linearize(X, U, K, key) -> Jacobians through the system's differentiable step
     ("jacfwd": MJX, or a JAX function's own) or by coordinate central differences of the
     black-box step."""
@@ -52,7 +52,7 @@ def exact_linearize(system: System, jacobians: str = "jacfwd") -> sid.LinearizeF
     return lambda X, U, K, key: jac(X[:-1], U)
 
 
-def problem(system: System, task: Task, sysid: sid.SysIdParams, method: str) -> Problem:
+def problem(system: BlackBox, task: Task, sysid: sid.SysIdParams, method: str) -> Problem:
     """The iLQR problem of one solve: "d2c" on the black box (LTV models, the backend's own
     line-search rollouts), "jacfwd" on the MJX step with ``jax.jacfwd`` Jacobians, or
     "finite_difference" on the black box with coordinate central differences."""
@@ -75,7 +75,7 @@ def problem(system: System, task: Task, sysid: sid.SysIdParams, method: str) -> 
 
 
 def _solve(
-    system: System,
+    system: BlackBox,
     task: Task,
     U0: jax.Array,
     key: jax.Array,
@@ -107,7 +107,7 @@ def sharded_trials(step, closed_loop, mesh) -> ClosedLoopFn:
 
 @system_jit(static_argnames=("system",))
 def solve_d2c(
-    system: System,
+    system: BlackBox,
     task: Task,
     U0: jax.Array,
     key: jax.Array,
@@ -121,7 +121,7 @@ def solve_d2c(
 
 @system_jit(static_argnames=("system", "jacobians"))
 def solve_exact(
-    system: System,
+    system: BlackBox,
     task: Task,
     U0: jax.Array,
     params: ILQRParams = ILQRParams(),
@@ -158,16 +158,14 @@ def best_of(results: ILQRResult) -> MultiStart:
     return MultiStart(best, results.cost, i, results.iterations, results.stop_reason, results.identified)
 
 
-HOST_BACKENDS = ("native", "host")  # black boxes stepped on the host, in threads of their own
-
-
 def in_lockstep(system) -> bool:
     """Whether several starts on ``system`` run in lockstep (vmapped), or, for a black box
-    stepped on the host (``HOST_BACKENDS``), one after another: there a vmap adds no
-    parallelism (the host call already spreads each batch of simulations over its threads)
-    and turns each iteration's conditionals (identify or not) into both branches for every
-    start, every start simulating until the last one stops."""
-    return getattr(system, "backend", None) not in HOST_BACKENDS
+    stepped on the host (:attr:`Execution.on_host <mjx_surrogate.systems.execution.Execution.on_host>`),
+    one after another: there a vmap adds no parallelism (the host call already spreads each
+    batch of simulations over its threads) and turns each iteration's conditionals (identify
+    or not) into both branches for every start, every start simulating until the last one
+    stops."""
+    return not system.execution.on_host
 
 
 def over_starts(system, fn, *starts):
@@ -178,7 +176,7 @@ def over_starts(system, fn, *starts):
 
 @system_jit(static_argnames=("system", "method"))
 def solve_multistart(
-    system: System,
+    system: BlackBox,
     task: Task,
     U0s: jax.Array,
     key: jax.Array,

@@ -39,7 +39,7 @@ from mjx_surrogate.control.episode import Plan, episode, first_plan
 from mjx_surrogate.control.ilqr import ILQRParams, Problem, ilqr_advance, ilqr_init, ilqr_result
 from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
-from mjx_surrogate.systems.system import System
+from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.tasks import Task, at_step, task_cost, trajectory_cost
 
 CONTROLLERS = ("d2c", "jacfwd", "finite_difference")
@@ -62,7 +62,7 @@ class MPCResult(NamedTuple):
 
 @functools.partial(jax.jit, static_argnames=("system", "steps", "controller", "plant", "replan_every"))
 def receding_horizon(
-    system: System,
+    system: BlackBox,
     task: Task,
     U0: jax.Array,
     *,
@@ -72,7 +72,7 @@ def receding_horizon(
     sysid: sid.SysIdParams = sid.SysIdParams(),
     process_noise: float | jax.Array = 0.0,
     controller: str = "d2c",
-    plant: System | None = None,
+    plant: BlackBox | None = None,
     progress: ProgressMeter = NO_PROGRESS,
     replan_every: int = 1,
 ) -> MPCResult:
@@ -96,7 +96,7 @@ def receding_horizon(
 
 
 def d2c_replan(
-    system: System, task: Task, params: ILQRParams, sysid: sid.SysIdParams, controller: str = "d2c"
+    system: BlackBox, task: Task, params: ILQRParams, sysid: sid.SysIdParams, controller: str = "d2c"
 ):
     """D2C-MPC's replan (or an oracle's: ``controller``), ``replan(x, plan, key, n) ->
     (Plan, (cost, iterations, identified))`` at control step n from the measured x [nx]:
@@ -120,7 +120,7 @@ def surrogate_mpc(
     task: Task,
     U0: jax.Array,
     *,
-    plant: System,
+    plant: BlackBox,
     key: jax.Array,
     steps: int,
     params: ILQRParams = ILQRParams(max_iter=5),
@@ -170,7 +170,7 @@ def tracking(
     U_ref: jax.Array,
     K: jax.Array,
     *,
-    plant: System,
+    plant: BlackBox,
     key: jax.Array,
     process_noise: float | jax.Array = 0.0,
 ) -> MPCResult:

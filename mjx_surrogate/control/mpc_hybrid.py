@@ -29,7 +29,7 @@ from mjx_surrogate.control.sampling_planners import spread_scale
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
-from mjx_surrogate.systems.system import System
+from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.tasks import Task, at_step, trajectory_cost
 from mjx_surrogate.trajectory import open_loop
 
@@ -70,7 +70,7 @@ def proposals(key: jax.Array, U: jax.Array, n: int, knots: int, spline: str, sig
     jax.jit, static_argnames=("system", "steps", "plant", "replan_every", "n_samples", "knots", "spline")
 )
 def hybrid_mpc(
-    system: System,
+    system: BlackBox,
     task: Task,
     U0: jax.Array,
     *,
@@ -83,7 +83,7 @@ def hybrid_mpc(
     knots: int = 4,
     spline: str = "zero",
     process_noise: float | jax.Array = 0.0,
-    plant: System | None = None,
+    plant: BlackBox | None = None,
     progress: ProgressMeter = NO_PROGRESS,
     replan_every: int = 1,
 ) -> mpc.MPCResult:
@@ -104,7 +104,7 @@ def hybrid_mpc(
 
 
 def replanner(
-    system: System,
+    system: BlackBox,
     task: Task,
     params: ILQRParams,
     sysid: sid.SysIdParams,

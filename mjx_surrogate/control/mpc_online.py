@@ -42,7 +42,7 @@ from mjx_surrogate.linalg import spd_solve
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.surrogates.mlp import MLPModel, MLPSpec, optimizer, targets
 from mjx_surrogate.surrogates.sindy import SindyModel, design
-from mjx_surrogate.systems.system import System
+from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.tasks import Task, at_step, trajectory_cost
 
 RIDGE = 1e-10  # relative to the scaled Gram's unit diagonal: keeps an empty support solvable
@@ -76,7 +76,7 @@ def refitted_sindy_mpc(
     task: Task,
     U0: jax.Array,
     *,
-    plant: System,
+    plant: BlackBox,
     key: jax.Array,
     steps: int,
     params: ILQRParams = ILQRParams(max_iter=5),
@@ -161,7 +161,7 @@ def refitted_mlp_mpc(
     task: Task,
     U0: jax.Array,
     *,
-    plant: System,
+    plant: BlackBox,
     key: jax.Array,
     steps: int,
     spec: MLPSpec,

@@ -31,7 +31,7 @@ from mjx_surrogate.control.episode import episode
 from mjx_surrogate.control.mpc import MPCResult
 from mjx_surrogate.control.sampling_rules import SamplingHyper, get_rule
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
-from mjx_surrogate.systems.system import System
+from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.tasks import Task, at_step, trajectory_cost
 from mjx_surrogate.trajectory import open_loop
 
@@ -139,7 +139,7 @@ def moved_on_host(
     return SplinePlan(W @ mean, mean, plan.spread)
 
 
-def replanner(system: System, task: Task, settings: SamplingSettings, hyper: SamplingHyper):
+def replanner(system: BlackBox, task: Task, settings: SamplingSettings, hyper: SamplingHyper):
     """``replan(x, plan, key, n) -> (plan, cheapest cost)``: :func:`optimise` of the
     horizon-H ``task`` at control step n (what :func:`sampling_mpc`'s episode calls)."""
 
@@ -150,7 +150,7 @@ def replanner(system: System, task: Task, settings: SamplingSettings, hyper: Sam
 
 
 def optimise(
-    system: System,
+    system: BlackBox,
     task: Task,
     x: jax.Array,
     plan: SplinePlan,
@@ -185,7 +185,7 @@ def optimise(
 
 @functools.partial(jax.jit, static_argnames=("system", "steps", "settings", "plant", "replan_every"))
 def sampling_mpc(
-    system: System,
+    system: BlackBox,
     task: Task,
     U0: jax.Array,
     *,
@@ -194,7 +194,7 @@ def sampling_mpc(
     settings: SamplingSettings,
     hyper: SamplingHyper,
     process_noise: float | jax.Array = 0.0,
-    plant: System | None = None,
+    plant: BlackBox | None = None,
     progress: ProgressMeter = NO_PROGRESS,
     replan_every: int = 1,
 ) -> MPCResult:

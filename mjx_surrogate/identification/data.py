@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjx_surrogate.identification.rollout import rollout
-from mjx_surrogate.systems.system import System
+from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.systems.system_jit import system_jit
 
 
@@ -59,7 +59,7 @@ def u_max(U_star: jax.Array, lo: jax.Array | None = None, hi: jax.Array | None =
 
 @system_jit(static_argnames=("system", "n_traj"))
 def sample(
-    system: System,
+    system: BlackBox,
     X_star: jax.Array,
     U_star: jax.Array,
     key: jax.Array,
@@ -85,7 +85,7 @@ def sample(
 
 
 def sample_seeds(
-    system: System,
+    system: BlackBox,
     X_star: jax.Array,
     U_star: jax.Array,
     keys: jax.Array,

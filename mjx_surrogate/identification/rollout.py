@@ -12,11 +12,11 @@ from typing import NamedTuple
 import jax
 
 from mjx_surrogate import sharding
-from mjx_surrogate.systems import System
+from mjx_surrogate.systems.black_box import BlackBox
 
 
 @functools.partial(jax.jit, static_argnums=0)
-def rollout(system: System, x0: jax.Array, U: jax.Array) -> jax.Array:
+def rollout(system: BlackBox, x0: jax.Array, U: jax.Array) -> jax.Array:
     """x0 [B, nx], U [B, T, nu] -> X [B, T+1, nx] on the system's backend."""
     return sharding.map_batch(system.rollout, system.mesh, x0, U)
 
@@ -41,7 +41,7 @@ def draw_perturbations(
 
 
 def perturbed_rollouts_fn(
-    system: System, key: jax.Array, x0: jax.Array, U: jax.Array, n: int, sigma_x: float, sigma_u: float
+    system: BlackBox, key: jax.Array, x0: jax.Array, U: jax.Array, n: int, sigma_x: float, sigma_u: float
 ) -> PerturbedRollouts:
     """Unjitted body of :func:`perturbed_rollouts`, for use inside larger traces."""
     dx0, dU = draw_perturbations(key, n, x0, U, sigma_x, sigma_u)
@@ -51,7 +51,7 @@ def perturbed_rollouts_fn(
 
 @functools.partial(jax.jit, static_argnums=(0, 4))
 def perturbed_rollouts(
-    system: System,
+    system: BlackBox,
     key: jax.Array,
     x0: jax.Array,
     U: jax.Array,

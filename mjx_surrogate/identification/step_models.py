@@ -22,7 +22,7 @@ import numpy as np
 
 from mjx_surrogate.identification import sysid
 from mjx_surrogate.identification.data import Dataset, finite_trajectories
-from mjx_surrogate.systems.system import System
+from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.trajectory import simulate_t
 
 StepT = Callable[[jax.Array, jax.Array, jax.Array], jax.Array]
@@ -85,7 +85,7 @@ def as_pytree(model) -> jax.tree_util.Partial:
     return jax.tree_util.Partial(time_invariant(model.step))
 
 
-def black_box(system: System) -> StepT:
+def black_box(system: BlackBox) -> StepT:
     """The exact model: the system's own step (MJX or native MuJoCo)."""
     return time_invariant(system.step)
 

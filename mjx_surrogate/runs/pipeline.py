@@ -32,7 +32,7 @@ from mjx_surrogate.runs.model_defaults import hold_controls
 from mjx_surrogate.runs.receding_pass import receding_pass
 from mjx_surrogate.runs.resolution import solver_params
 from mjx_surrogate.runs.restart import restart_stationary, spread_starts
-from mjx_surrogate.systems import System
+from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.systems.system_jit import system_jit
 from mjx_surrogate.tasks import (
     Task,
@@ -57,7 +57,7 @@ def initial_controls(
 
 
 def start_controls(
-    system: System, task: Task, kind: str, scale: float, key: jax.Array, n: int | None = None
+    system: BlackBox, task: Task, kind: str, scale: float, key: jax.Array, n: int | None = None
 ) -> jax.Array:
     """The solver's start U0 [T, nu] (or [n, T, nu] for n starts) of ``solver.init``:
 
@@ -116,7 +116,7 @@ def solve_config(res, progress: ProgressMeter = NO_PROGRESS) -> ConfigSolve:
 
 
 def solve_from(
-    system: System,
+    system: BlackBox,
     task: Task,
     U0: jax.Array,
     key: jax.Array,
@@ -148,7 +148,7 @@ def solve_from(
 
 
 def past_a_stall(
-    system: System,
+    system: BlackBox,
     task: Task,
     timed: "chunked.Timed",
     U0: jax.Array,
@@ -205,7 +205,7 @@ def gains_verdict(levels, closed_median, open_median, status: str | None = None)
 
 
 @system_jit(static_argnames=("system",))
-def _replay_cost(system: System, task: Task, U: jax.Array) -> tuple[jax.Array, jax.Array]:
+def _replay_cost(system: BlackBox, task: Task, U: jax.Array) -> tuple[jax.Array, jax.Array]:
     X, Ua = open_loop(system.step, task.x0, U, task.u_min, task.u_max)
     return X, trajectory_cost(task, X, Ua)
 
@@ -221,7 +221,7 @@ def _goal_costs(task: Task, x0: jax.Array, xT: jax.Array, N, terminal: bool) -> 
     return goal_cost(task, x0, terminal, 0), goal_cost(task, xT, terminal, N)
 
 
-def black_box_trajectory(system: System, task: Task, U: jax.Array) -> tuple[jax.Array, float | None]:
+def black_box_trajectory(system: BlackBox, task: Task, U: jax.Array) -> tuple[jax.Array, float | None]:
     """U [T, nu] replayed from x0 on the black box: (X [T+1, nx], its cost or None)."""
     X, J = _replay_cost(system, task, U)
     return X, finite_or_none(J)
@@ -289,7 +289,7 @@ def goal_test(task: Task, X: jax.Array, tolerance: float) -> dict:
 
 def summary(
     result: ILQRResult,
-    system: System,
+    system: BlackBox,
     task: Task,
     goal_tolerance: float = 0.01,
     names: tuple[str, str, str] | None = None,
@@ -424,7 +424,7 @@ class Optimum(NamedTuple):
 
 
 def d2c_optimum(
-    system: System,
+    system: BlackBox,
     task: Task,
     U0: jax.Array,
     key: jax.Array,

@@ -32,7 +32,7 @@ from mjx_surrogate.control.effort import simulation_metrics
 from mjx_surrogate.control.ilqr import ILQRParams
 from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
-from mjx_surrogate.systems import System
+from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.tasks import Task
 from mjx_surrogate.timing import Timed
 
@@ -40,7 +40,7 @@ MAX_ITER_PER_REPLAN = 5  # D2C-MPC's default
 
 
 def receding_pass(
-    system: System,
+    system: BlackBox,
     task: Task,
     timed: Timed,
     U0: jax.Array,

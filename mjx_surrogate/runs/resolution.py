@@ -46,7 +46,8 @@ from mjx_surrogate.runs.model_defaults import (
 from mjx_surrogate.runs.task_resolution import resolve_task
 from mjx_surrogate.runs.validation import validate_static
 from mjx_surrogate.surrogates.registry import get_surrogate
-from mjx_surrogate.systems import FunctionSystem, System, from_mjcf, make_system
+from mjx_surrogate.systems import FunctionSystem, from_mjcf, make_system
+from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.systems.entry import entry_builder, entry_source, load_entry, source_digest
 from mjx_surrogate.systems.function import on_mesh
 from mjx_surrogate.systems.plant import check_plant
@@ -63,7 +64,7 @@ from mjx_surrogate.tasks import Task
 
 class Resolved(NamedTuple):
     config: Config  # every task and system field filled in: what config.json holds
-    system: System
+    system: BlackBox
     task: Task
 
 
@@ -92,7 +93,7 @@ def _substeps(sc: SystemConfig) -> int | None:
     return n
 
 
-def build_system_from_config(sc: SystemConfig, mesh: Mesh | None = None) -> System | FunctionSystem:
+def build_system_from_config(sc: SystemConfig, mesh: Mesh | None = None) -> BlackBox:
     """The system of ``sc``, its batched work spread over ``mesh``. A registered system is
     built once per process, precision and mesh (the registry's cache,
     :func:`~mjx_surrogate.systems.registry.make_system`): a System is immutable and hashes
@@ -156,7 +157,7 @@ def check_magnitude(field: str, x, dtype, sigma_x: float) -> None:
         )
 
 
-def check_start(system: System, task: Task, sigma_x: float) -> None:
+def check_start(system: BlackBox, task: Task, sigma_x: float) -> None:
     """Reject states the solver cannot work from: MuJoCo flags the simulation as unstable
     within one control step, or the perturbations sigma_x drown in the round-off of the
     state's magnitude at the working precision."""
@@ -331,7 +332,7 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
     return Resolved(resolved, system, task)
 
 
-def _check_samples(cfg: Config, system: System, T: int, identifies: bool) -> int:
+def _check_samples(cfg: Config, system: BlackBox, T: int, identifies: bool) -> int:
     """The identification's samples (the config's or the default), checked against what its
     scheme needs where the experiment identifies."""
     reduced = get_scheme(cfg.sysid.scheme).reduced
@@ -353,7 +354,7 @@ def _check_samples(cfg: Config, system: System, T: int, identifies: bool) -> int
     return n_samples
 
 
-def _resolve_mpc(cfg: Config, system: System, T: int, solver_samples: int):
+def _resolve_mpc(cfg: Config, system: BlackBox, T: int, solver_samples: int):
     """Section mpc with its defaults filled (horizon and steps: the task's T; D2C-MPC's
     samples: nx + nu with a one-step scheme, else the solver's), checked against the
     system and the task."""
@@ -431,7 +432,7 @@ def replan_every(m, dt: float) -> int:
     return int(round(r)) if abs(r - round(r)) <= 1e-9 * max(1.0, r) else 0
 
 
-def plant_builder(cfg: Config, system: System):
+def plant_builder(cfg: Config, system: BlackBox):
     """The function that builds the function black box ``system`` (its MPC plants are calls
     of it with other keyword arguments); None for a MuJoCo model."""
     if system.mj_model is not None:
@@ -441,7 +442,7 @@ def plant_builder(cfg: Config, system: System):
     return function_builder(cfg.system.name)
 
 
-def _check_surrogates(cfg: Config, system: System, ltv_baseline: bool) -> None:
+def _check_surrogates(cfg: Config, system: BlackBox, ltv_baseline: bool) -> None:
     """Section surrogate and the data split (``cfg.task`` resolved); with
     ``ltv_baseline``, enough trajectories for the per-step LTV fit too."""
     d = cfg.data

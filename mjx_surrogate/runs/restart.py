@@ -22,7 +22,7 @@ from mjx_surrogate.control.effort import multistart_steps, steps_per_identificat
 from mjx_surrogate.control.ilqr import ILQRParams, StopReason
 from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
-from mjx_surrogate.systems import System
+from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.tasks import Task, half_ranges
 from mjx_surrogate.timing import Timed
 
@@ -37,7 +37,7 @@ def spread_starts(task: Task, U0: jax.Array, key: jax.Array, n: int, scale: floa
 
 
 def restart_stationary(
-    system: System,
+    system: BlackBox,
     task: Task,
     timed: Timed,
     U0: jax.Array,

@@ -37,7 +37,7 @@ from mjx_surrogate.control.mpc_sampling import (
 )
 from mjx_surrogate.identification import sysid as sid
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
-from mjx_surrogate.systems import System
+from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.tasks import Task, half_ranges, trajectory_cost
 from mjx_surrogate.timing import Timed
 from mjx_surrogate.trajectory import open_loop
@@ -57,7 +57,7 @@ def search_settings(T: int, dt: float, rounds: int) -> SamplingSettings:
 
 @functools.partial(jax.jit, static_argnames=("system", "settings"))
 def cem_search(
-    system: System, task: Task, U: jax.Array, key: jax.Array, settings: SamplingSettings, h: SamplingHyper
+    system: BlackBox, task: Task, U: jax.Array, key: jax.Array, settings: SamplingSettings, h: SamplingHyper
 ) -> tuple[jax.Array, jax.Array]:
     """The elites' mean after ``settings.iterations`` rounds from U [T, nu] at spreads ``h``
     (module docstring): (its controls [T, nu], their cost on the black box)."""
@@ -67,7 +67,7 @@ def cem_search(
 
 
 def search_then_refine(
-    system: System,
+    system: BlackBox,
     task: Task,
     timed: Timed,
     U0: jax.Array,

@@ -28,6 +28,7 @@ from mjx_surrogate.runs.task_fields import (
     state_field,
 )
 from mjx_surrogate.systems import System
+from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.systems.kinematics import make_points_fn, native_points_fn, point_ids
 from mjx_surrogate.systems.system import state_labels
 from mjx_surrogate.tasks import Task, make_task
@@ -97,7 +98,7 @@ def _motion(system: System, goals) -> Callable | None:
     return cache[key]
 
 
-def resolve_task(tc: TaskConfig, system: System) -> tuple[TaskConfig, Task]:
+def resolve_task(tc: TaskConfig, system: BlackBox) -> tuple[TaskConfig, Task]:
     """Fill every task field (preset, keyframes, model) with shape and sign checks; returns
     the resolved TaskConfig (what config.json holds) and the Task. A function black box's
     task: :func:`mjx_surrogate.runs.function_task.resolve_function_task`."""

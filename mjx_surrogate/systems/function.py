@@ -1,13 +1,10 @@
 """Black boxes that are not MuJoCo files: a JAX function, or a host (NumPy) function.
 
-What the solver, the identification schemes and the evaluation use of a system is small:
-the sizes ``nx``, ``nu``, the control period ``dt``, ``step(x [nx], u [nu]) -> x_next
-[nx]`` (jittable; batched by ``vmap``), ``rollout(x0 [B, nx], U [B, T, nu]) -> X [B, T+1,
-nx]``, ``closed_loop`` (None: the line search vmaps ``step``), ``mesh`` (None: one
-device), ``compiler_options`` and ``on_one_device``. A :class:`FunctionSystem` provides
-exactly that around a user's function; the exact oracle is ``jax.jacfwd`` through a JAX
-step (``exact_jacobians_batch``), while a host function has none and is judged against
-central differences of its own step (``experiment.oracle = "finite_difference"``).
+What the solver, the identification schemes and the evaluation use of a system is small
+(:class:`~.black_box.BlackBox`); a :class:`FunctionSystem` provides it around a user's
+function. The exact oracle is ``jax.jacfwd`` through a JAX step
+(``exact_jacobians_batch``), while a host function has none and is judged against central
+differences of its own step (``experiment.oracle = "finite_difference"``).
 
 A host function is called through ``jax.pure_callback`` with ``vmap_method =
 "broadcast_all"``: one call per batch (the identification's thousands of samples, the
@@ -28,9 +25,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh
 
-from mjx_surrogate import sharding
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.runtime import native_compiler_options
+from mjx_surrogate.systems.execution import Execution
 
 StepFn = Callable[[jax.Array, jax.Array], jax.Array]
 
@@ -40,11 +36,11 @@ class FunctionSystem:
     """A black box x_{t+1} = step(x_t, u_t) given as a function. Hashes by identity, so it
     can be a static argument of ``jax.jit``.
 
-    backend: "jax" (a traceable step, differentiable unless ``exact_step`` is None) or
-    "host" (a host function behind a callback). u_min, u_max [nu]: the controls' limits
-    (+-inf where unbounded), which a task takes unless it narrows them. angle_pairs:
-    (angle, angular rate) state indices, the default sin/cos coordinates of a SINDy
-    library (a MuJoCo system's hinge joints)."""
+    execution: its backend, "jax" (a traceable step, differentiable unless ``exact_step``
+    is None) or "host" (a host function behind a callback), and its devices. u_min,
+    u_max [nu]: the controls' limits (+-inf where unbounded), which a task takes unless
+    it narrows them. angle_pairs: (angle, angular rate) state indices, the default
+    sin/cos coordinates of a SINDy library (a MuJoCo system's hinge joints)."""
 
     name: str
     nx: int
@@ -52,14 +48,13 @@ class FunctionSystem:
     dt: float
     step: StepFn
     rollout: Callable[[jax.Array, jax.Array], jax.Array]
-    backend: str
+    execution: Execution
     state_labels: tuple[str, ...]
     control_labels: tuple[str, ...]
     u_min: tuple[float, ...]
     u_max: tuple[float, ...]
     exact_step: StepFn | None = None
     closed_loop: Callable | None = None
-    mesh: Mesh | None = None
     angle_pairs: tuple[tuple[int, int], ...] = ()
     source: str | None = None  # the file that defines it, recorded by a run folder
 
@@ -75,13 +70,26 @@ class FunctionSystem:
         return 0
 
     @property
+    def backend(self) -> str:
+        """The backend, "jax" or "host" (:attr:`execution`)."""
+        return self.execution.backend
+
+    @property
+    def mesh(self) -> Mesh | None:
+        """The devices that batched work is spread over; None: one device (:attr:`execution`)."""
+        return self.execution.mesh
+
+    @property
     def compiler_options(self) -> dict | None:
         """A host function is a callback, so its programs are never cached: they compile at
-        XLA's backend optimisation level 1, as the native backend's (:class:`System`)."""
-        return native_compiler_options() if self.backend == "host" else None
+        XLA's backend optimisation level 1, as the native backend's
+        (:attr:`Execution.compiler_options`)."""
+        return self.execution.compiler_options
 
     def on_one_device(self) -> "FunctionSystem":
-        return self
+        if self.mesh is None:
+            return self
+        return dataclasses.replace(self, execution=self.execution.on_one_device())
 
     @property
     def exact_jacobians_batch(self) -> Callable[[jax.Array, jax.Array], tuple[jax.Array, jax.Array]]:
@@ -134,7 +142,7 @@ def _system(name, nx, nu, dt, step, backend, u_min, u_max, state_labels, control
         float(dt),
         step,
         scan_rollout(step),
-        backend,
+        Execution(backend),
         *labels,
         lo,
         hi,
@@ -207,9 +215,7 @@ def on_mesh(system: FunctionSystem, mesh: Mesh | None) -> FunctionSystem:
     (as native MuJoCo)."""
     if mesh is None:
         return system
-    return dataclasses.replace(
-        system, mesh=mesh if system.backend == "jax" else sharding.one_device_per_process(mesh)
-    )
+    return dataclasses.replace(system, execution=system.execution.over(mesh))
 
 
 def from_numpy(

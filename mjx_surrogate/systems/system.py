@@ -13,10 +13,9 @@ import mujoco
 import numpy as np
 from jax.sharding import Mesh
 
-from mjx_surrogate import sharding
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.runtime import native_compiler_options
 from mjx_surrogate.systems import backend_mjx, backend_native, exported_step
+from mjx_surrogate.systems.execution import Execution
 
 BACKENDS = ("mjx", "native")
 
@@ -30,12 +29,12 @@ class System:
     can be a static argument of ``jax.jit``.
 
     Attributes:
-      step: jittable ``(x[nx], u[nu]) -> x_next[nx]`` on the chosen backend.
+      step: jittable ``(x[nx], u[nu]) -> x_next[nx]`` on the execution's backend.
       rollout: jittable ``(x0[B, nx], U[B, T, nu]) -> X[B, T+1, nx]``.
       closed_loop: the iLQR line search's closed-loop rollouts for all step sizes in one
         call (native backend: one host call instead of one per time step), or None.
-      mesh: the devices that batched work on this system is spread over
-        (:mod:`mjx_surrogate.sharding`); None: one device.
+      execution: the backend ("mjx" | "native"), the native pool's threads and the devices
+        that batched work is spread over (:class:`~.execution.Execution`).
       built: what the system builds once, on first use, by name (the native simulator, the
         MJX physics and the oracle's exported programs, the joint limits, point-goal
         functions per goal set): an explicit cache of this object, never compared or hashed.
@@ -45,12 +44,10 @@ class System:
     xml: str
     mj_model: mujoco.MjModel
     substeps: int
-    backend: str
-    native_threads: int
     step: Callable[[jax.Array, jax.Array], jax.Array]
     rollout: Callable[[jax.Array, jax.Array], jax.Array]
+    execution: Execution
     closed_loop: Callable | None = None  # batched line-search rollout (ilqr.ClosedLoopFn)
-    mesh: Mesh | None = None
     built: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
 
     def once(self, name: str, build: Callable[[], object]):
@@ -58,6 +55,16 @@ class System:
         if name not in self.built:
             self.built[name] = build()
         return self.built[name]
+
+    @property
+    def backend(self) -> str:
+        """The backend, "mjx" or "native" (:attr:`execution`)."""
+        return self.execution.backend
+
+    @property
+    def mesh(self) -> Mesh | None:
+        """The devices that batched work is spread over; None: one device (:attr:`execution`)."""
+        return self.execution.mesh
 
     @property
     def nq(self) -> int:
@@ -104,11 +111,8 @@ class System:
 
     @property
     def compiler_options(self) -> dict | None:
-        """XLA options for a solve's programs on this system. Native-backend programs compile
-        at XLA's backend optimisation level 1: faster to compile at about the same run time
-        (measured in docs/performance.md, "Compile times"), unless ``XLA_FLAGS`` names a
-        level (:func:`runtime.native_compiler_options`). None (XLA's defaults) on MJX."""
-        return native_compiler_options() if self.backend == "native" else None
+        """XLA options for a solve's programs on this system (:attr:`Execution.compiler_options`)."""
+        return self.execution.compiler_options
 
     @property
     def mjx_step(self):
@@ -130,7 +134,7 @@ class System:
         """Host-side native simulator (replay, references), whatever the backend."""
         return self.once(
             "native",
-            lambda: backend_native.NativeSimulator(self.mj_model, self.substeps, self.native_threads),
+            lambda: backend_native.NativeSimulator(self.mj_model, self.substeps, self.execution.threads),
         )
 
     @property
@@ -179,9 +183,8 @@ class System:
         if self.mesh is None:
             return self
         shared = ("native", "mjx_step", "mjx_jacobians", "mjx_physics")  # what it built so far
-        return dataclasses.replace(
-            self, mesh=None, built={k: v for k, v in self.built.items() if k in shared}
-        )
+        kept = {k: v for k, v in self.built.items() if k in shared}
+        return dataclasses.replace(self, execution=self.execution.on_one_device(), built=kept)
 
     def __repr__(self) -> str:
         return (
@@ -268,20 +271,20 @@ def build_system(
     if not isinstance(substeps, int) or substeps < 1:
         raise ConfigError("system.substeps", f"must be a positive integer, got {substeps!r}")
     model, exact_xml = compile_mjcf(xml, field, timestep, path)
-    threads = native_threads or os.cpu_count() or 1
+    execution = Execution(backend, native_threads or os.cpu_count() or 1).over(mesh)
     x64 = bool(jax.config.jax_enable_x64)
-    key = (name, model_digest(model), exact_xml, substeps, backend, threads, x64, mesh)
+    key = (name, model_digest(model), exact_xml, substeps, execution, x64)
     if key in _BUILT:  # the same model as built before: its System, and every program jitted on it
         _BUILT.move_to_end(key)
         return _BUILT[key]
-    system = _build(name, model, exact_xml, substeps, backend, threads, mesh)
+    system = _build(name, model, exact_xml, substeps, execution)
     _BUILT[key] = system
     while len(_BUILT) > _KEEP:
         _BUILT.popitem(last=False)
     return system
 
 
-# Systems by content: (name, model digest, MJCF, substeps, backend, threads, x64, mesh) -> System,
+# Systems by content: (name, model digest, MJCF, substeps, execution, x64) -> System,
 # the _KEEP most recently asked for. A System hashes by identity (a static argument of
 # jax.jit), so building the same model again would compile every program again.
 _BUILT: "collections.OrderedDict[tuple, System]" = collections.OrderedDict()
@@ -301,9 +304,10 @@ def model_digest(model: mujoco.MjModel) -> str:
     return hashlib.sha256(buf.tobytes()).hexdigest()
 
 
-def _build(name, model, exact_xml, substeps, backend, threads, mesh) -> System:
-    """The :class:`System` of a compiled model on ``backend``."""
-    if backend == "mjx":
+def _build(name, model, exact_xml, substeps, execution: Execution) -> System:
+    """The :class:`System` of a compiled model on ``execution``."""
+    mesh = execution.mesh
+    if execution.backend == "mjx":
         physics = backend_mjx.make_mjx_physics(model, substeps)
         plain = physics.step
         # Programs exported for one device; work spread over a mesh traces the step and its
@@ -314,17 +318,15 @@ def _build(name, model, exact_xml, substeps, backend, threads, mesh) -> System:
             step = exported_step.with_batch_rule(plain, plain, physics.step_batch)
         rollout = backend_mjx.make_mjx_rollout(step)
     else:
-        sim = backend_native.NativeSimulator(model, substeps, threads)
+        sim = backend_native.NativeSimulator(model, substeps, execution.threads)
         step = backend_native.make_native_step(sim)
         rollout = backend_native.make_native_rollout(sim)
-    closed = backend_native.make_native_closed_loop(sim) if backend == "native" else None
-    if backend == "native":
-        mesh = sharding.one_device_per_process(mesh)
-    if backend == "native":
+    if execution.backend == "native":
+        closed = backend_native.make_native_closed_loop(sim)
         built = {"native": sim}  # one pool
     else:  # the step's own physics: differentiable, the same numbers as step, its Jacobians
-        built = {"mjx_step": plain, "mjx_physics": physics}
-    return System(name, exact_xml, model, substeps, backend, threads, step, rollout, closed, mesh, built)
+        closed, built = None, {"mjx_step": plain, "mjx_physics": physics}
+    return System(name, exact_xml, model, substeps, step, rollout, execution, closed, built)
 
 
 def hinge_state_indices(m: mujoco.MjModel) -> list[tuple[int, int]]:
