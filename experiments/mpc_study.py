@@ -53,6 +53,7 @@ def _controller(controller: str, context: PlannerContext, res, record, plants, k
         planners = kind.episodes(context)
         in_real_time = kind.replans(context) if m.realtime and kind.replans is not None else {}
         meter.extend(len(conditions) * (len(planners) - 1))
+        stems = _stems(list(planners))
         for label, one in planners.items():
             for pi, (name, plant) in enumerate(plants.items()):
                 batch = jax.jit(  # the meter closed over by the vmap: one stop answer per batch
@@ -64,7 +65,7 @@ def _controller(controller: str, context: PlannerContext, res, record, plants, k
                 for ni, noise in enumerate(m.process_noise):
                     meter.advance(f"{label}, plant {name}, noise {noise:g}")
                     ci = pi * len(m.process_noise) + ni
-                    tag = f"mpc_{label.split(' (')[0].replace(' ', '_')}_{ci}"
+                    tag = f"mpc_{stems[label]}_{ci}"
                     error_here = pi == 0 and noise == min(m.process_noise)  # the one-step error's condition
                     episodes = _Episodes(controller, label, name, noise, ci, tag, error_here)
 
@@ -77,6 +78,18 @@ def _controller(controller: str, context: PlannerContext, res, record, plants, k
                         planner = in_real_time[label]
                         rows.append(_realtime(res, planner, context, record, plant, episodes, key))
     return rows
+
+
+def _stems(labels: list[str]) -> dict[str, str]:
+    """{label: its stages' and arrays' name stem}: the label before its settings, with the
+    row's index appended where an earlier row of the planner has the same stem (a sampling
+    planner's rows at D2C-MPC's budget and at its own samples)."""
+    out, seen = {}, set()
+    for i, label in enumerate(labels):
+        stem = label.split(" (")[0].replace(" ", "_")
+        out[label] = f"{stem}_{i}" if stem in seen else stem
+        seen.add(stem)
+    return out
 
 
 def _realtime(res, planner, context: PlannerContext, record, plant, e: "_Episodes", key) -> dict:
@@ -150,7 +163,7 @@ def _row(res, e: _Episodes, r, run_s: float, context: PlannerContext) -> tuple[d
         "plant": e.plant,
         "process_noise": e.noise,
         **pipeline.episode_outcomes(task, X, costs, cfg.task.goal_tolerance, float(system.dt)),
-        "black_box_steps_per_control_step": kind.black_box_steps(context, r),
+        "black_box_steps_per_control_step": kind.black_box_steps(context._replace(row=e.label), r),
         "iterations_per_replan": float(np.mean(r.iterations)) if kind.iterative else None,
         "compute_per_step_s": per_step,
         "real_time_factor": float(system.dt) / per_step,

@@ -43,8 +43,9 @@ def closed_loop_sections(L: list, folders: dict, fig: Callable, section: Callabl
         "## Beyond the paper: closed loop",
         "",
         "Every controller replans from the measured state of the black box at every control step "
-        "(D2C-MPC, the exact oracle's MPC, SINDy- and MLP-MPC, predictive sampling and MPPI at "
-        "D2C-MPC's budget of black-box calls) or tracks the offline optimum (TVLQR), on the model "
+        "(D2C-MPC, the exact oracle's MPC, SINDy- and MLP-MPC, predictive sampling, MPPI and CEM at "
+        "D2C-MPC's budget of black-box calls, and where a preset gives them their own settings, "
+        "at those too) or tracks the offline optimum (TVLQR), on the model "
         "and on plants that differ from it, under process noise (docs/mpc.md). Rule: a condition is judged "
         f"where D2C-MPC's own closed loop works (finite median cost at most {WORKS_FACTOR:g}x the "
         "offline optimum's); there a global surrogate's MPC *matches* D2C-MPC when its median "

@@ -249,6 +249,46 @@ def test_a_planners_own_settings_override_the_shared_ones_in_range_units():
     assert (s.samples, s.knots, s.spline) == (30, 3, "zero") and float(h.sigma[0]) == 1.5
 
 
+def test_a_planner_at_its_own_samples_has_a_row_at_d2c_mpcs_budget_beside_it():
+    """``budget_row``: the planner's own settings at D2C-MPC's budget (split over its
+    iterations) as a second row, counted at its own samples; none without the budget, without
+    the setting, or where both rows would draw the same samples."""
+    import dataclasses
+    from types import SimpleNamespace
+
+    from experiments.mpc_study import _stems
+    from mjx_surrogate.control.sampling_planners import SETTINGS, rows, sampling_episodes, sampling_steps
+    from mjx_surrogate.runs.config import Config
+
+    task = make_task((1.0, 0.0), (0.0, 0.0), np.eye(2), np.eye(2), np.eye(1), H, [-2.0], [4.0])
+    cfg = Config()
+    cfg = dataclasses.replace(cfg, mpc=dataclasses.replace(cfg.mpc, horizon=H))
+    own = {
+        "cem": dataclasses.replace(SETTINGS["cem"], samples=40, iterations=2, budget_row=True),
+        "mppi": dataclasses.replace(SETTINGS["mppi"], samples=40),
+        "predictive_sampling": dataclasses.replace(
+            SETTINGS["predictive_sampling"], samples=30, budget_row=True
+        ),
+    }
+    base = dict(config=cfg, planner_settings=own, samples=30, plan_task=task, system=_linear())
+    c = SimpleNamespace(**base, samples_matched=True, U0=jnp.zeros((H, 1)), replan_every=1)
+    found = rows(c, "cem")
+    assert list(found) == ["CEM (S=15, 2 iterations)", "CEM (S=40, 2 iterations)"]
+    assert [v[0].iterations for v in found.values()] == [2, 2]
+    assert list(sampling_episodes("cem")(c)) == list(found)
+    assert list(rows(c, "mppi")) == ["MPPI (S=40)"]  # no budget_row
+    assert list(rows(c, "predictive_sampling")) == ["predictive sampling (S=30)"]  # the same samples
+    alone = SimpleNamespace(**base, samples_matched=False, U0=jnp.zeros((H, 1)), replan_every=1)
+    assert list(rows(alone, "cem")) == ["CEM (S=40, 2 iterations)"]  # no D2C-MPC budget to match
+    steps = sampling_steps("cem")
+    for row, S in (("CEM (S=15, 2 iterations)", 15), ("CEM (S=40, 2 iterations)", 40)):
+        counted = steps(SimpleNamespace(**vars(c), row=row), None)
+        assert counted == mpc_sampling.black_box_steps(found[row][0], H) == 2 * S * H
+    assert _stems(list(found)) == {"CEM (S=15, 2 iterations)": "CEM", "CEM (S=40, 2 iterations)": "CEM_1"}
+    labels = ["SINDy cubic_trig MPC", "MLP MPC", "SINDy cubic_trig MPC refitted online"]
+    assert _stems(labels) == {x: x.replace(" ", "_") for x in labels}  # as before: runs resume
+
+
 def test_the_hybrids_proposals_are_the_warm_start_and_smooth_draws_around_it():
     from mjx_surrogate.control.mpc_hybrid import proposals
 

@@ -38,7 +38,8 @@ class PlannerContext(NamedTuple):
     planned on, the offline ``task`` and ``plan_task`` (its horizon-H copy), the offline
     ``optimum`` (``X_star`` [T+1, nx], ``U_star`` [T, nu], ``K_star`` [T, nu, nx]), the first
     plan U0 [H, nu], the replans' solver settings, the sampling planners' samples per replan,
-    and ``fit() -> ({label: surrogate model}, training transitions)`` (fitted once)."""
+    and ``fit() -> ({label: surrogate model}, training transitions)`` (fitted once);
+    ``row``: the label whose black-box steps are asked (a kind with several rows)."""
 
     config: Any
     system: Any
@@ -53,6 +54,7 @@ class PlannerContext(NamedTuple):
     replan_every: int = 1
     samples_matched: bool = False  # ``samples`` is D2C-MPC's budget (split over iterations)
     planner_settings: dict = {}  # name -> the run's values of that planner's own settings
+    row: str = ""  # set by the study when it counts one row's black-box steps
 
 
 Episode = Callable[..., mpc.MPCResult]  # (*, plant, key, process_noise, progress) -> MPCResult

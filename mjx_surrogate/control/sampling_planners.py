@@ -8,7 +8,9 @@ the spread: "range" (default) scales sigma by each actuator's half range (hi - l
 where both limits are finite, as MuJoCo MPC and hydrax's +-1 control ranges have it;
 "control" takes it in control units. MPPI's ``temperature`` is in cost units (None:
 ``mpc.mppi_temperature`` times the first plan's cost); CEM keeps ``elites`` draws and a
-spread of at least ``sigma_min`` (the spread's units).
+spread of at least ``sigma_min`` (the spread's units). With ``budget_row``, a planner whose
+own ``samples`` are set has a second row beside that one: the same settings at D2C-MPC's
+budget (where the run matches it: ``mpc.samples`` unset and D2C-MPC run first).
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ class SamplingPlannerSettings:
     knots: Optional[int] = None  # None: mpc.sampling_knots (0: every control step its own)
     spline: Literal["zero", "linear", "cubic"] = "zero"  # through the knots
     iterations: int = 1  # sample-and-update rounds per replan
+    budget_row: bool = False  # with samples set: also a row at D2C-MPC's budget (module docstring)
 
     def check(self) -> None:
         if self.samples is not None and self.samples < 2:
@@ -92,10 +95,16 @@ def spread_scale(lo: np.ndarray, hi: np.ndarray, units: str) -> np.ndarray:
     return half_ranges(lo, hi) if units == "range" else np.ones(np.shape(lo))
 
 
-def resolved(c: PlannerContext, name: str):
+def own_settings(c: PlannerContext, name: str) -> SamplingPlannerSettings:
+    """Planner ``name``'s own settings in the run (its defaults where the run gives none)."""
+    return c.planner_settings.get(name, SETTINGS.get(name, SamplingPlannerSettings()))
+
+
+def resolved(c: PlannerContext, name: str, own: SamplingPlannerSettings | None = None):
     """(SamplingSettings, SamplingHyper, the planner's settings) of planner ``name`` in
-    context ``c``: its own settings over the ``mpc`` section's shared ones."""
-    m, own = c.config.mpc, c.planner_settings.get(name, SETTINGS.get(name, SamplingPlannerSettings()))
+    context ``c``: its own settings (``own``, else the run's) over the ``mpc`` section's
+    shared ones."""
+    m, own = c.config.mpc, own or own_settings(c, name)
     samples = own.samples or c.samples
     if own.samples is None and c.samples_matched:  # the budget per replan, over its iterations
         samples = max(2, int(round(c.samples / own.iterations)))
@@ -135,47 +144,67 @@ def label(name: str, s: SamplingSettings, own: SamplingPlannerSettings) -> str:
     return f"{LABELS.get(name, name)} ({', '.join(parts)})"
 
 
+def rows(c: PlannerContext, name: str) -> dict:
+    """{label: (SamplingSettings, SamplingHyper)}: planner ``name``'s rows, at D2C-MPC's
+    budget first where ``budget_row`` asks for it (its own settings but ``samples``), then
+    at its own settings."""
+    own = own_settings(c, name)
+    variants = [own]
+    if own.budget_row and own.samples is not None and c.samples_matched:
+        variants.insert(0, dataclasses.replace(own, samples=None))
+    out = {}
+    for o in variants:
+        settings, hyper, _ = resolved(c, name, o)
+        out.setdefault(label(name, settings, o), (settings, hyper))  # the same samples: one row
+    return out
+
+
 def sampling_episodes(name: str):
-    """The planner kind's ``episodes(context)``: one episode of ``name``'s rule."""
+    """The planner kind's ``episodes(context)``: an episode of ``name``'s rule per row."""
 
     def episodes(c: PlannerContext) -> dict:
-        settings, hyper, own = resolved(c, name)
-        one = bound_episode(
-            mpc_sampling.sampling_mpc,
-            c.system,
-            c.plan_task,
-            c.U0,
-            steps=c.config.mpc.steps,
-            settings=settings,
-            hyper=hyper,
-            replan_every=c.replan_every,
-        )
-        return {label(name, settings, own): one}
+        return {
+            row: bound_episode(
+                mpc_sampling.sampling_mpc,
+                c.system,
+                c.plan_task,
+                c.U0,
+                steps=c.config.mpc.steps,
+                settings=settings,
+                hyper=hyper,
+                replan_every=c.replan_every,
+            )
+            for row, (settings, hyper) in rows(c, name).items()
+        }
 
     return episodes
 
 
 def sampling_replans(name: str):
-    """The planner kind's ``replans(context)``: ``name``'s replan for the wall-clock loop
-    (``control.realtime``), its first plan the spline through the first plan U0."""
+    """The planner kind's ``replans(context)``: ``name``'s replan per row for the wall-clock
+    loop (``control.realtime``), its first plan the spline through the first plan U0."""
 
     def replans(c: PlannerContext) -> dict:
-        settings, hyper, own = resolved(c, name)
-        replan = mpc_sampling.replanner(c.system, c.plan_task, settings, hyper)
         U0 = c.U0.astype(c.task.x0.dtype)
-        plan0 = mpc_sampling.first_spline_plan(U0, settings, hyper.sigma)
         free = np.asarray(mpc_sampling.unbounded(c.plan_task))
-        shift = functools.partial(mpc_sampling.moved_on_host, s=settings, free=free)
-        return {label(name, settings, own): realtime.RealTimePlanner(replan, plan0, shift)}
+        out = {}
+        for row, (settings, hyper) in rows(c, name).items():
+            replan = mpc_sampling.replanner(c.system, c.plan_task, settings, hyper)
+            plan0 = mpc_sampling.first_spline_plan(U0, settings, hyper.sigma)
+            shift = functools.partial(mpc_sampling.moved_on_host, s=settings, free=free)
+            out[row] = realtime.RealTimePlanner(replan, plan0, shift)
+        return out
 
     return replans
 
 
 def sampling_steps(name: str):
-    """Black-box control steps per control step: a replan's over the r steps it serves."""
+    """Black-box control steps per control step of the row ``c.row`` (the first row where it
+    names none): a replan's over the r steps it serves."""
 
     def steps(c: PlannerContext, result) -> float:
-        settings = resolved(c, name)[0]
+        found = rows(c, name)
+        settings = found.get(getattr(c, "row", ""), next(iter(found.values())))[0]
         return mpc_sampling.black_box_steps(settings, c.config.mpc.horizon) / c.replan_every
 
     return steps
