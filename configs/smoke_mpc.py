@@ -1,5 +1,8 @@
 """CI smoke: MPC on the pendulum, every controller, tiny sizes, noise and a plant that is
-heavier, longer and more damped than the model."""
+heavier, longer and more damped than the model; predictive sampling at its own 8 samples
+beside D2C-MPC's budget (``budget_row``), the others at that budget."""
+
+import dataclasses
 
 from configs import derive
 
@@ -19,4 +22,7 @@ CONFIG = derive(
         "plants": ("mass=1.2,length=1.1,damping=2",),
         "n_episodes": 2,
     },
+)
+CONFIG = dataclasses.replace(
+    CONFIG, extensions={"mpc.predictive_sampling": {"samples": 8, "budget_row": True}}
 )

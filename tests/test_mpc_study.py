@@ -18,6 +18,7 @@ CONTROLLERS = (
     "TVLQR tracking",
     "SINDy",
     "MLP",
+    "predictive sampling (S=8)",  # its own samples (smoke_mpc), beside D2C-MPC's budget
     "predictive sampling",
     "MPPI",
     "CEM",
@@ -61,6 +62,12 @@ def test_every_controllers_episodes_replay_on_the_plant_with_mj_step(smoke_mpc):
     rows = m["mpc_rows"]
     labels = {r["controller"] for r in rows}
     assert all(any(lab.startswith(c) for lab in labels) for c in CONTROLLERS), labels
+    sampled = {r["controller"]: r for r in rows if r["controller"].startswith("predictive sampling")}
+    assert len(sampled) == 2 and "predictive sampling (S=8)" in sampled  # budget_row: two rows
+    for label, r in sampled.items():  # each counted at its own samples: S H per control step
+        S = int(label.split("S=")[1].rstrip(")"))
+        assert r["black_box_steps_per_control_step"] == S * cfg["mpc"]["horizon"], (label, r)
+    assert len({r["arrays"]["X"] for r in rows}) == len(rows)  # each row's own arrays
     residuals = {}
     for r in rows:
         X, U = arrays[r["arrays"]["X"]], arrays[r["arrays"]["U"]]  # [E, N+1, nx], [E, N, nu]
@@ -246,7 +253,7 @@ def test_the_videos_show_the_stored_trajectories(smoke_mpc):
     assert np.corrcoef(cy, np.cos(q))[0, 1] < -0.98  # image rows grow downwards
     episodes = np.array(imageio.mimread(str(path / "mpc_episodes.mp4")))
     order = m["mpc_video_order"]
-    assert episodes.shape == (7, 240, 320 * len(order), 3) and len(order) == 10  # two refitted online
+    assert episodes.shape == (7, 240, 320 * len(order), 3) and len(order) == 11  # two refitted online
     band = episodes[:, : video.LABEL_HEIGHT].reshape(7, video.LABEL_HEIGHT, len(order), 320, 3)
     assert band.mean() < 80 and all((band[0, :, i].min(-1) > 180).sum() > 20 for i in range(len(order)))
     first = arrays[m["videos"]["mpc_episodes.mp4"]["trajectories"][0]][0]  # D2C-MPC, episode 0
@@ -331,7 +338,7 @@ def test_plans_end_at_the_tasks_end_unless_the_episodes_run_past_it():
     choice stays."""
     import dataclasses
 
-    from configs.pendulum_mpc import CONFIG as PENDULUM
+    from configs.lorenz_mpc import CONFIG as LORENZ
     from configs.smoke_mpc import CONFIG
     from mjx_surrogate.runs.resolution import resolve
 
@@ -343,7 +350,7 @@ def test_plans_end_at_the_tasks_end_unless_the_episodes_run_past_it():
     assert resolved(CONFIG) == "task"
     assert resolved(CONFIG, controllers=("d2c",), steps=9) == "receding"
     assert resolved(CONFIG, horizon_end="receding") == "receding"
-    assert resolved(PENDULUM) == "receding" and resolved(PENDULUM, horizon_end="auto") == "task"
+    assert resolved(LORENZ) == "receding" and resolved(LORENZ, horizon_end="auto") == "task"
 
 
 def test_a_replanning_rate_is_a_whole_number_of_control_steps():
