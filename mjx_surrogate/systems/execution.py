@@ -63,3 +63,25 @@ class Execution:
         """This execution with its batched work kept on one device (inside a computation that
         is itself spread over the mesh)."""
         return dataclasses.replace(self, mesh=None)
+
+
+class OnExecution:
+    """What a black box reads from its :class:`Execution` (``self.execution``): its
+    ``backend``, ``mesh`` and ``compiler_options``."""
+
+    execution: Execution
+
+    @property
+    def backend(self) -> str:
+        """The backend: "mjx" or "native" for a MuJoCo model, "jax" or "host" for a function."""
+        return self.execution.backend
+
+    @property
+    def mesh(self) -> Mesh | None:
+        """The devices that batched work is spread over; None: one device."""
+        return self.execution.mesh
+
+    @property
+    def compiler_options(self) -> dict | None:
+        """XLA options for programs on this black box (:attr:`Execution.compiler_options`)."""
+        return self.execution.compiler_options

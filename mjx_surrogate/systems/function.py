@@ -26,13 +26,13 @@ import numpy as np
 from jax.sharding import Mesh
 
 from mjx_surrogate.errors import ConfigError
-from mjx_surrogate.systems.execution import Execution
+from mjx_surrogate.systems.execution import Execution, OnExecution
 
 StepFn = Callable[[jax.Array, jax.Array], jax.Array]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
-class FunctionSystem:
+class FunctionSystem(OnExecution):
     """A black box x_{t+1} = step(x_t, u_t) given as a function. Hashes by identity, so it
     can be a static argument of ``jax.jit``.
 
@@ -68,23 +68,6 @@ class FunctionSystem:
     @property
     def nv(self) -> int:
         return 0
-
-    @property
-    def backend(self) -> str:
-        """The backend, "jax" or "host" (:attr:`execution`)."""
-        return self.execution.backend
-
-    @property
-    def mesh(self) -> Mesh | None:
-        """The devices that batched work is spread over; None: one device (:attr:`execution`)."""
-        return self.execution.mesh
-
-    @property
-    def compiler_options(self) -> dict | None:
-        """A host function is a callback, so its programs are never cached: they compile at
-        XLA's backend optimisation level 1, as the native backend's
-        (:attr:`Execution.compiler_options`)."""
-        return self.execution.compiler_options
 
     def on_one_device(self) -> "FunctionSystem":
         if self.mesh is None:

@@ -15,13 +15,13 @@ from jax.sharding import Mesh
 
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.systems import backend_mjx, backend_native, exported_step
-from mjx_surrogate.systems.execution import Execution
+from mjx_surrogate.systems.execution import Execution, OnExecution
 
 BACKENDS = ("mjx", "native")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
-class System:
+class System(OnExecution):
     """A MuJoCo model seen as a discrete-time map x_{t+1} = f(x_t, u_t).
 
     x = [qpos, qvel, act] (nx = nq + nv + na), u = ctrl (nu), one control step is
@@ -55,16 +55,6 @@ class System:
         if name not in self.built:
             self.built[name] = build()
         return self.built[name]
-
-    @property
-    def backend(self) -> str:
-        """The backend, "mjx" or "native" (:attr:`execution`)."""
-        return self.execution.backend
-
-    @property
-    def mesh(self) -> Mesh | None:
-        """The devices that batched work is spread over; None: one device (:attr:`execution`)."""
-        return self.execution.mesh
 
     @property
     def nq(self) -> int:
@@ -108,11 +98,6 @@ class System:
         -inf / +inf elsewhere; None if the model limits no such joint. At a limit the
         one-step map has a kink (the limit's constraint switches on)."""
         return self.once("state_limits", lambda: joint_limits(self.mj_model))
-
-    @property
-    def compiler_options(self) -> dict | None:
-        """XLA options for a solve's programs on this system (:attr:`Execution.compiler_options`)."""
-        return self.execution.compiler_options
 
     @property
     def mjx_step(self):
