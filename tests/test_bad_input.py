@@ -87,6 +87,7 @@ CASES = [
     (["smoke_mpc", "--mpc.mppi.spline", "quadratic"], "--mpc.mppi.spline"),
     (["smoke_mpc", "--mpc.mppi.temperature", "0"], "mpc.mppi.temperature"),
     (["smoke_mpc", "--mpc.cem.elites", "0"], "mpc.cem.elites"),
+    (["smoke_mpc", "--mpc.mppi.budget_row"], "mpc.mppi.budget_row"),  # without its own samples
     (["smoke_mpc", "--mpc.cem.samples", "4", "--mpc.cem.elites", "5"], "mpc.cem.elites"),
     (["smoke_mpc", "--mpc.cem.explore_fraction", "1"], "mpc.cem.explore_fraction"),
     (["smoke_mpc", "--mpc.cem.iterations", "0"], "mpc.cem.iterations"),

@@ -53,6 +53,8 @@ class SamplingPlannerSettings:
             raise ConfigError("knots", f"must be >= 0 (0: every step its own), or unset, got {self.knots}")
         if self.iterations < 1:
             raise ConfigError("iterations", f"must be >= 1, got {self.iterations}")
+        if self.budget_row and self.samples is None:
+            raise ConfigError("budget_row", "needs the planner's own samples set")
 
 
 @dataclasses.dataclass(frozen=True)
