@@ -1,5 +1,8 @@
 """D2C 2.0 fish: rest -> (0, 0.4, 0.2), T 600 (D2C 2.0: 40 samples per identification).
-The model runs at D2C 2.0's time step (timestep=0.005, substeps=5), so that times and costs compare.
+The model runs at D2C 2.0's time step (timestep=0.005, substeps=5). It is this project's fish,
+not D2C 2.0's `fish_old.xml`, and swims far slower, so its costs do not compare with D2C 2.0's
+published ones (which also count x'Qx + u'Ru, twice this project's cost); on D2C 2.0's own fish,
+`benchmarks/d2c20_fish.py` runs these settings against D2C 2.0's stored optima.
 Identification: forward differences with an orthogonal design of nx + nu = 32 samples at every
 second time step, interpolated between, and at every step once a step gains less than 0.1 %
 (`benchmarks/sample_efficiency.py`: 8.7-9.1x fewer simulations than D2C 2.0's 40 central

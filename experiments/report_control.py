@@ -20,6 +20,19 @@ CONTROL = (
     ("fish_control", "Fish to its target (the same study on the fish)", None),
 )
 
+# What a reader comparing with a published figure must know; numbers read elsewhere are cited, not copied.
+NOTES = {
+    "fish_control": (
+        "This fish is the project's own model (`mjx_surrogate/systems/fish.py`, written from "
+        "dm_control's facts), not D2C 2.0's `fish_old.xml` (dm_control's fish at a 0.005 s step, "
+        "no control limits): the same controls move it far less, so its costs do not compare with "
+        "D2C 2.0's published 373-402, whose cost (x'Qx + u'Ru) is moreover twice this report's "
+        "(0.5 (x'Qx + u'Ru)). On D2C 2.0's own model and task, `benchmarks/d2c20_fish.py` replays "
+        "D2C 2.0's stored optima and runs this D2C from several starts (docs/performance.md, "
+        '"D2C 2.0\'s fish").'
+    ),
+}
+
 HORIZON = (("cartpole_horizon", "Cartpole swing-up"), ("swimmer_horizon", "Six-link swimmer"))
 
 
@@ -80,6 +93,8 @@ def control_sections(L: list, folders: dict, fig: Callable, section: Callable, v
         )
         if causes:
             text += "\n\nCause: " + "; ".join(causes) + "."
+        if name in NOTES:
+            text += "\n\n" + NOTES[name]
         section(
             L,
             title,

@@ -181,12 +181,47 @@ def test_the_header_names_the_commit_and_the_runs_from_other_commits(tmp_path, m
     text = report.render(folders, {}, str(tmp_path / "figures"), str(tmp_path), True, 0.0)
     head = text[: text.index("## ")]
     assert "**Code: commit `abc`; written 20" in head
-    assert "1 of the runs below come from another commit (pendulum_predict)" in head
+    assert "1 of the runs below come from an earlier commit; of them pendulum_predict ran code that" in head
     assert f"| theory | `{folders['theory']}` | `abc` |" in head
     del folders["pendulum_predict"]
     text = report.render(folders, {}, str(tmp_path / "figures"), str(tmp_path), True, 0.0)
     assert "Every run below comes from this commit." in text
     assert results.code_revision() != "" and "mjx_surrogate_commit" in results.versions()
+
+
+def test_a_run_from_an_earlier_commit_describes_this_code_only_where_its_code_is_the_same(tmp_path):
+    """Only the docs, tests, benchmarks and the report's modules may differ; a change to code
+    a run executes, a dirty checkout or an unreadable commit makes the run's code another."""
+    import subprocess
+
+    def commit(files: dict[str, str]) -> str:
+        for name, text in files.items():
+            (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+            (tmp_path / name).write_text(text)
+        git = ["git", "-C", str(tmp_path), "-c", "user.name=t", "-c", "user.email=t@t"]
+        subprocess.run([*git, "add", "-A"], check=True, capture_output=True)
+        subprocess.run([*git, "commit", "-qm", "c"], check=True, capture_output=True)
+        head = subprocess.run([*git, "rev-parse", "--short=12", "HEAD"], capture_output=True, text=True)
+        return head.stdout.strip()
+
+    subprocess.run(["git", "init", "-q", str(tmp_path)], check=True)
+    a = commit({"mjx_surrogate/solver.py": "x = 1\n", "docs/a.md": "a\n", "experiments/report.py": "r\n"})
+    b = commit({"docs/a.md": "b\n", "tests/t.py": "t\n", "experiments/report.py": "r2\n", "README.md": "x\n"})
+    c = commit({"mjx_surrogate/solver.py": "x = 2\n"})
+    d = commit({"experiments/predict_study.py": "p\n"})
+    assert not report.code_differs(a, b, str(tmp_path))
+    assert report.code_differs(a, c, str(tmp_path)) and report.code_differs(c, d, str(tmp_path))
+    root = str(tmp_path)
+    assert report.code_differs(a + "+dirty", b, root) and report.code_differs("nothere", b, root)
+    assert not report.code_differs(b, b, str(tmp_path))
+
+
+def test_the_header_says_when_earlier_runs_ran_this_code(monkeypatch):
+    monkeypatch.setattr(report, "code_differs", lambda run, head: run == "changed")
+    same = report._provenance({"theory": "old", "pendulum_predict": "head", "fish_control": "-"}, "head")
+    assert same.startswith("1 of the runs below come from an earlier commit, whose code is this commit's")
+    mixed = report._provenance({"theory": "old", "pendulum_predict": "changed"}, "head")
+    assert "of them pendulum_predict ran code that differs" in mixed and "theory ran" not in mixed
 
 
 def _dirs(cos_data, ci_data, cos_seed, ci_seed):

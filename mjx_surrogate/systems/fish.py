@@ -1,6 +1,11 @@
 """Fish (dm_control's fish facts; control step 0.04 s = 10 x 0.004 s).
 
 x = [root position (3), root quaternion (w, x, y, z), fin and tail joints, velocities].
+
+This project's own model, written from those facts: its bodies, gains and damping are not
+dm_control's ``suite/fish.xml`` (nor D2C 2.0's ``fish_old.xml``, the same fish at 0.005 s),
+and it swims far slower: D2C 2.0's stored optima, which bring its fish to the target, leave
+this one near its start (``benchmarks/d2c20_fish.py``).
 """
 
 from __future__ import annotations
