@@ -12,9 +12,9 @@ this project's 0.5 (x'Qx + u'Ru) over the same stages; the tables give both.
    as ``fish_d2c`` sets it) and on dm_control's current ``suite/fish.xml`` (time step set to
    0.005; its ctrlrange of +-1 clips them).
 3. ``configs/fish_d2c.py``'s D2C (the same task, solver and identification) on ``fish_old.xml``
-   and, with ``--dm-control``, on dm_control's fish, from ``--seeds`` random starts.
+   and, with ``--dm-control-d2c``, on dm_control's fish, from ``--seeds`` random starts.
 
-    python benchmarks/d2c20_fish.py [--d2c20 PATH] [--seeds 5] [--dm-control]
+    python benchmarks/d2c20_fish.py [--d2c20 PATH] [--seeds 5] [--dm-control [--dm-control-d2c]]
 
 PATH: a checkout of the D2C-2.0 repository; without it the files are downloaded from GitHub at
 that commit into ``~/.cache/mjx_surrogate/d2c20`` (about 25 MB). The models are not committed.
@@ -214,19 +214,32 @@ def _models(root: str, out_dir: str, dm_control: bool) -> dict:
     return models
 
 
+def _refuse(message: str) -> None:
+    print(f"error: {message}", file=sys.stderr)
+    sys.exit(2)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--d2c20", default=None, help="a checkout of D2C-2.0 (default: download)")
     ap.add_argument("--seeds", type=int, default=5, help="D2C random starts per model")
     ap.add_argument("--dm-control", action="store_true", help="also dm_control's fish.xml (pip download)")
+    ap.add_argument("--dm-control-d2c", action="store_true", help="D2C on dm_control's fish.xml too")
     ap.add_argument("--json", default=None, help="write every figure to this file")
     a = ap.parse_args()
+    if a.seeds < 0:
+        _refuse(f"--seeds: must be >= 0, got {a.seeds}")
+    if a.d2c20 is not None and not os.path.exists(os.path.join(a.d2c20, "models", "fish_old.xml")):
+        _refuse(f"--d2c20: no models/fish_old.xml under {a.d2c20} (give a checkout of D2C-2.0)")
     from mjx_surrogate.runtime import configure_runtime
 
     configure_runtime(x64=True)
     import tempfile
 
-    root = fetch(a.d2c20)
+    try:
+        root = fetch(a.d2c20)
+    except OSError as exc:
+        _refuse(f"--d2c20: D2C 2.0's files could not be downloaded ({exc}); give a checkout of D2C-2.0")
     out_dir = tempfile.mkdtemp(prefix="d2c20_fish_")
     models = _models(root, out_dir, a.dm_control)
     t = task_arrays(14, 13, 5)
@@ -259,9 +272,8 @@ def main() -> None:
         "| to the published: it., s | to the best: it., s | run s, compile s |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|")
-    for name, (model, path) in models.items():
-        if path is None:
-            continue
+    files = [(name, model, path) for name, (model, path) in models.items() if path is not None]
+    for name, model, path in files[: 1 + a.dm_control_d2c]:  # fish_old.xml, then dm_control's
         rows = result["d2c"][name] = []
         for seed in range(a.seeds):
             row = solve(path, model, seed, 0.005, targets)
