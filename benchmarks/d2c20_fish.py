@@ -117,16 +117,12 @@ def cost(x0, X, U, goal, q, q_f, r) -> float:
     return float(0.5 * ((E[:-1] ** 2 * q).sum() + (U**2 * r).sum() + (E[-1] ** 2 * q_f).sum()))
 
 
-def d2c_config(path: str, seed: int, timestep: float | None, max_iter: int | None = None):
+def d2c_config(path: str, t: dict, seed: int, timestep: float | None, max_iter: int | None = None):
     """``configs/fish_d2c.py`` with its system replaced by the MJCF at ``path`` (native,
-    SUBSTEPS physics steps a control step) and the same task written out."""
-    import mujoco
-
+    SUBSTEPS physics steps a control step) and its task ``t`` (:func:`task_arrays`) written out."""
     from configs.fish_d2c import CONFIG
     from mjx_surrogate.runs.config import SystemConfig, TaskConfig
 
-    m = mujoco.MjModel.from_xml_path(path)
-    t = task_arrays(m.nq, m.nv, m.nu)
     task = TaskConfig(
         preset="custom",
         T=t["T"],
@@ -143,26 +139,25 @@ def d2c_config(path: str, seed: int, timestep: float | None, max_iter: int | Non
     return dataclasses.replace(CONFIG, system=system, task=task, solver=solver, experiment=experiment)
 
 
-def _solve(path: str, seed: int, timestep: float | None, max_iter: int | None = None):
+def _solve(path: str, t: dict, seed: int, timestep: float | None, max_iter: int | None = None):
     from mjx_surrogate.runs import pipeline
     from mjx_surrogate.runs.resolution import resolve
 
-    res = resolve(d2c_config(path, seed, timestep, max_iter))
+    res = resolve(d2c_config(path, t, seed, timestep, max_iter))
     rc, system, task = res
     d2c = pipeline.solve_config(res)
     m, X = pipeline.summary(d2c.timed.out, system, task, rc.task.goal_tolerance)
     return d2c, m, np.asarray(X)
 
 
-def solve(path: str, model, seed: int, timestep: float | None, targets: dict) -> dict:
+def solve(path: str, model, t: dict, seed: int, timestep: float | None, targets: dict) -> dict:
     """D2C on the model at ``path`` from the random start of ``seed``: its metrics, its
     controls' cost replayed here with ``mujoco.mj_step``, and for each target cost (this
     project's units) the first iteration at or below it and the run time to it (a second
     solve stopped at that iteration, compile apart)."""
     t0 = time.perf_counter()
-    d2c, m, X = _solve(path, seed, timestep)
+    d2c, m, X = _solve(path, t, seed, timestep)
     out = d2c.timed.out
-    t = task_arrays(model.nq, model.nv, model.nu)
     U = np.asarray(out.U)
     q, q_f, r = np.diag(t["Q"]), np.diag(t["Q_f"]), np.diag(t["R"])
     replayed = cost(t["x0"], replay(model, t["x0"], U), U, t["x_goal"], q, q_f, r)
@@ -174,7 +169,7 @@ def solve(path: str, model, seed: int, timestep: float | None, targets: dict) ->
             reached[name] = None
             continue
         n = int(below[0])
-        again, _, _ = _solve(path, seed, timestep, max_iter=n)
+        again, _, _ = _solve(path, t, seed, timestep, max_iter=n)
         reached[name] = {"iteration": n, "run_s": again.timed.run_s, "cost": float(again.timed.out.cost)}
     return {
         "seed": seed,
@@ -240,9 +235,15 @@ def main() -> None:
         root = fetch(a.d2c20)
     except OSError as exc:
         _refuse(f"--d2c20: D2C 2.0's files could not be downloaded ({exc}); give a checkout of D2C-2.0")
-    out_dir = tempfile.mkdtemp(prefix="d2c20_fish_")
+    with tempfile.TemporaryDirectory(prefix="d2c20_fish_") as out_dir:
+        _run(a, root, out_dir)
+
+
+def _run(a: argparse.Namespace, root: str, out_dir: str) -> None:
+    """The replays and D2C runs of :func:`main`, the stripped model written in ``out_dir``."""
     models = _models(root, out_dir, a.dm_control)
-    t = task_arrays(14, 13, 5)
+    m = next(iter(models.values()))[0]  # fish_old.xml: every fish here has its sizes
+    t = task_arrays(m.nq, m.nv, m.nu)
     x0, goal = t["x0"], t["x_goal"]
     q, q_f, r = np.diag(t["Q"]), np.diag(t["Q_f"]), np.diag(t["R"])
     result: dict = {"replays": [], "d2c": {}}
@@ -276,7 +277,7 @@ def main() -> None:
     for name, model, path in files[: 1 + a.dm_control_d2c]:  # fish_old.xml, then dm_control's
         rows = result["d2c"][name] = []
         for seed in range(a.seeds):
-            row = solve(path, model, seed, 0.005, targets)
+            row = solve(path, model, t, seed, 0.005, targets)
             rows.append(row)
             xyz = ", ".join(f"{v:.3f}" for v in row["final_xyz"])
             to = [f"{v['iteration']}, {v['run_s']:.2f}" if v else "no" for v in row["reached"].values()]
