@@ -6,7 +6,8 @@ the task's start, or ``--episodes`` run together by ``vmap`` from starts around 
 
 * "d2c", and the "finite_difference" and "jacfwd" oracles: at most ``--iterations`` iLQR
   iterations per replan (D2C-MPC's identification as ``mpc_params``: nx + nu orthogonal
-  samples);
+  samples); "d2c_reuse": D2C-MPC with its models carried across replans
+  (``mjx_surrogate.control.mpc_reuse``, ``--reuse-tol``, ``--reuse-max``);
 * the derivative-free "predictive_sampling", "mppi" and "cem": ``--samples`` samples per
   replan of spread ``SAMPLING_SIGMA`` (control units), every step its own value or plans
   held at ``--knots`` knots (a linear spline); MPPI's temperature is 1 % of the start's
@@ -39,7 +40,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 HEAVY_BODY = {"pendulum": "pole", "cartpole": "pole"}
 SAMPLING_SIGMA = {"pendulum": 1.0, "cartpole": 5.0}  # the samples' spread, control units
-CONTROLLERS = ("d2c", "finite_difference", "jacfwd", "predictive_sampling", "mppi", "cem")
+CONTROLLERS = ("d2c", "d2c_reuse", "finite_difference", "jacfwd", "predictive_sampling", "mppi", "cem")
 TASKS = ("terminal", "running")
 
 
@@ -72,12 +73,13 @@ def run(
     backend: str = "native",
     task_names: tuple[str, ...] = TASKS,
     episodes: int = 1,
+    reuse: tuple[float, int] = (0.1, 4),
 ) -> list[dict]:
     import jax
     import jax.numpy as jnp
     import numpy as np
 
-    from mjx_surrogate.control import mpc, mpc_sampling
+    from mjx_surrogate.control import mpc, mpc_reuse, mpc_sampling
     from mjx_surrogate.runs.config import Config, SystemConfig, TaskConfig
     from mjx_surrogate.runs.resolution import mpc_params, resolve
     from mjx_surrogate.tasks import goal_cost, trajectory_cost
@@ -128,6 +130,21 @@ def run(
                         hyper=spread,
                         plant=plant,
                     )
+            elif controller == "d2c_reuse":
+                carried = mpc_reuse.D2CPlannerSettings(*reuse)
+
+                def one(x0, task=task, plant=plant, carried=carried):
+                    return mpc_reuse.carried_receding_horizon(
+                        system,
+                        task.replace(x0=x0),
+                        U0,
+                        key=jax.random.key(0),
+                        steps=steps,
+                        settings=carried,
+                        params=params,
+                        sysid=sid,
+                        plant=plant,
+                    )
             else:
 
                 def one(x0, task=task, plant=plant, controller=controller):
@@ -153,7 +170,7 @@ def run(
             r = call()
             run_s = time.perf_counter() - t0
             per_step = run_s / steps
-            if controller == "d2c":
+            if controller in ("d2c", "d2c_reuse"):
                 flat = r._replace(identified=r.identified.reshape(-1, r.identified.shape[-1]))
                 calls = mpc.black_box_steps(
                     flat._replace(iterations=r.iterations.reshape(-1)), horizon, params.n_alphas, sid
@@ -209,8 +226,17 @@ def main() -> None:
     ap.add_argument("--samples", type=int, default=256, help="samples per replan of the sampling MPCs")
     ap.add_argument("--knots", type=int, default=0, help="the sampling MPCs' knots (0: every step)")
     ap.add_argument("--episodes", type=int, default=1, help="episodes run together (vmap), starts around x0")
+    ap.add_argument("--reuse-tol", type=float, default=0.1, help="d2c_reuse: the carried models' test")
+    ap.add_argument("--reuse-max", type=int, default=4, help="d2c_reuse: replans in a row on them")
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
+    from mjx_surrogate.control.mpc_reuse import D2CPlannerSettings
+    from mjx_surrogate.errors import ConfigError
+
+    try:
+        D2CPlannerSettings(a.reuse_tol, a.reuse_max).check()
+    except ConfigError as e:
+        ap.error(f"--{e.field.replace('_', '-')}: {str(e).removeprefix(e.field + ': ')}")
 
     from mjx_surrogate.runtime import configure_runtime
 
@@ -230,6 +256,7 @@ def main() -> None:
             a.backend,
             tuple(a.tasks),
             a.episodes,
+            (a.reuse_tol, a.reuse_max),
         )
     if a.json:
         with open(a.json, "w") as f:

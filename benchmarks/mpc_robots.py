@@ -15,7 +15,10 @@ terminal weight is set to ``--final-weight``; a hold task has none.
     python benchmarks/mpc_robots.py [--tasks ur5e "walker (hold)"] [--modes task receding]
         [--episodes 2] [--final-weight 1000] [--max-iter 5] [--every 1] [--n-alphas A]
         [--replan-hz HZ] [--first-plan reference] [--scheme forward_difference] [--floor]
-        [--out DIR]
+        [--reuse-tol 0.02] [--reuse-max 4] [--out DIR]
+
+``--reuse-tol`` > 0 carries D2C-MPC's models from one replan to the next where they still
+predict (``--mpc.d2c.reuse_tol``, ``mjx_surrogate.control.mpc_reuse``).
 
 For a task with point goals the table adds the study's ``point_error_median``: the goal
 points' distance from their targets (m; a moving target where it is at that step), averaged
@@ -58,6 +61,9 @@ def mpc_config(task: str, mode: str, args):
         cfg = dataclasses.replace(cfg, system=dataclasses.replace(cfg.system, control_dt=CONTROL_DT[task]))
     if args.scheme is not None:
         cfg = dataclasses.replace(cfg, sysid=dataclasses.replace(cfg.sysid, scheme=args.scheme))
+    if args.reuse_tol > 0:
+        carried = {"reuse_tol": args.reuse_tol, "reuse_max": args.reuse_max}
+        cfg = dataclasses.replace(cfg, extensions={**cfg.extensions, "mpc.d2c": carried})
     return dataclasses.replace(
         cfg,
         task=dataclasses.replace(cfg.task, goals=goals),
@@ -123,6 +129,8 @@ def main() -> None:
         action="store_true",
         help="also each noisy condition's noise floor (benchmarks/noise_floor.py)",
     )
+    ap.add_argument("--reuse-tol", type=float, default=0.0, help="mpc.d2c.reuse_tol (0: off)")
+    ap.add_argument("--reuse-max", type=int, default=4, help="mpc.d2c.reuse_max")
     ap.add_argument("--out", default=os.path.join(tempfile.gettempdir(), "mpc_robots"))
     args = ap.parse_args()
     from benchmarks.noise_floor import floor
@@ -138,7 +146,8 @@ def main() -> None:
             if cfg is None:
                 print(f"{task}: model not reachable, skipped", file=sys.stderr)
                 continue
-            folder = run(cfg, name=f"mpc_{mode}_it{args.max_iter}_every{args.every}_hz{args.replan_hz}")
+            name = f"mpc_{mode}_it{args.max_iter}_every{args.every}_hz{args.replan_hz}_r{args.reuse_tol:g}"
+            folder = run(cfg, name=name)
             with open(os.path.join(folder, "metrics.json")) as f:
                 metrics = json.load(f)
             for r in metrics["mpc_rows"]:

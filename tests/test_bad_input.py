@@ -93,6 +93,8 @@ CASES = [
     (["smoke_mpc", "--mpc.cem.iterations", "0"], "mpc.cem.iterations"),
     (["smoke_mpc", "--mpc.predictive_sampling.sigma", "nan"], "mpc.predictive_sampling.sigma"),
     (["smoke_mpc", "--mpc.ilqg.sigma", "1"], "--mpc.ilqg.sigma"),  # no such planner
+    (["smoke_mpc", "--mpc.d2c.reuse_tol", "1"], "mpc.d2c.reuse_tol"),
+    (["smoke_mpc", "--mpc.d2c.reuse_max", "0"], "mpc.d2c.reuse_max"),
     (
         ["smoke_mpc", "--mpc.controllers", "d2c_sampling", "--mpc.d2c_sampling.samples", "1"],
         "mpc.d2c_sampling.samples",

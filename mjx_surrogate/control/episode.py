@@ -96,7 +96,7 @@ def episode(
         return plan.U if hasattr(plan, "U") else plan
 
     def act(plan, j, x):
-        if not isinstance(plan, Plan):
+        if not hasattr(plan, "K"):  # controls alone: no policy around them
             return controls(plan)[j]
         u = plan.U[j] + plan.K[j] @ (x - plan.X[j])
         return u if limits is None else jnp.clip(u, *limits)

@@ -82,7 +82,7 @@ def receding_horizon(
     counts its control steps and can stop it (:func:`episode`). Arguments after U0 are
     keyword-only, as for every episode function of the package."""
     plant_step = (plant if plant is not None else system).step
-    return _ilqr_episode(
+    return ilqr_episode(
         d2c_replan(system, task, params, sysid, controller),
         plant_step,
         task,
@@ -131,7 +131,7 @@ def surrogate_mpc(
     """One episode on ``plant`` whose replans run iLQR on a differentiable surrogate (a
     pytree with ``step(x, u)``: a SindyModel, an MLPModel), Jacobians by ``jax.jacfwd``
     through it: SINDy-MPC, MLP-MPC. U0 [H, nu]; no black-box call but the plant's steps."""
-    return _ilqr_episode(
+    return ilqr_episode(
         surrogate_replanner(model, task, params),
         plant.step,
         task,
@@ -144,15 +144,18 @@ def surrogate_mpc(
     )
 
 
-def _ilqr_episode(
-    replan, plant_step, task, U0, *, key, steps, process_noise, progress, replan_every
+def ilqr_episode(
+    replan, plant_step, task, plan0, *, key, steps, process_noise, progress, replan_every
 ) -> MPCResult:
-    """:func:`episode` of an iLQR planner from U0, its policy clipped to the task's limits."""
+    """:func:`episode` of an iLQR planner from its first warm start ``plan0`` (U0 [H, nu]: no
+    feedback), its policy clipped to the task's limits."""
+    if not hasattr(plan0, "K"):
+        plan0 = first_plan(plan0, task.x0)
     X, U, (plan_cost, its, ident) = episode(
         replan,
         plant_step=plant_step,
         x0=task.x0,
-        plan0=first_plan(U0, task.x0),
+        plan0=plan0,
         key=key,
         steps=steps,
         process_noise=process_noise,

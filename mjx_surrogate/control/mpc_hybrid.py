@@ -90,7 +90,7 @@ def hybrid_mpc(
     """One episode of D2C-MPC with ``n_samples`` sampling proposals per replan (module
     docstring); the rest as :func:`mpc.receding_horizon`."""
     plant_step = (plant if plant is not None else system).step
-    return mpc._ilqr_episode(
+    return mpc.ilqr_episode(
         replanner(system, task, params, sysid, sigma, n_samples, knots, spline),
         plant_step,
         task,

@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjx_surrogate.control import mpc, mpc_hybrid, mpc_online, realtime, sampling_planners
+from mjx_surrogate.control import mpc, mpc_hybrid, mpc_online, mpc_reuse, realtime, sampling_planners
 from mjx_surrogate.control.episode import bound_episode, first_plan
 from mjx_surrogate.control.ilqr import ILQRParams
 from mjx_surrogate.control.sampling_rules import get_rule
@@ -89,11 +89,30 @@ def get_planner(name: str, field: str = "mpc.controllers") -> PlannerKind:
     return registered(PLANNERS, name, field, "controller")
 
 
+def d2c_settings(c: PlannerContext) -> mpc_reuse.D2CPlannerSettings:
+    """D2C-MPC's own settings in the run (its defaults where the run gives none)."""
+    return c.planner_settings.get("d2c", mpc_reuse.D2CPlannerSettings())
+
+
 def _replanning(name: str):
     """D2C-MPC (``name`` "d2c") or an oracle's MPC on the black box."""
 
     def episodes(c: PlannerContext) -> dict[str, Episode]:
         method = "d2c" if name == "d2c" else c.config.experiment.oracle
+        own = d2c_settings(c)
+        if name == "d2c" and own.reuse_tol > 0:  # models carried across replans
+            one = bound_episode(
+                mpc_reuse.carried_receding_horizon,
+                c.system,
+                c.plan_task,
+                c.U0,
+                steps=c.config.mpc.steps,
+                settings=own,
+                params=c.params,
+                sysid=c.sysid,
+                replan_every=c.replan_every,
+            )
+            return {"D2C-MPC": one}
         one = bound_episode(
             mpc.receding_horizon,
             c.system,
@@ -115,8 +134,14 @@ def _replanning_replans(name: str):
 
     def replans(c: PlannerContext) -> dict:
         method = "d2c" if name == "d2c" else c.config.experiment.oracle
-        replan = mpc.d2c_replan(c.system, c.plan_task, c.params, c.sysid, method)
-        planner = realtime.RealTimePlanner(replan, first_plan(c.U0, c.task.x0), realtime.moved_on)
+        own = d2c_settings(c)
+        if name == "d2c" and own.reuse_tol > 0:
+            replan = mpc_reuse.reuse_replan(c.system, c.plan_task, c.params, c.sysid, own)
+            plan0 = mpc_reuse.first_carried_plan(c.U0, c.task.x0, own.reuse_max)
+        else:
+            replan = mpc.d2c_replan(c.system, c.plan_task, c.params, c.sysid, method)
+            plan0 = first_plan(c.U0, c.task.x0)
+        planner = realtime.RealTimePlanner(replan, plan0, realtime.moved_on)
         return {"D2C-MPC" if name == "d2c" else f"oracle MPC ({method})": planner}
 
     return replans
@@ -203,7 +228,8 @@ for _name, _kind in {
         _replanning("d2c"),
         _d2c_steps,
         True,
-        "iLQR on LTV models identified at every replan",
+        "iLQR on LTV models identified at every replan (carried over where they still predict: reuse_tol)",
+        mpc_reuse.D2CPlannerSettings(),
         replans=_replanning_replans("d2c"),
     ),
     "oracle": PlannerKind(

@@ -82,14 +82,14 @@ def moved_on(plan: Plan, steps: int) -> Plan:
     """A host plan [H, ...] moved ``steps`` ticks on (at most H), its last row repeated (the
     episode's shift, in NumPy: no program to compile while the clock runs)."""
     steps = min(steps, plan.U.shape[0])
-    return Plan(*(np.concatenate([a[steps:], np.repeat(a[-1:], steps, axis=0)]) for a in plan))
+    return type(plan)(*(np.concatenate([a[steps:], np.repeat(a[-1:], steps, axis=0)]) for a in plan))
 
 
 def control(plan, j: int, x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """u = clip(U[j] + K[j] (x - X[j])) of a :class:`Plan` [H, ...] (host arrays), clip(U[j])
     of any other plan with controls U; its last row from j >= H on."""
     j = min(j, plan.U.shape[0] - 1)
-    if not isinstance(plan, Plan):
+    if not hasattr(plan, "K"):
         return np.clip(plan.U[j], lo, hi)
     return np.clip(plan.U[j] + plan.K[j] @ (x - plan.X[j]), lo, hi)
 

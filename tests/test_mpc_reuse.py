@@ -1,0 +1,123 @@
+"""D2C-MPC with its models carried across replans (mjx_surrogate/control/mpc_reuse.py)."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from mjx_surrogate.control import mpc, mpc_reuse
+from mjx_surrogate.control.ilqr import ILQRParams
+from mjx_surrogate.errors import ConfigError
+from tests.test_mpc import SID, A, B, H, N, _linear, _task
+
+CARRY = mpc_reuse.D2CPlannerSettings(reuse_tol=0.1, reuse_max=3)
+
+
+def _episodes(max_iter, settings=CARRY):
+    params = ILQRParams(max_iter=max_iter)
+    common = dict(key=jax.random.key(0), steps=N, params=params, sysid=SID)
+    plain = mpc.receding_horizon(_linear(), _task(), jnp.zeros((H, 1)), **common)
+    carried = mpc_reuse.carried_receding_horizon(
+        _linear(), _task(), jnp.zeros((H, 1)), settings=settings, **common
+    )
+    return plain, carried
+
+
+def test_on_a_linear_system_the_carried_models_give_the_same_loop_with_fewer_identifications():
+    """A linear map's model is exact wherever it was identified: with one iteration per
+    replan, replans 1-3 run on the carried model and replan 4 identifies again (reuse_max
+    3), and the closed loop is D2C-MPC's own to round-off; with three iterations the first
+    iteration's identification is saved and the second's kept."""
+    plain, carried = _episodes(1)
+    np.testing.assert_allclose(np.asarray(carried.X), np.asarray(plain.X), atol=1e-9)
+    assert float(carried.cost) == pytest.approx(float(plain.cost), rel=1e-9)
+    per_replan = np.asarray(carried.identified).sum(axis=1)
+    np.testing.assert_array_equal(per_replan, (np.arange(N) % 4 == 0).astype(int))
+    np.testing.assert_array_equal(np.asarray(plain.identified).sum(axis=1), np.ones(N))
+
+    plain, carried = _episodes(3)
+    np.testing.assert_allclose(np.asarray(carried.X), np.asarray(plain.X), atol=1e-9)
+    np.testing.assert_array_equal(np.asarray(carried.identified)[1:, 0], np.zeros(N - 1))
+    np.testing.assert_array_equal(np.asarray(carried.identified)[1:, 1], np.ones(N - 1))
+
+
+def _replan_from(plan, max_iter=1):
+    replan = mpc_reuse.reuse_replan(_linear(), _task(), ILQRParams(max_iter=max_iter), SID, CARRY)
+    return jax.jit(lambda x, p: replan(x, p, jax.random.key(1), 0))(jnp.array([1.0, 0.0]), plan)
+
+
+def _previous_plan(A_model):
+    """A plan whose model is ``A_model`` (B exact), identified one replan ago, of a nominal
+    that the new warm start leaves (its states 0.1 off)."""
+    U = jnp.full((H, 1), -0.5)
+    X = [jnp.array([0.9, 0.1])]
+    for u in U:
+        X.append(jnp.asarray(A) @ X[-1] + jnp.asarray(B) @ u)
+    X = jnp.stack(X)
+    As = jnp.broadcast_to(jnp.asarray(A_model), (H, 2, 2))
+    Bs = jnp.broadcast_to(jnp.asarray(B), (H, 2, 1))
+    return mpc_reuse.CarriedPlan(U, X, jnp.zeros((H, 1, 2)), As, Bs, X, U, jnp.zeros((H,)))
+
+
+def test_a_carried_model_that_no_longer_predicts_is_identified_again():
+    """The same warm start, the same nominal change: the exact model is carried over
+    (nothing identified), a model whose A is off by 0.3 on the velocity coupling fails the
+    prediction test and the replan identifies; the age counts replans without one."""
+    kept, (_, _, identified) = _replan_from(_previous_plan(A))
+    assert int(identified[0]) == 0 and float(kept.age[0]) == 1.0
+    wrong = A + np.array([[0.0, 0.3], [0.0, 0.0]])
+    fresh, (_, _, identified) = _replan_from(_previous_plan(wrong))
+    assert int(identified[0]) == 1 and float(fresh.age[0]) == 0.0
+    np.testing.assert_allclose(np.asarray(fresh.A), np.broadcast_to(A, (H, 2, 2)), atol=1e-9)
+
+
+def test_the_prediction_test_and_the_repeated_stages():
+    """prediction_fits against the error it states (float64 NumPy), on both sides of the
+    threshold; consistent_nominal leaves the stages the black box took and makes the
+    repeated last stage exact, so that it neither fails the test nor moves in the update."""
+    rng = np.random.default_rng(0)
+    As, Bs = rng.normal(size=(H, 2, 2)), rng.normal(size=(H, 2, 1))
+    dU = rng.normal(size=(H, 1))
+    dX = [rng.normal(size=2)]
+    for t in range(H):
+        dX.append(As[t] @ dX[-1] + Bs[t] @ dU[t])
+    dX = np.array(dX)
+    noise = rng.normal(size=(H, 2))
+    bent = dX.copy()
+    bent[1:] += 0.05 * noise
+    e = bent[1:] - np.einsum("tij,tj->ti", As, bent[:-1]) - np.einsum("tij,tj->ti", Bs, dU)
+    ratio = np.sqrt(np.sum(e**2) / np.sum(bent[1:] ** 2))
+    fits = lambda d, tol: bool(mpc_reuse.prediction_fits(As, Bs, d, dU, tol))  # noqa: E731
+    assert fits(dX, 1e-9)
+    assert fits(bent, 1.01 * ratio) and not fits(bent, 0.99 * ratio)
+    assert not fits(np.full_like(dX, np.nan), 0.5)
+
+    X_model = rng.normal(size=(H + 1, 2))
+    X_model[-1] = X_model[-2]  # the row a shift repeats
+    U_model = rng.normal(size=(H, 1))
+    X = X_model + dX
+    U = U_model + dU
+    X[-1] += 1.0  # the new nominal's last state, of no stage the model saw
+    out = np.asarray(mpc_reuse.consistent_nominal(As, Bs, X, U, X_model, U_model))
+    np.testing.assert_array_equal(out[:-1], X_model[:-1])
+    d = X - out
+    np.testing.assert_allclose(d[-1], As[-1] @ d[-2] + Bs[-1] @ dU[-1], atol=1e-12)
+
+
+def test_settings_refused():
+    with pytest.raises(ConfigError, match="reuse_tol"):
+        mpc_reuse.D2CPlannerSettings(reuse_tol=1.0).check()
+    with pytest.raises(ConfigError, match="reuse_max"):
+        mpc_reuse.D2CPlannerSettings(reuse_max=0).check()
+
+
+def test_a_plan_already_optimal_on_the_carried_model_is_kept_without_identifying():
+    """Replanning from the state a replan just solved, with its plan and model: the
+    carried model passes its test, its first iteration finds no step, and the replan stops
+    there as converged, identifying nothing (the chain's secant reuse alone would distrust
+    the carried model and identify at a second iteration)."""
+    first = mpc_reuse.first_carried_plan(jnp.zeros((H, 1)), jnp.array([1.0, 0.0]), CARRY.reuse_max)
+    solved, _ = _replan_from(first, max_iter=10)
+    again, (_, iterations, identified) = _replan_from(solved, max_iter=10)
+    assert int(iterations) == 1 and not np.any(np.asarray(identified))
+    np.testing.assert_allclose(np.asarray(again.U), np.asarray(solved.U), atol=1e-9)
