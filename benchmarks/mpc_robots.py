@@ -15,7 +15,7 @@ terminal weight is set to ``--final-weight``; a hold task has none.
     python benchmarks/mpc_robots.py [--tasks ur5e "walker (hold)"] [--modes task receding]
         [--episodes 2] [--final-weight 1000] [--max-iter 5] [--every 1] [--n-alphas A]
         [--replan-hz HZ] [--first-plan reference] [--scheme forward_difference] [--floor]
-        [--reuse-tol 0.02] [--reuse-max 4] [--out DIR]
+        [--reuse-tol 0.02] [--reuse-max 4] [--realtime] [--out DIR]
 
 ``--reuse-tol`` > 0 carries D2C-MPC's models from one replan to the next where they still
 predict (``--mpc.d2c.reuse_tol``, ``mjx_surrogate.control.mpc_reuse``).
@@ -88,6 +88,7 @@ def mpc_config(task: str, mode: str, args):
             n_alphas=args.n_alphas,
             replan_hz=args.replan_hz,
             first_plan=args.first_plan,
+            realtime=args.realtime,
         ),
     )
 
@@ -128,6 +129,9 @@ def main() -> None:
         "--floor",
         action="store_true",
         help="also each noisy condition's noise floor (benchmarks/noise_floor.py)",
+    )
+    ap.add_argument(
+        "--realtime", action="store_true", help="mpc.realtime: also each episode in the wall-clock loop"
     )
     ap.add_argument("--reuse-tol", type=float, default=0.0, help="mpc.d2c.reuse_tol (0: off)")
     ap.add_argument("--reuse-max", type=int, default=4, help="mpc.d2c.reuse_max")
