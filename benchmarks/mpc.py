@@ -130,25 +130,17 @@ def run(
                         hyper=spread,
                         plant=plant,
                     )
-            elif controller == "d2c_reuse":
-                carried = mpc_reuse.D2CPlannerSettings(*reuse)
-
-                def one(x0, task=task, plant=plant, carried=carried):
-                    return mpc_reuse.carried_receding_horizon(
-                        system,
-                        task.replace(x0=x0),
-                        U0,
-                        key=jax.random.key(0),
-                        steps=steps,
-                        settings=carried,
-                        params=params,
-                        sysid=sid,
-                        plant=plant,
-                    )
             else:
+                if controller == "d2c_reuse":
+                    fn, extra = (
+                        mpc_reuse.carried_receding_horizon,
+                        {"settings": mpc_reuse.D2CPlannerSettings(*reuse)},
+                    )
+                else:
+                    fn, extra = mpc.receding_horizon, {"controller": controller}
 
-                def one(x0, task=task, plant=plant, controller=controller):
-                    return mpc.receding_horizon(
+                def one(x0, task=task, plant=plant, fn=fn, extra=extra):
+                    return fn(
                         system,
                         task.replace(x0=x0),
                         U0,
@@ -156,8 +148,8 @@ def run(
                         steps=steps,
                         params=params,
                         sysid=sid,
-                        controller=controller,
                         plant=plant,
+                        **extra,
                     )
 
             # one episode from the task's start, or a batch of episodes (vmap) from starts around it

@@ -101,28 +101,19 @@ def _replanning(name: str):
         method = "d2c" if name == "d2c" else c.config.experiment.oracle
         own = d2c_settings(c)
         if name == "d2c" and own.reuse_tol > 0:  # models carried across replans
-            one = bound_episode(
-                mpc_reuse.carried_receding_horizon,
-                c.system,
-                c.plan_task,
-                c.U0,
-                steps=c.config.mpc.steps,
-                settings=own,
-                params=c.params,
-                sysid=c.sysid,
-                replan_every=c.replan_every,
-            )
-            return {"D2C-MPC": one}
+            fn, extra = mpc_reuse.carried_receding_horizon, {"settings": own}
+        else:
+            fn, extra = mpc.receding_horizon, {"controller": method}
         one = bound_episode(
-            mpc.receding_horizon,
+            fn,
             c.system,
             c.plan_task,
             c.U0,
             steps=c.config.mpc.steps,
             params=c.params,
             sysid=c.sysid,
-            controller=method,
             replan_every=c.replan_every,
+            **extra,
         )
         return {"D2C-MPC" if name == "d2c" else f"oracle MPC ({method})": one}
 
