@@ -183,6 +183,7 @@ def run(
                     "controller": controller,
                     "episodes": episodes,
                     "cost": float(np.median(r.cost)),
+                    "episode_costs": [float(c) for c in np.ravel(r.cost)],
                     "final_goal_cost": float(np.median(jax.vmap(goal_cost, (None, 0))(task, X_end))),
                     "iterations_per_replan": float(np.mean(np.asarray(r.iterations))),
                     "black_box_steps_per_control_step": None if calls is None else float(calls.mean()),

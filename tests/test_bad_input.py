@@ -96,6 +96,10 @@ CASES = [
     (["smoke_mpc", "--mpc.d2c.reuse_tol", "1"], "mpc.d2c.reuse_tol"),
     (["smoke_mpc", "--mpc.d2c.reuse_max", "0"], "mpc.d2c.reuse_max"),
     (
+        ["smoke_mpc", "--mpc.d2c.reuse_tol", "0.02", "--mpc.sysid.scheme", "reduced"],
+        "mpc.d2c.reuse_tol",
+    ),
+    (
         ["smoke_mpc", "--mpc.controllers", "d2c_sampling", "--mpc.d2c_sampling.samples", "1"],
         "mpc.d2c_sampling.samples",
     ),

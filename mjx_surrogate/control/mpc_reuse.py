@@ -5,9 +5,9 @@ nominal before its first iteration, although the previous replan ended with mode
 almost the same trajectory, one control step earlier. Here the plan carries its last
 model, (A_t, B_t) [H, ...] of the nominal (X^m [H+1, nx], U^m [H, nu]) it was made on,
 shifted on with the plan (its last stage repeated; :func:`consistent_nominal`). The next
-replan tests it on the
-warm start's nominal (X, U): with dX = X - X^m and dU = U - U^m its one-step prediction
-error e_t = dX_{t+1} - A_t dX_t - B_t dU_t must be a small part of the change it predicts,
+replan tests it on the warm start's nominal (X, U): with dX = X - X^m and dU = U - U^m its
+one-step prediction error e_t = dX_{t+1} - A_t dX_t - B_t dU_t must be a small part of the
+change it predicts,
 
     sum_t |e_t|^2 <= reuse_tol^2 sum_t |dX_{t+1}|^2,
 
@@ -16,8 +16,9 @@ hold, the replan's first iteration runs on the carried model, moved to the new n
 a secant update (:func:`~mjx_surrogate.control.local_model.secant_update`), instead of
 identifying (the model strategy :func:`carried_first`); a step rejected on it is retried
 on an identified model; a replan whose plan is already optimal on it stops there, with no
-identification at all. Where either test fails, the replan is D2C-MPC's own. ``reuse_tol`` 0 turns it off
-(:class:`D2CPlannerSettings`).
+identification at all. Where either test fails, the replan is D2C-MPC's own. ``reuse_tol``
+0 turns it off (:class:`D2CPlannerSettings`). Full-order models only (a reduced scheme's
+basis changes from one replan to the next; refused in the config).
 """
 
 from __future__ import annotations

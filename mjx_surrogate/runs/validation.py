@@ -70,6 +70,13 @@ def _check_registered(cfg: Config) -> None:
                 field,
                 f"> 1 needs a one-step scheme ({one_step}); {name!r} identifies from rollouts",
             )
+    carried = cfg.extensions.get("mpc.d2c", {})
+    carried = carried if isinstance(carried, dict) else dataclasses.asdict(carried)
+    if carried.get("reuse_tol", 0.0) > 0 and mpc_scheme.reduced:
+        raise ConfigError(
+            "mpc.d2c.reuse_tol",
+            f"carries full-order models only; {mpc_name!r} identifies reduced ones: give 0 or another scheme",
+        )
     if (s.significance or 0.0) > 0 and not scheme.t_test:
         tested = ", ".join(n for n, sc in SCHEMES.items() if sc.t_test)
         raise ConfigError(
