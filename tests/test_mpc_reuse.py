@@ -121,3 +121,44 @@ def test_a_plan_already_optimal_on_the_carried_model_is_kept_without_identifying
     again, (_, iterations, identified) = _replan_from(solved, max_iter=10)
     assert int(iterations) == 1 and not np.any(np.asarray(identified))
     np.testing.assert_allclose(np.asarray(again.U), np.asarray(solved.U), atol=1e-9)
+
+
+@pytest.mark.slow
+def test_the_mpc_kind_carries_the_models_in_its_batches_and_in_the_wall_clock_loop(tmp_path):
+    """``--mpc.d2c.reuse_tol``: the smoke preset's D2C-MPC with carried models simulates
+    fewer black-box steps per control step than with a model identified at every replan, at
+    a closed-loop cost within 1 % of it; its wall-clock loop (the clock slowed so that no
+    plan is late), one episode at a time where the batch is ``vmap``ped, gives the batch's
+    closed loops."""
+    import dataclasses
+    import json
+    import os
+
+    from configs.smoke_mpc import CONFIG
+    from experiments.run import run
+    from mjx_surrogate.runs.realtime_rows import label
+
+    def rows(reuse_tol, realtime):
+        cfg = dataclasses.replace(
+            CONFIG,
+            mpc=dataclasses.replace(
+                CONFIG.mpc,
+                controllers=("d2c",),
+                realtime=realtime,
+                realtime_speed=0.25,
+                process_noise=(0.01,),
+            ),
+            experiment=dataclasses.replace(CONFIG.experiment, out_dir=str(tmp_path), video=False),
+            extensions={**CONFIG.extensions, "mpc.d2c": {"reuse_tol": reuse_tol}},
+        )
+        folder = run(cfg, name=f"reuse{reuse_tol}")
+        with open(os.path.join(folder, "metrics.json")) as f:
+            return json.load(f)["mpc_rows"], np.load(os.path.join(folder, "arrays.npz"))
+
+    (own,), _ = rows(0.0, False)
+    (carried, late), arrays = rows(0.5, True)
+    assert (carried["controller"], late["controller"]) == ("D2C-MPC", label("D2C-MPC"))
+    assert carried["black_box_steps_per_control_step"] < own["black_box_steps_per_control_step"]
+    np.testing.assert_allclose(carried["costs"], own["costs"], rtol=0.01)
+    assert late["plans_late_ticks_max"] == 0
+    np.testing.assert_allclose(arrays[late["arrays"]["X"]], arrays[carried["arrays"]["X"]], atol=1e-9)
