@@ -56,7 +56,7 @@ def _previous_plan(A_model):
     X = jnp.stack(X)
     As = jnp.broadcast_to(jnp.asarray(A_model), (H, 2, 2))
     Bs = jnp.broadcast_to(jnp.asarray(B), (H, 2, 1))
-    return mpc_reuse.CarriedPlan(U, X, jnp.zeros((H, 1, 2)), As, Bs, X, U, jnp.zeros((H,)))
+    return mpc_reuse.CarriedPlan(U, X, jnp.zeros((H, 1, 2)), As, Bs, X, U, jnp.zeros((H,)), jnp.ones((H,)))
 
 
 def test_a_carried_model_that_no_longer_predicts_is_identified_again():
@@ -91,6 +91,15 @@ def test_the_prediction_test_and_the_repeated_stages():
     assert fits(dX, 1e-9)
     assert fits(bent, 1.01 * ratio) and not fits(bent, 0.99 * ratio)
     assert not fits(np.full_like(dX, np.nan), 0.5)
+    # an error at the stages between knots (interpolated models) is not the carried model's
+    knots = np.zeros(H)
+    knots[::3] = 1.0
+    between = [dX[0]]
+    for t in range(H):
+        between.append(As[t] @ between[-1] + Bs[t] @ dU[t] + (1 - knots[t]) * 0.5 * noise[t])
+    between = np.array(between)
+    assert not fits(between, 0.05)
+    assert bool(mpc_reuse.prediction_fits(As, Bs, between, dU, 1e-9, knots))
 
     X_model = rng.normal(size=(H + 1, 2))
     X_model[-1] = X_model[-2]  # the row a shift repeats

@@ -11,7 +11,9 @@ change it predicts,
 
     sum_t |e_t|^2 <= reuse_tol^2 sum_t |dX_{t+1}|^2,
 
-and the model must have been identified at most ``reuse_max`` replans ago. Where both
+and the model must have been identified at most ``reuse_max`` replans ago. With models
+identified at knots and interpolated between (``sysid.every`` > 1) the sums run over the
+knots' stages only: an interpolated stage's error is the interpolation's, carried or not. Where both
 hold, the replan's first iteration runs on the carried model, moved to the new nominal by
 a secant update (:func:`~mjx_surrogate.control.local_model.secant_update`), instead of
 identifying (the model strategy :func:`carried_first`); a step rejected on it is retried
@@ -29,6 +31,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from mjx_surrogate.control.d2c import problem
 from mjx_surrogate.control.episode import Plan
@@ -37,6 +40,7 @@ from mjx_surrogate.control.model_strategies import ModelReport, ModelStrategy, P
 from mjx_surrogate.control.mpc import MPCResult, ilqr_episode, warm_start
 from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.identification import sysid as sid
+from mjx_surrogate.identification.sysid_knots import knot_times
 from mjx_surrogate.progress import NO_PROGRESS, ProgressMeter
 from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.tasks import Task, at_step
@@ -62,7 +66,9 @@ class CarriedPlan(NamedTuple):
     """A :class:`~mjx_surrogate.control.episode.Plan` (U [H, nu], X [H+1, nx], K [H, nu, nx])
     with the model it ended on: A [H, nx, nx], B [H, nx, nu] of the nominal X_model [H+1,
     nx], U_model [H, nu]; ``age`` [H]: replans since that model was identified (every row
-    the same, so the plan shifts as one; in the state's dtype, as every leaf of a plan)."""
+    the same, so the plan shifts as one; in the state's dtype, as every leaf of a plan);
+    ``knots`` [H]: 1 where the model was identified, 0 where interpolated between knots
+    (``sysid.every`` > 1), shifted with the plan."""
 
     U: jax.Array
     X: jax.Array
@@ -72,6 +78,7 @@ class CarriedPlan(NamedTuple):
     X_model: jax.Array
     U_model: jax.Array
     age: jax.Array
+    knots: jax.Array
 
 
 def first_carried_plan(U0: jax.Array, x0: jax.Array, reuse_max: int) -> CarriedPlan:
@@ -87,14 +94,17 @@ def first_carried_plan(U0: jax.Array, x0: jax.Array, reuse_max: int) -> CarriedP
         jnp.zeros((H + 1, nx), dt),
         jnp.zeros((H, nu), dt),
         jnp.full((H,), reuse_max, dt),
+        jnp.ones((H,), dt),
     )
 
 
-def prediction_fits(A, B, dX, dU, tol) -> jax.Array:
+def prediction_fits(A, B, dX, dU, tol, knots=None) -> jax.Array:
     """Whether the model (A [H, nx, nx], B [H, nx, nu]) predicts the nominal's change dX
-    [H+1, nx] under dU [H, nu] one step at a time to within ``tol`` (module docstring)."""
+    [H+1, nx] under dU [H, nu] one step at a time to within ``tol`` (module docstring), at
+    the stages ``knots`` [H] marks (1; default: every stage)."""
     e = dX[1:] - jnp.einsum("tij,tj->ti", A, dX[:-1]) - jnp.einsum("tij,tj->ti", B, dU)
-    err, change = jnp.sum(e * e), jnp.sum(dX[1:] * dX[1:])
+    w = jnp.ones(e.shape[:1], e.dtype) if knots is None else knots
+    err, change = jnp.sum(w[:, None] * e * e), jnp.sum(w[:, None] * dX[1:] * dX[1:])
     return jnp.isfinite(err) & (err <= tol**2 * change)
 
 
@@ -150,12 +160,17 @@ def reuse_replan(system: BlackBox, task: Task, params: ILQRParams, sysid: sid.Sy
     ``replan(x, plan, key, n) -> (CarriedPlan, (cost, iterations, identified))``;
     ``settings``: :class:`D2CPlannerSettings`."""
 
+    H = task.T
+    knot_mask = np.zeros(H)
+    knot_mask[knot_times(H, sysid.every)] = 1.0
+
     def replan(x, plan: CarriedPlan, k, n):
         prob = problem(system, at_step(task, n).replace(x0=x), sysid, "d2c")._replace(linearize_fine=None)
         state = warm_start(prob, Plan(plan.U, plan.X, plan.K), params, k)
         X, U = state.solver.X, state.solver.U
         X_model = consistent_nominal(plan.A, plan.B, X, U, plan.X_model, plan.U_model)
-        fits = prediction_fits(plan.A, plan.B, X - X_model, U - plan.U_model, settings.reuse_tol)
+        dX, dU = X - X_model, U - plan.U_model
+        fits = prediction_fits(plan.A, plan.B, dX, dU, settings.reuse_tol, plan.knots)
         carry = fits & (plan.age[0] < settings.reuse_max) & (settings.reuse_tol > 0)
         strategy = chain(strategy_of(prob, params), carried_first(carry))
         prob = prob._replace(strategy=strategy)
@@ -163,8 +178,10 @@ def reuse_replan(system: BlackBox, task: Task, params: ILQRParams, sysid: sid.Sy
         state = state._replace(model=state.model._replace(model=m, strategy=strategy.init()))
         end = ilqr_advance(prob, state, params)
         r, last = ilqr_result(end), end.model.model
-        age = jnp.where(jnp.any(r.identified > 0), 0.0, plan.age + 1.0)
-        out = CarriedPlan(r.U, r.X, r.K, last.A, last.B, last.X, last.U, age)
+        identified = jnp.any(r.identified > 0)
+        age = jnp.where(identified, 0.0, plan.age + 1.0)
+        knots = jnp.where(identified, jnp.asarray(knot_mask, plan.knots.dtype), plan.knots)
+        out = CarriedPlan(r.U, r.X, r.K, last.A, last.B, last.X, last.U, age, knots)
         return out, (r.cost, r.iterations, r.identified)
 
     return replan
