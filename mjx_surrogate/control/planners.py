@@ -89,9 +89,11 @@ def get_planner(name: str, field: str = "mpc.controllers") -> PlannerKind:
     return registered(PLANNERS, name, field, "controller")
 
 
-def d2c_settings(c: PlannerContext) -> mpc_reuse.D2CPlannerSettings:
-    """D2C-MPC's own settings in the run (its defaults where the run gives none)."""
-    return c.planner_settings.get("d2c", mpc_reuse.D2CPlannerSettings())
+def _carried(c: PlannerContext, name: str) -> mpc_reuse.D2CPlannerSettings | None:
+    """D2C-MPC's own settings where it carries its models across replans (planner ``name``
+    "d2c" with ``reuse_tol`` > 0), else None."""
+    own = c.planner_settings.get("d2c", mpc_reuse.D2CPlannerSettings())
+    return own if name == "d2c" and own.reuse_tol > 0 else None
 
 
 def _replanning(name: str):
@@ -99,8 +101,8 @@ def _replanning(name: str):
 
     def episodes(c: PlannerContext) -> dict[str, Episode]:
         method = "d2c" if name == "d2c" else c.config.experiment.oracle
-        own = d2c_settings(c)
-        if name == "d2c" and own.reuse_tol > 0:  # models carried across replans
+        own = _carried(c, name)
+        if own is not None:
             fn, extra = mpc_reuse.carried_receding_horizon, {"settings": own}
         else:
             fn, extra = mpc.receding_horizon, {"controller": method}
@@ -125,8 +127,8 @@ def _replanning_replans(name: str):
 
     def replans(c: PlannerContext) -> dict:
         method = "d2c" if name == "d2c" else c.config.experiment.oracle
-        own = d2c_settings(c)
-        if name == "d2c" and own.reuse_tol > 0:
+        own = _carried(c, name)
+        if own is not None:
             replan = mpc_reuse.reuse_replan(c.system, c.plan_task, c.params, c.sysid, own)
             plan0 = mpc_reuse.first_carried_plan(c.U0, c.task.x0, own.reuse_max)
         else:

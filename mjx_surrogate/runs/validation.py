@@ -15,7 +15,7 @@ from mjx_surrogate.errors import ConfigError
 from mjx_surrogate.identification.sysid import SCHEMES, SysIdParams, get_scheme
 from mjx_surrogate.runs.config import Config, SystemConfig, from_dict
 from mjx_surrogate.runs.experiment_kinds import get_experiment
-from mjx_surrogate.runs.extension_settings import check_extensions
+from mjx_surrogate.runs.extension_settings import check_extensions, settings_of
 from mjx_surrogate.surrogates.registry import get_surrogate
 from mjx_surrogate.systems.registry import USER_FUNCTION, is_function_system
 
@@ -70,9 +70,7 @@ def _check_registered(cfg: Config) -> None:
                 field,
                 f"> 1 needs a one-step scheme ({one_step}); {name!r} identifies from rollouts",
             )
-    carried = cfg.extensions.get("mpc.d2c", {})
-    carried = carried if isinstance(carried, dict) else dataclasses.asdict(carried)
-    if carried.get("reuse_tol", 0.0) > 0 and mpc_scheme.reduced:
+    if settings_of(cfg, "mpc", "d2c").reuse_tol > 0 and mpc_scheme.reduced:
         raise ConfigError(
             "mpc.d2c.reuse_tol",
             f"carries full-order models only; {mpc_name!r} identifies reduced ones: give 0 or another scheme",
