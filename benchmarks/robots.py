@@ -30,7 +30,10 @@ reports the best cost of all 2 N + 2 solves as the reference, with D2C's gap to 
 contact tasks the oracle from one start stalls and is no ceiling. The table says whether
 the reference passes the goal test, and gives D2C's best of its own N + 1 starts with its
 goal verdict. ``--max-iter N`` sets ``solver.max_iter`` of every solve (default: the
-solver's 100), for tasks whose solves end at that budget.
+solver's 100), for tasks whose solves end at that budget; ``--stall-restarts N`` sets D2C's
+``solver.stall_restarts`` (the starts spread around a stalled solve's start, the cheapest
+kept; default: 4 on a user's model, ``model_defaults.default_stall_restarts``). The D2C
+cell names a kept restart and the first solve's end.
 """
 
 from __future__ import annotations
@@ -211,9 +214,10 @@ def task_config(
     backend: str = "native",
     sigma: float | None = None,
     max_iter: int | None = None,
+    stall_restarts: int | None = None,
 ):
     """The Config of ``TASKS[name]`` on ``backend``, or None if its model cannot be downloaded
-    (``max_iter``: solver.max_iter, None: the default)."""
+    (``max_iter``, ``stall_restarts``: the solver's fields, None: the default)."""
     from mjx_surrogate.runs.config import (
         Config,
         ExperimentConfig,
@@ -232,7 +236,7 @@ def task_config(
     if goal is not None:
         kind, obj, key, shift, *extra = goal
         goals = (PointGoal(name=obj, kind=kind, target=_site(path, obj, key, shift), **(extra or [{}])[0]),)
-    budget = {} if max_iter is None else {"max_iter": max_iter}
+    budget = {k: v for k, v in (("max_iter", max_iter), ("stall_restarts", stall_restarts)) if v is not None}
     return Config(
         system=SystemConfig(name="mjcf", mjcf_path=path, backend=backend, **system),
         task=TaskConfig(goals=goals, **task),
@@ -295,6 +299,7 @@ def run_task(
     sigma: float | None = None,
     reference_starts: int = 0,
     max_iter: int | None = None,
+    stall_restarts: int | None = None,
 ) -> dict | None:
     import jax
     import jax.numpy as jnp
@@ -305,7 +310,7 @@ def run_task(
     from mjx_surrogate.runs import pipeline
     from mjx_surrogate.runs.resolution import resolve, solver_params
 
-    cfg = task_config(name, significance, backend, sigma, max_iter)
+    cfg = task_config(name, significance, backend, sigma, max_iter, stall_restarts)
     if cfg is None:
         return None
     t0 = time.perf_counter()
@@ -331,6 +336,7 @@ def run_task(
         "T": task.T,
         "d2c": {k: m_d[k] for k in ("status", "cost", "iterations", "controls_within_limits")},
         "oracle": {k: m_o[k] for k in ("status", "cost", "iterations", "controls_within_limits")},
+        "d2c_restart": d2c.restart,  # what the restarts after a stationary or stalled end did
         "d2c_goal": m_d["goal"]["reached"],
         "oracle_goal": m_o["goal"]["reached"],
         "gap": (m_d["cost"] - m_o["cost"]) / abs(m_o["cost"]) if m_o["cost"] else None,
@@ -379,6 +385,14 @@ def table(rows: list[dict]) -> str:
             if own:
                 mine = f"{own['cost']:.5g} ({own['from'].split(', ')[1]}; {_yes(own['goal_reached'])})"
             ref = f" {best} | {'n/a' if g is None else f'{100 * g:+.2f} %'} | {mine} |"
+        rs = r.get("d2c_restart")
+        if rs and rs["kept"].startswith("restart"):  # the first solve's end and verdict, then the kept
+            first = "stalled" if rs["why"].endswith("stalled") else "stationary"
+            d = {
+                **d,
+                "status": f"{d['status']}; {rs['kept']} of {rs['n_starts']}, first {first} at "
+                f"{rs['first_cost']:.5g}",
+            }
         out.append(
             f"| {r['task']} | {r['nx']}, {r['nu']} | {d['cost']:.5g} ({d['status']}, {d['iterations']}) "
             f"| {o['cost']:.5g} ({o['status']}, {o['iterations']}) | {gap} "
@@ -414,19 +428,29 @@ def main() -> None:
     ap.add_argument(
         "--max-iter", type=int, default=None, help="solver.max_iter of every solve (default: the solver's)"
     )
+    ap.add_argument(
+        "--stall-restarts",
+        type=int,
+        default=None,
+        help="solver.stall_restarts of D2C (default: the model's, 4 on a user's model)",
+    )
     ap.add_argument("--out", default=None, help="also write the rows as JSON here")
     a = ap.parse_args()
     if a.reference_starts < 0:
         ap.error(f"--reference-starts: a number of starts >= 0, got {a.reference_starts}")
     if a.max_iter is not None and a.max_iter < 1:
         ap.error(f"--max-iter: a number of iterations >= 1, got {a.max_iter}")
+    if a.stall_restarts is not None and a.stall_restarts < 0:
+        ap.error(f"--stall-restarts: a number of starts >= 0, got {a.stall_restarts}")
     from mjx_surrogate.runtime import configure_runtime
 
     configure_runtime(x64=True)
     names = [n for n in TASKS if a.tasks is None or any(s in n for s in a.tasks)]
     rows = []
     for name in names:
-        row = run_task(name, a.significance, a.backend, a.sigma, a.reference_starts, a.max_iter)
+        row = run_task(
+            name, a.significance, a.backend, a.sigma, a.reference_starts, a.max_iter, a.stall_restarts
+        )
         if row is None:
             print(f"{name}: model not reachable, skipped", file=sys.stderr)
             continue

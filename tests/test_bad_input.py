@@ -27,6 +27,7 @@ CASES = [
     (["smoke_d2c", "--solver.reuse_tol", "-0.1"], "solver.reuse_tol"),
     (["smoke_d2c", "--solver.reuse_max", "-1"], "solver.reuse_max"),
     (["smoke_d2c", "--solver.stationary_restarts", "-1"], "solver.stationary_restarts"),
+    (["smoke_d2c", "--solver.stall_restarts", "-1"], "solver.stall_restarts"),
     (["smoke_d2c", "--solver.sampling_search", "-1"], "solver.sampling_search"),
     (["smoke_d2c", "--solver.mu_raise_alpha", "-0.5"], "solver.mu_raise_alpha"),
     (["smoke_d2c", "--sysid.significance", "-1"], "sysid.significance"),

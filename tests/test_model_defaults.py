@@ -98,6 +98,18 @@ def _hold_cfg(path, **solver) -> Config:
     )
 
 
+def test_stall_restarts_default_to_four_on_a_users_model_and_off_on_the_papers_systems(tmp_path):
+    """A user's MJCF model gets 4 restarts after a stalled solve, a registered system none
+    (the paper's single start); a value in the config is kept as given."""
+    path = str(tmp_path / "arm.xml")
+    open(path, "w").write(ARM.format(actuators=SERVOS))
+    assert resolve(_hold_cfg(path))[0].solver.stall_restarts == model_defaults.USER_STALL_RESTARTS == 4
+    assert resolve(_hold_cfg(path, stall_restarts=0))[0].solver.stall_restarts == 0
+    registered = Config(system=SystemConfig(name="pendulum"), experiment=ExperimentConfig(progress=False))
+    assert resolve(registered)[0].solver.stall_restarts == 0
+    assert model_defaults.default_stall_restarts("python") == 4
+
+
 @pytest.mark.slow
 def test_the_hold_task_starts_at_rest_and_multi_starts_are_distinct(tmp_path):
     path = str(tmp_path / "arm.xml")

@@ -193,6 +193,54 @@ def test_a_stationary_solve_is_restarted_from_spread_starts_with_their_budget_co
     )
 
 
+@pytest.mark.slow
+def test_a_stalled_solve_is_restarted_around_its_start_and_a_better_end_is_kept(monkeypatch):
+    """A solve that ended stalled is solved again from starts spread around its start at a
+    quarter of each actuator's half range, the cheapest kept where it costs less, every
+    restart's black-box steps counted; no restart after any other verdict, with n = 0, or
+    where no restart does better; :func:`pipeline.past_a_stall` runs it after a stall."""
+    from mjx_surrogate.control.ilqr import StopReason
+    from mjx_surrogate.runs import restart
+
+    system, task, calls, params, sid, U0, first = _stationary_first_solve()
+    # the hidden lever's stationary end, read as a stall (a contact model's is costly to make)
+    stalled = first._replace(out=first.out._replace(stop_reason=jnp.asarray(int(StopReason.NO_DESCENT))))
+    drawn = {}
+    spread = restart.spread_starts
+
+    def spy(task_, U0_, key, n, scale=1.0):
+        drawn["starts"], drawn["scale"] = spread(task_, U0_, key, n, scale), scale
+        return drawn["starts"]
+
+    monkeypatch.setattr(restart, "spread_starts", spy)
+    kept, U0_kept, info = restart.restart_stalled(
+        system, task, stalled, U0, jax.random.key(1), params, sid, 4
+    )
+    assert drawn["scale"] == restart.STALL_SPREAD == 0.25
+    assert 0.2 < float(np.std(np.asarray(drawn["starts"]))) < 0.8  # 0.25 x half range 2, clipped
+    assert info["why"] == "the first solve stalled" and info["first_cost"] == float(first.out.cost)
+    assert info["simulated_steps"] == calls["n"] > 0  # every restart's black-box steps, counted
+    assert info["kept"].startswith("restart") and float(kept.out.cost) == min(info["costs"])
+    assert float(kept.out.cost) < 0.01 * float(first.out.cost)  # 50 -> reached: a restart moved it
+    np.testing.assert_array_equal(U0_kept, drawn["starts"][int(info["kept"].split()[1])])
+    calls["n"] = 0
+    for solve, n in ((stalled, 0), (first, 4), (kept, 4)):  # off; stationary; converged
+        same = restart.restart_stalled(system, task, solve, U0, jax.random.key(1), params, sid, n)
+        assert same[0] is solve and same[2] is None
+    assert calls["n"] == 0  # nothing simulated where it is not needed
+    # no restart cheaper than the stall: the stall kept, the restarts' record says so
+    cheap = stalled._replace(out=stalled.out._replace(cost=jnp.asarray(-1.0)))
+    same, U0_same, info = restart.restart_stalled(system, task, cheap, U0, jax.random.key(1), params, sid, 2)
+    assert (
+        same is not cheap and same.out is cheap.out and U0_same is U0 and info["kept"].startswith("the first")
+    )
+    # the pipeline's step after a stall: run with stall_restarts, not with 0
+    args = (system, task, stalled, U0, jax.random.key(0), params, sid, 0, 0, 0.01)
+    assert pipeline.past_a_stall(*args, stall_restarts=0)[2] is None
+    after = pipeline.past_a_stall(*args, stall_restarts=2)[2]
+    assert after is not None and after["why"] == "the first solve stalled" and after["n_starts"] == 2
+
+
 def test_a_converged_solve_that_misses_its_goal_says_the_cost_stops_short():
     """The hint names the goal cost's share of the start's against the test's; a solve that
     reached its goal gets no hint, one that ran out of iterations the hint to give it room."""

@@ -128,6 +128,17 @@ def default_init(system_name: str) -> str:
     return {"mjcf": "hold", "python": "u_ref"}.get(system_name, "zeros")
 
 
+USER_STALL_RESTARTS = 4  # spread restarts after a stalled solve on a user's black box
+
+
+def default_stall_restarts(system_name: str) -> int:
+    """solver.stall_restarts when unset: 4 for a user's model or function (a stalled solve
+    on a contact model is often a poorer local minimum than a nearby start reaches:
+    :func:`mjx_surrogate.runs.restart.restart_stalled`), 0 for registered ones (the paper's
+    single start)."""
+    return USER_STALL_RESTARTS if system_name in USER_SYSTEMS else 0
+
+
 def _data_at(m: mujoco.MjModel, x: np.ndarray) -> mujoco.MjData:
     d = mujoco.MjData(m)
     d.qpos[:], d.qvel[:] = x[: m.nq], x[m.nq : m.nq + m.nv]

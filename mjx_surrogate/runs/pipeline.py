@@ -31,7 +31,7 @@ from mjx_surrogate.runs import sampling_search as search_lib
 from mjx_surrogate.runs.model_defaults import hold_controls
 from mjx_surrogate.runs.receding_pass import receding_pass
 from mjx_surrogate.runs.resolution import solver_params
-from mjx_surrogate.runs.restart import restart_stationary, spread_starts
+from mjx_surrogate.runs.restart import restart_stalled, restart_stationary, spread_starts
 from mjx_surrogate.systems.black_box import BlackBox
 from mjx_surrogate.systems.system_jit import system_jit
 from mjx_surrogate.tasks import (
@@ -93,7 +93,7 @@ class ConfigSolve(NamedTuple):
     timed: "chunked.Timed"  # .out: ILQRResult (the best start's with several), compile_s, run_s
     U0: jax.Array  # [T, nu] the start of the returned solve
     costs: jax.Array | None  # [n_starts] every start's final cost, or None for one start
-    restart: dict | None = None  # what the restart of a stationary solve did (mjx_surrogate.runs.restart)
+    restart: dict | None = None  # what the restarts of a stationary or stalled solve did (runs.restart)
     search: dict | None = None  # what the sampling search did (mjx_surrogate.runs.sampling_search)
     receding: dict | None = None  # what the receding-horizon pass did (mjx_surrogate.runs.receding_pass)
     statuses: tuple[str, ...] | None = None  # [n_starts] every start's own verdict, or None for one start
@@ -111,7 +111,18 @@ def solve_config(res, progress: ProgressMeter = NO_PROGRESS) -> ConfigSolve:
     U0 = start_controls(system, task, sc.init, sc.init_scale, k_init, n)
     rounds, restarts, tol = sc.sampling_search, sc.stationary_restarts, cfg.task.goal_tolerance
     return solve_from(
-        system, task, U0, k_d2c, params, sid_params, rounds, restarts, tol, progress, sc.receding_pass
+        system,
+        task,
+        U0,
+        k_d2c,
+        params,
+        sid_params,
+        rounds,
+        restarts,
+        tol,
+        progress,
+        sc.receding_pass,
+        sc.stall_restarts or 0,
     )
 
 
@@ -127,21 +138,34 @@ def solve_from(
     goal_tolerance: float,
     progress: ProgressMeter = NO_PROGRESS,
     receding: int = 0,
+    stall_restarts: int = 0,
 ) -> ConfigSolve:
     """D2C from U0 [T, nu], or from each of U0 [n, T, nu] with the cheapest end kept, then
     :func:`past_a_stall` on the kept solve: the sampling search where it ended stationary or
-    stalled short of its goal; the spread restarts (``restarts``) only after a single start
-    (several starts were already the user's spread); then, with ``receding`` = H > 0, the
-    receding-horizon pass over H steps (:mod:`~mjx_surrogate.runs.receding_pass`)."""
+    stalled short of its goal; the spread restarts (``restarts`` after a stationary end,
+    ``stall_restarts`` after a stalled one) only after a single start (several starts were
+    already the user's spread); then, with ``receding`` = H > 0, the receding-horizon pass
+    over H steps (:mod:`~mjx_surrogate.runs.receding_pass`)."""
     timed = chunked.solve(system, task, U0, key, params, sysid, "d2c", progress)
     costs = statuses = None
     if U0.ndim == 3:
         out = timed.out
         costs, timed, U0 = out.costs, timed._replace(out=out.best), U0[int(out.best_index)]
         statuses = tuple(StopReason(int(r)).verdict for r in np.asarray(out.stop_reasons))
-        restarts = 0
+        restarts = stall_restarts = 0
     timed, U0, info, search = past_a_stall(
-        system, task, timed, U0, key, params, sysid, rounds, restarts, goal_tolerance, progress
+        system,
+        task,
+        timed,
+        U0,
+        key,
+        params,
+        sysid,
+        rounds,
+        restarts,
+        goal_tolerance,
+        progress,
+        stall_restarts,
     )
     timed, U0, passed = receding_pass(system, task, timed, U0, key, params, sysid, receding, progress)
     return ConfigSolve(timed, U0, costs, info, search, passed, statuses)
@@ -159,11 +183,13 @@ def past_a_stall(
     restarts: int,
     goal_tolerance: float,
     progress: ProgressMeter = NO_PROGRESS,
+    stall_restarts: int = 0,
 ):
     """After a D2C solve from U0 (keys from ``key``, the solve's): the sampling search where
     it ended stationary or stalled short of its goal (judged by the goal test on the black
     box; :func:`~mjx_surrogate.runs.sampling_search.search_then_refine`), then, where
-    the kept solve is still stationary, ``restarts`` spread starts (:mod:`.restart`).
+    the kept solve is still stationary, ``restarts`` spread starts, where it is stalled,
+    ``stall_restarts`` starts spread around its start (:mod:`.restart`).
     Returns (the solve to keep, its start, the restarts' record, the search's record)."""
     search = None
     if rounds and StopReason(int(timed.out.stop_reason)).verdict in search_lib.NEEDED:
@@ -177,6 +203,11 @@ def past_a_stall(
     timed, U0, info = restart_stationary(
         system, task, timed, U0, k_restart, params, sysid, restarts, progress
     )
+    if info is None:
+        k_stall = jax.random.fold_in(key, 3)
+        timed, U0, info = restart_stalled(
+            system, task, timed, U0, k_stall, params, sysid, stall_restarts, progress
+        )
     return timed, U0, info, search
 
 
@@ -420,7 +451,7 @@ class Optimum(NamedTuple):
     result: ILQRResult
     X: jax.Array  # [T+1, nx] the optimum's controls replayed on the black box
     metrics: dict
-    U0: jax.Array  # [T, nu] the start of the kept solve (a restart's, after a stationary one)
+    U0: jax.Array  # [T, nu] the start of the kept solve (a restart's, after a stationary or stalled one)
 
 
 def d2c_optimum(
@@ -436,16 +467,29 @@ def d2c_optimum(
     restarts: int = 0,
     search_rounds: int = 0,
     receding: int = 0,
+    stall_restarts: int = 0,
 ) -> Optimum:
     """Solve by D2C from U0 [T, nu], or from each of U0 [n, T, nu] keeping the cheapest
-    (:func:`solve_from`: the sampling search and ``restarts`` spread starts past a
-    stationary or stalled end), and summarise on the black box (``names``: :func:`summary`;
-    with several starts ``multistart_costs`` and ``multistart_statuses``, every start's own
-    final cost and verdict, before any search past a stall); driven from the host
+    (:func:`solve_from`: the sampling search, ``restarts`` spread starts past a
+    stationary end and ``stall_restarts`` past a stalled one), and summarise on the black
+    box (``names``: :func:`summary`; with several starts ``multistart_costs`` and
+    ``multistart_statuses``, every start's own final cost and verdict, before any search
+    past a stall); driven from the host
     (:mod:`mjx_surrogate.control.chunked`: cacheable programs). ``Optimum.U0``: the kept
     solve's start."""
     solved = solve_from(
-        system, task, U0, key, params, sysid, search_rounds, restarts, goal_tolerance, progress, receding
+        system,
+        task,
+        U0,
+        key,
+        params,
+        sysid,
+        search_rounds,
+        restarts,
+        goal_tolerance,
+        progress,
+        receding,
+        stall_restarts,
     )
     metrics, X = summary(
         solved.timed.out, system, task, goal_tolerance, names, solved.restart, solved.search, solved.receding
@@ -491,6 +535,7 @@ def optimum_stage(res, key: jax.Array):
                 sc.stationary_restarts,
                 sc.sampling_search,
                 sc.receding_pass,
+                sc.stall_restarts or 0,
             )
         m = {**opt.metrics, "wall_s": time.perf_counter() - t0}
         m |= simulation_metrics(opt.result, task.T, sc.n_alphas, sid)

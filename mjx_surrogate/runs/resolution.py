@@ -40,6 +40,7 @@ from mjx_surrogate.runs.model_defaults import (
     default_perturb_x0,
     default_sigma,
     default_significance,
+    default_stall_restarts,
     default_x64,
     friction_sigma,
 )
@@ -325,7 +326,9 @@ def resolve(cfg: Config, local: bool = False) -> Resolved:
         hold_limits=hold_limits,
         significance=significance,
     )
-    solver = dataclasses.replace(cfg.solver, init=init)
+    stall = cfg.solver.stall_restarts
+    stall = default_stall_restarts(cfg.system.name) if stall is None else stall
+    solver = dataclasses.replace(cfg.solver, init=init, stall_restarts=stall)
     resolved = dataclasses.replace(
         cfg, system=sc, task=tc, experiment=ex, solver=solver, sysid=sysid, mpc=mpc
     )

@@ -1,12 +1,23 @@
-"""Restarts of a stationary solve: distinct starts spread over the actuators' range.
+"""Restarts of a solve that stopped where its local models see no way down: distinct
+starts around it, the best kept.
 
 A solve that ends ``stationary`` stopped at its start: every local model there says the
 controls do not change the cost (dm_control's finger, away from the spinner it should
 turn, touches nothing the cost weighs). Local models cannot see past that, but other
 starts can: the same solve from ``n`` starts, each the stationary start plus
 N(0, half range^2) per control (clipped to the limits; half range 1 where a control is
-unlimited), keeps the best; the first solve is kept where no restart does better.
-Every restart's black-box control steps are counted (as the batch runs them:
+unlimited), keeps the best.
+
+A solve that ends ``stalled`` found no step its local models promise and the black box
+grants: on a contact model the contacts switch along the nominal and the models fitted
+across them stop agreeing with the simulator. Its end is often a poorer local minimum
+than a nearby start reaches (the dm_control humanoid holding its pose: 3.47 from the hold
+start, 1.38 from starts a quarter of the actuators' half range away; docs/performance.md).
+:func:`restart_stalled` solves again from ``n`` starts spread that far around the stalled
+solve's start.
+
+Either way the first solve is kept where no restart does better, and every restart's
+black-box control steps are counted (as the batch runs them:
 :func:`mjx_surrogate.control.effort.multistart_steps`).
 """
 
@@ -36,6 +47,9 @@ def spread_starts(task: Task, U0: jax.Array, key: jax.Array, n: int, scale: floa
     return jnp.clip(U0[None] + noise, jnp.asarray(lo, U0.dtype), jnp.asarray(hi, U0.dtype))
 
 
+STALL_SPREAD = 0.25  # of each actuator's half range, around a stalled solve's start
+
+
 def restart_stationary(
     system: BlackBox,
     task: Task,
@@ -50,11 +64,77 @@ def restart_stationary(
     """(the solve to keep, its start, what the restart did or None): unchanged unless the
     D2C solve ``timed.out`` from U0 ended stationary and ``n`` > 0; then the best of ``n``
     restarts (:func:`spread_starts`, keys from ``key``) where it costs less."""
-    first = timed.out
-    if n == 0 or StopReason(int(first.stop_reason)) != StopReason.STATIONARY:
+    if n == 0 or StopReason(int(timed.out.stop_reason)) != StopReason.STATIONARY:
         return timed, U0, None
+    spread = "the stationary start + N(0, half range^2) per control, clipped"
+    return _best_restart(
+        system,
+        task,
+        timed,
+        U0,
+        key,
+        params,
+        sysid,
+        n,
+        1.0,
+        "the first solve was stationary",
+        spread,
+        progress,
+    )
+
+
+def restart_stalled(
+    system: BlackBox,
+    task: Task,
+    timed: Timed,
+    U0: jax.Array,
+    key: jax.Array,
+    params: ILQRParams,
+    sysid: sid.SysIdParams,
+    n: int,
+    progress: ProgressMeter = NO_PROGRESS,
+) -> tuple[Timed, jax.Array, dict | None]:
+    """(the solve to keep, its start, what the restart did or None): unchanged unless the
+    D2C solve ``timed.out`` from U0 ended stalled and ``n`` > 0; then the best of ``n``
+    restarts around U0 (:func:`spread_starts` at :data:`STALL_SPREAD`) where it costs less."""
+    if n == 0 or StopReason(int(timed.out.stop_reason)).verdict != "stalled":
+        return timed, U0, None
+    spread = f"the stalled solve's start + N(0, ({STALL_SPREAD:g} half range)^2) per control, clipped"
+    return _best_restart(
+        system,
+        task,
+        timed,
+        U0,
+        key,
+        params,
+        sysid,
+        n,
+        STALL_SPREAD,
+        "the first solve stalled",
+        spread,
+        progress,
+    )
+
+
+def _best_restart(
+    system: BlackBox,
+    task: Task,
+    timed: Timed,
+    U0: jax.Array,
+    key: jax.Array,
+    params: ILQRParams,
+    sysid: sid.SysIdParams,
+    n: int,
+    scale: float,
+    why: str,
+    spread: str,
+    progress: ProgressMeter,
+) -> tuple[Timed, jax.Array, dict]:
+    """D2C from ``n`` starts spread around U0 at ``scale``, the cheapest kept where it costs
+    less than ``timed.out``; the record says why, how the starts were drawn and what each did."""
+    first = timed.out
     k_starts, k_solve = jax.random.split(key)
-    U0s = spread_starts(task, U0, k_starts, n)
+    U0s = spread_starts(task, U0, k_starts, n, scale)
     multi = chunked.solve(system, task, U0s, k_solve, params, sysid, "d2c", progress)
     ms = multi.out
     per_id = steps_per_identification(sysid, task.T, system.nu)
@@ -62,9 +142,10 @@ def restart_stationary(
     better = bool(np.isfinite(best) and best < float(first.cost))
     statuses = [StopReason(int(r)).verdict for r in np.asarray(ms.stop_reasons)]
     info = {
-        "why": "the first solve was stationary",
+        "why": why,
         "n_starts": n,
-        "start_spread": "the stationary start + N(0, half range^2) per control, clipped",
+        "start_spread": spread,
+        "first_cost": float(first.cost),
         "costs": [float(c) for c in np.asarray(ms.costs)],
         "statuses": statuses,
         "simulated_steps": multistart_steps(

@@ -62,6 +62,10 @@ class SolverConfig:
     # ... and where a single start's is still stationary, solved again from this many starts
     # spread over the actuators' range (mjx_surrogate.runs.restart); 0: off
     stationary_restarts: int = 8
+    # ... and where a single start's ends stalled, solved again from this many starts spread
+    # around its start at a quarter of each actuator's half range, the cheapest kept
+    # (runs.restart.restart_stalled); None: model_defaults.default_stall_restarts; 0: off
+    stall_restarts: Optional[int] = None
     # then, with H > 0, a receding-horizon pass: D2C-MPC over H steps on the model from the
     # kept solve, D2C again from its closed loop, the cheaper kept (runs.receding_pass); 0: off
     receding_pass: int = 0
@@ -77,6 +81,7 @@ class SolverConfig:
             {
                 "solver.reuse_max": self.reuse_max,
                 "solver.stationary_restarts": self.stationary_restarts,
+                **({} if self.stall_restarts is None else {"solver.stall_restarts": self.stall_restarts}),
                 "solver.sampling_search": self.sampling_search,
                 "solver.receding_pass": self.receding_pass,
             },
