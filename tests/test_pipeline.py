@@ -241,6 +241,23 @@ def test_a_stalled_solve_is_restarted_around_its_start_and_a_better_end_is_kept(
     assert after is not None and after["why"] == "the first solve stalled" and after["n_starts"] == 2
 
 
+@pytest.mark.slow
+def test_restarts_on_a_host_black_box_are_the_single_starts_solves_and_match_the_batch():
+    """On a black box stepped on the host the restarts run one after another as single-start
+    solves (the first solve's programs); they end where the multi-start program ends."""
+    from mjx_surrogate.control import chunked
+    from mjx_surrogate.runs import restart
+
+    system, task, calls, params, sid, U0, first = _stationary_first_solve()
+    U0s = restart.spread_starts(task, U0, jax.random.key(3), 3)
+    looped = restart.restart_solves(system, task, U0s, jax.random.key(4), params, sid)
+    batch = chunked.solve(system, task, U0s, jax.random.key(4), params, sid)
+    np.testing.assert_allclose(np.asarray(looped.out.costs), np.asarray(batch.out.costs), rtol=1e-6)
+    np.testing.assert_array_equal(np.asarray(looped.out.iterations), np.asarray(batch.out.iterations))
+    assert int(looped.out.best_index) == int(batch.out.best_index)
+    assert looped.compile_s < batch.compile_s  # no new program: the single start's was compiled
+
+
 def test_a_converged_solve_that_misses_its_goal_says_the_cost_stops_short():
     """The hint names the goal cost's share of the start's against the test's; a solve that
     reached its goal gets no hint, one that ran out of iterations the hint to give it room."""
