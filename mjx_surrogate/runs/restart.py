@@ -129,8 +129,9 @@ def restart_solves(
     them): :class:`~mjx_surrogate.control.d2c.MultiStart` timed. A traced black box runs them
     as one batch; one stepped on the host runs them one after another anyway
     (:func:`~mjx_surrogate.control.d2c.in_lockstep`), so there each is the single start's
-    solve, whose programs the first solve compiled (dm_control's humanoid: 30.0 s for four
-    against 2.6 s compile + 33.3 s run as one multi-start program). A stop request ends
+    solve, whose programs the first solve compiled (dm_control's humanoid at XLA's
+    optimisation level 0: 30.0 s for four against 2.6 s compile + 33.3 s run as one
+    multi-start program). A stop request ends
     the loop; the restarts finished by then are judged."""
     if in_lockstep(system):
         return chunked.solve(system, task, U0s, key, params, sysid, "d2c", progress)
