@@ -23,6 +23,9 @@ black-box control steps are counted (as the batch runs them:
 
 from __future__ import annotations
 
+import functools
+from typing import NamedTuple
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -50,7 +53,32 @@ def spread_starts(task: Task, U0: jax.Array, key: jax.Array, n: int, scale: floa
 STALL_SPREAD = 0.25  # of each actuator's half range, around a stalled solve's start
 
 
-def restart_stationary(
+class RestartKind(NamedTuple):
+    """Which first solve is restarted (its ``verdict``), how far the starts spread around its
+    start (``scale`` x half range), and what the record says (``why``, ``spread``)."""
+
+    verdict: str
+    scale: float
+    why: str
+    spread: str
+
+
+STATIONARY = RestartKind(
+    "stationary",
+    1.0,
+    "the first solve was stationary",
+    "the stationary start + N(0, half range^2) per control, clipped",
+)
+STALLED = RestartKind(
+    "stalled",
+    STALL_SPREAD,
+    "the first solve stalled",
+    f"the stalled solve's start + N(0, ({STALL_SPREAD:g} half range)^2) per control, clipped",
+)
+
+
+def restart_after(
+    kind: RestartKind,
     system: BlackBox,
     task: Task,
     timed: Timed,
@@ -62,58 +90,44 @@ def restart_stationary(
     progress: ProgressMeter = NO_PROGRESS,
 ) -> tuple[Timed, jax.Array, dict | None]:
     """(the solve to keep, its start, what the restart did or None): unchanged unless the
-    D2C solve ``timed.out`` from U0 ended stationary and ``n`` > 0; then the best of ``n``
-    restarts (:func:`spread_starts`, keys from ``key``) where it costs less."""
-    if n == 0 or StopReason(int(timed.out.stop_reason)) != StopReason.STATIONARY:
+    D2C solve ``timed.out`` from U0 ended with ``kind.verdict`` and ``n`` > 0; then the best
+    of ``n`` restarts around U0 (:func:`spread_starts` at ``kind.scale``, keys from ``key``)
+    where it costs less than the first."""
+    if n == 0 or StopReason(int(timed.out.stop_reason)).verdict != kind.verdict:
         return timed, U0, None
-    spread = "the stationary start + N(0, half range^2) per control, clipped"
-    return _best_restart(
-        system,
-        task,
-        timed,
-        U0,
-        key,
-        params,
-        sysid,
-        n,
-        1.0,
-        "the first solve was stationary",
-        spread,
-        progress,
-    )
+    first = timed.out
+    k_starts, k_solve = jax.random.split(key)
+    U0s = spread_starts(task, U0, k_starts, n, kind.scale)
+    multi = restart_solves(system, task, U0s, k_solve, params, sysid, progress)
+    ms = multi.out
+    per_id = steps_per_identification(sysid, task.T, system.nu)
+    i, best = int(ms.best_index), float(ms.costs[int(ms.best_index)])
+    better = bool(np.isfinite(best) and best < float(first.cost))
+    statuses = [StopReason(int(r)).verdict for r in np.asarray(ms.stop_reasons)]
+    info = {
+        "why": kind.why,
+        "n_starts": int(np.asarray(ms.costs).shape[0]),
+        "start_spread": kind.spread,
+        "first_cost": float(first.cost),
+        "costs": [float(c) for c in np.asarray(ms.costs)],
+        "statuses": statuses,
+        "simulated_steps": multistart_steps(
+            np.asarray(ms.iterations),
+            np.asarray(ms.identified),
+            task.T,
+            params.n_alphas,
+            per_id,
+            sid.fine_params(sysid) is not None,
+            in_lockstep(system),
+        ),
+        "kept": f"restart {i}" if better else "the first solve (no restart cost less)",
+    }
+    total = Timed(ms.best if better else first, timed.compile_s + multi.compile_s, timed.run_s + multi.run_s)
+    return total, (U0s[i] if better else U0), info
 
 
-def restart_stalled(
-    system: BlackBox,
-    task: Task,
-    timed: Timed,
-    U0: jax.Array,
-    key: jax.Array,
-    params: ILQRParams,
-    sysid: sid.SysIdParams,
-    n: int,
-    progress: ProgressMeter = NO_PROGRESS,
-) -> tuple[Timed, jax.Array, dict | None]:
-    """(the solve to keep, its start, what the restart did or None): unchanged unless the
-    D2C solve ``timed.out`` from U0 ended stalled and ``n`` > 0; then the best of ``n``
-    restarts around U0 (:func:`spread_starts` at :data:`STALL_SPREAD`) where it costs less."""
-    if n == 0 or StopReason(int(timed.out.stop_reason)).verdict != "stalled":
-        return timed, U0, None
-    spread = f"the stalled solve's start + N(0, ({STALL_SPREAD:g} half range)^2) per control, clipped"
-    return _best_restart(
-        system,
-        task,
-        timed,
-        U0,
-        key,
-        params,
-        sysid,
-        n,
-        STALL_SPREAD,
-        "the first solve stalled",
-        spread,
-        progress,
-    )
+restart_stationary = functools.partial(restart_after, STATIONARY)
+restart_stalled = functools.partial(restart_after, STALLED)
 
 
 def restart_solves(
@@ -143,50 +157,3 @@ def restart_solves(
     stacked = jax.tree.map(lambda *a: jnp.stack(a), *[r.out for r in runs])
     compile_s, run_s = sum(r.compile_s for r in runs), sum(r.run_s for r in runs)
     return Timed(best_of(stacked), compile_s, run_s)
-
-
-def _best_restart(
-    system: BlackBox,
-    task: Task,
-    timed: Timed,
-    U0: jax.Array,
-    key: jax.Array,
-    params: ILQRParams,
-    sysid: sid.SysIdParams,
-    n: int,
-    scale: float,
-    why: str,
-    spread: str,
-    progress: ProgressMeter,
-) -> tuple[Timed, jax.Array, dict]:
-    """D2C from ``n`` starts spread around U0 at ``scale``, the cheapest kept where it costs
-    less than ``timed.out``; the record says why, how the starts were drawn and what each did."""
-    first = timed.out
-    k_starts, k_solve = jax.random.split(key)
-    U0s = spread_starts(task, U0, k_starts, n, scale)
-    multi = restart_solves(system, task, U0s, k_solve, params, sysid, progress)
-    ms = multi.out
-    per_id = steps_per_identification(sysid, task.T, system.nu)
-    i, best = int(ms.best_index), float(ms.costs[int(ms.best_index)])
-    better = bool(np.isfinite(best) and best < float(first.cost))
-    statuses = [StopReason(int(r)).verdict for r in np.asarray(ms.stop_reasons)]
-    info = {
-        "why": why,
-        "n_starts": int(np.asarray(ms.costs).shape[0]),
-        "start_spread": spread,
-        "first_cost": float(first.cost),
-        "costs": [float(c) for c in np.asarray(ms.costs)],
-        "statuses": statuses,
-        "simulated_steps": multistart_steps(
-            np.asarray(ms.iterations),
-            np.asarray(ms.identified),
-            task.T,
-            params.n_alphas,
-            per_id,
-            sid.fine_params(sysid) is not None,
-            in_lockstep(system),
-        ),
-        "kept": f"restart {i}" if better else "the first solve (no restart cost less)",
-    }
-    total = Timed(ms.best if better else first, timed.compile_s + multi.compile_s, timed.run_s + multi.run_s)
-    return total, (U0s[i] if better else U0), info
