@@ -270,6 +270,19 @@ def test_a_converged_solve_that_misses_its_goal_says_the_cost_stops_short():
     assert "--solver.max_iter" in budget and "weigh the goal" not in budget
     reached = pipeline.status_hint("max_iter", {"goal": {**goal, "reached": True}, "iterations": 100})
     assert "--solver.max_iter" in reached and "goal is not reached" not in reached
+    # a stall says what a stall is and what to try; after restarts that did not help, so
+    stalled = pipeline.status_hint("stalled", {"goal": goal})
+    assert "--solver.stall_restarts 8" in stalled and "restarts around its start" not in stalled
+    after = {
+        "why": "the first solve stalled",
+        "n_starts": 4,
+        "kept": "the first solve (no restart cost less)",
+    }
+    assert "4 restarts around its start found no lower cost" in pipeline.status_hint(
+        "stalled", {"goal": goal, "restart": after}
+    )
+    kept = pipeline.status_hint("stalled", {"goal": goal, "restart": {**after, "kept": "restart 2"}})
+    assert "the kept solve is restart 2 of 4" in kept and "no lower cost" not in kept
 
 
 @pytest.mark.slow  # over 5 s: the fast tier's budget

@@ -429,6 +429,22 @@ def status_hint(status: str, metrics: dict) -> str | None:
             "the controls and cost of that last finite iterate are kept"
         )
     goal = metrics.get("goal") or {}
+    if status == "stalled":
+        restart = metrics.get("restart") or {}
+        tried = ""
+        if restart.get("why") == "the first solve stalled":
+            n, kept = restart["n_starts"], restart["kept"]
+            tried = (
+                f"{n} restarts around its start found no lower cost; "
+                if kept.startswith("the first")
+                else f"the kept solve is {kept} of {n} around its start, itself stalled; "
+            )
+        return (
+            "no step the local models promised was granted by the black box (on a contact model: "
+            f"contacts switching along the nominal; the oracle, experiment.exact_oracle, tells); {tried}"
+            "try more starts (--solver.stall_restarts 8, or --solver.n_starts 8 --solver.init_scale 0.25) "
+            "or more identification samples (--sysid.n_samples)"
+        )
     if status == "max_iter":
         missed = " and its goal is not reached yet" if goal.get("reached") is False else ""
         return (
