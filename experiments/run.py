@@ -428,11 +428,16 @@ def _stop_now(record) -> None:
     from mjx_surrogate.progress import STOP_GRACE_S
     from mjx_surrogate.runs.results import EXIT_CODES
 
-    where = f"stage {record.current!r}" if record.current else "the run"
-    reason = (
-        f"stopped by a signal; {where} did not end within {STOP_GRACE_S:g} s and its partial work "
-        "was not kept"
-    )
+    if record.current:
+        reason = (
+            f"stopped by a signal; stage {record.current!r} did not end within {STOP_GRACE_S:g} s "
+            "and its partial work was not kept; the stages finished before are kept"
+        )
+    else:
+        reason = (
+            f"stopped by a signal; the run did not end within {STOP_GRACE_S:g} s after its last "
+            "stage; every stage it finished is kept"
+        )
     if not record.abort(reason):
         return  # the run is ending by itself
     try:

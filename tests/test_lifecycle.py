@@ -164,6 +164,8 @@ def test_resume_reuses_finished_stages_only(tmp_path):
 
 
 def test_a_stage_that_finishes_after_a_stop_request_is_done_and_the_next_never_starts(tmp_path):
+    """Nor is its figure drawn: drawing one (the humanoid's trajectories) polls for no stop
+    and outlasted the watchdog's grace, whose exit then misreported the kept stage."""
     from mjx_surrogate.runs.results import Interrupted
 
     record = Run(RunFolder(str(tmp_path), "s"))
@@ -172,11 +174,13 @@ def test_a_stage_that_finishes_after_a_stop_request_is_done_and_the_next_never_s
     try:
         m, _ = record.stage("long", lambda: progress.request_stop() or ({"it": 3}, {"U": np.ones(2)}))
         assert m == {"it": 3}
+        assert not record.figure("long.png", lambda: calls.append("drawn"))
         with pytest.raises(Interrupted):
             record.stage("next", lambda: calls.append(1) or ({}, {}))
     finally:
         progress.clear_stop()
     assert record.metrics["stages"]["long"]["status"] == "done" and calls == []
+    assert record.metrics["figures"]["long.png"]["status"] == "skipped"
     assert json.load(open(os.path.join(record.folder.path, "metrics.json")))["long"] == {"it": 3}
 
 
@@ -249,6 +253,26 @@ def test_a_stage_that_polls_for_no_stop_still_ends_within_5_s(tmp_path, sig, rea
     np.testing.assert_array_equal(arrays["a"], np.arange(3.0))
     assert metrics["figures"]["first.png"] == "written"
     assert_png(os.path.join(path, "first.png"))
+
+
+@pytest.mark.parametrize("current", ["slow", None], ids=["during-a-stage", "between-stages"])
+def test_the_watchdogs_exit_says_what_it_dropped_and_what_is_kept(tmp_path, monkeypatch, capsys, current):
+    """The hard exit names the stage whose work it dropped; between stages nothing is dropped
+    and it says that every finished stage is kept (not that partial work was lost)."""
+    record = Run(RunFolder(str(tmp_path), "s"))
+    record.stage("done", lambda: ({"x": 1.0}, {}))
+    record.current = current
+    exits = []
+    monkeypatch.setattr(cli.os, "_exit", exits.append)
+    cli._stop_now(record)
+    error = json.load(open(os.path.join(record.folder.path, "metrics.json")))["error"]
+    assert exits == [130] and record.metrics["stages"]["done"]["status"] == "done"
+    if current:
+        assert "stage 'slow' did not end" in error and "partial work was not kept" in error
+        assert record.metrics["stages"]["slow"]["status"] == "interrupted"
+    else:
+        assert "partial work" not in error and "every stage it finished is kept" in error
+    assert error in capsys.readouterr().out
 
 
 def test_a_stop_between_the_steps_of_a_stage_ends_it_interrupted(tmp_path):

@@ -488,7 +488,14 @@ class Run:
         return metrics, arrays
 
     def figure(self, name: str, draw: Callable[[], Any]) -> bool:
-        """Draw and write one figure; a failure to draw is recorded, never raised."""
+        """Draw and write one figure; a failure to draw is recorded, never raised. After a
+        stop request it is recorded as skipped, not drawn: drawing polls for no stop."""
+        if progress.stop_requested():
+            skipped = {"status": "skipped", "error": "the run was stopped before it was drawn"}
+            with self._lock:
+                self.metrics["figures"][name] = skipped
+                self._flush(arrays=False)
+            return False
         try:
             self.folder.write_figure(name, draw())
             entry, ok = "written", True
