@@ -5,13 +5,13 @@ import ast
 import glob
 import json
 import os
-import re
 import subprocess
 import sys
 
 import jax
 import jax.numpy as jnp
 import pytest
+from helpers import as_users_run
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -229,15 +229,6 @@ def test_default_precision_float32_run_end_to_end(tmp_path):
     flags = json.load(open(os.path.join(path, "versions.json")))["XLA_FLAGS"]
     assert "--xla_cpu_collective_call_warn_stuck_timeout_seconds=600" in flags
     assert "optimization_level" not in flags  # XLA's default code generation, not the suite's
-
-
-def as_users_run() -> dict:
-    """The environment without the suite's -O0 code generation (conftest.py)."""
-    env = dict(os.environ)
-    env["XLA_FLAGS"] = re.sub(r"--xla_backend_optimization_level=\S+", "", env.get("XLA_FLAGS", "")).strip()
-    if not env["XLA_FLAGS"]:
-        del env["XLA_FLAGS"]
-    return env
 
 
 @pytest.mark.slow
