@@ -283,6 +283,10 @@ def test_a_converged_solve_that_misses_its_goal_says_the_cost_stops_short():
     )
     kept = pipeline.status_hint("stalled", {"goal": goal, "restart": {**after, "kept": "restart 2"}})
     assert "the kept solve is restart 2 of 4" in kept and "no lower cost" not in kept
+    cut = pipeline.status_hint(
+        "stalled", {"goal": goal, "restart": {**after, "kept": "restart 0", "n_asked": 4, "n_starts": 2}}
+    )
+    assert "restart 0 of 2 (a stop request ended the other 2)" in cut
 
 
 @pytest.mark.slow  # over 5 s: the fast tier's budget

@@ -434,6 +434,8 @@ def status_hint(status: str, metrics: dict) -> str | None:
         tried = ""
         if restart.get("why") == "the first solve stalled":
             n, kept = restart["n_starts"], restart["kept"]
+            if restart.get("n_asked", n) > n:
+                n = f"{n} (a stop request ended the other {restart['n_asked'] - n})"
             tried = (
                 f"{n} restarts around its start found no lower cost; "
                 if kept.startswith("the first")

@@ -106,7 +106,8 @@ def restart_after(
     statuses = [StopReason(int(r)).verdict for r in np.asarray(ms.stop_reasons)]
     info = {
         "why": kind.why,
-        "n_starts": int(np.asarray(ms.costs).shape[0]),
+        "n_starts": int(np.asarray(ms.costs).shape[0]),  # fewer than n where a stop ended them
+        "n_asked": n,
         "start_spread": kind.spread,
         "first_cost": float(first.cost),
         "costs": [float(c) for c in np.asarray(ms.costs)],
