@@ -37,8 +37,9 @@ def main() -> None:
     from mjx_surrogate.identification import data
     from mjx_surrogate.identification.rollout import rollout
     from mjx_surrogate.runs.pipeline import initial_controls
-    from mjx_surrogate.runs.resolution import library_specs, resolve, solver_params
+    from mjx_surrogate.runs.resolution import resolve, solver_params
     from mjx_surrogate.surrogates import mlp, sindy
+    from mjx_surrogate.surrogates.registry import library_specs
 
     jax.config.update("jax_enable_x64", True)
     cfg = load_config("cartpole_predict")

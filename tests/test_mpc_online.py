@@ -99,9 +99,12 @@ def test_the_mlp_refit_loss_counts_each_episode_row_weight_times():
 
 
 @pytest.mark.slow
-def test_with_no_updates_it_is_mlp_mpc_and_with_updates_it_learns_the_plant():
-    """updates = 0 replays the plain MLP-MPC; with updates on a plant with three times the
-    control authority the refitted network plans a cheaper closed loop."""
+def test_with_no_updates_it_is_mlp_mpc_and_with_updates_the_network_moves():
+    """updates = 0 replays the plain MLP-MPC; with updates, on a plant with three times the
+    control authority, the refitted network plans another, finite closed loop. Whether a
+    cheaper one depends on the draw: over 8 keys of the offline network's training the refit
+    was cheaper in 4 (in 5 with jax.random.permutation's minibatch order), so no test claims it
+    (docs/mpc.md: refitting the MLP online does not close its gap)."""
     from mjx_surrogate.control.mpc_online import refitted_mlp_mpc
 
     off = _data(A, B, 200, 0)
@@ -114,4 +117,5 @@ def test_with_no_updates_it_is_mlp_mpc_and_with_updates_it_learns_the_plant():
     frozen = refitted_mlp_mpc(model, off, *args, spec=spec, updates=0, weight=10.0, **kw)
     np.testing.assert_allclose(np.asarray(frozen.X), np.asarray(plain.X), atol=1e-9)
     learned = refitted_mlp_mpc(model, off, *args, spec=spec, updates=50, weight=100.0, **kw)
-    assert float(learned.cost) < float(plain.cost), (float(learned.cost), float(plain.cost))
+    assert np.isfinite(float(learned.cost))
+    assert np.abs(np.asarray(learned.X) - np.asarray(plain.X)).max() > 1e-3
